@@ -1,0 +1,81 @@
+# tiago_nav: one-command set-up, demo, tests and benchmarks on Debian 12 (see README.md).
+# Every target that needs it runs `setup` first; `setup` is idempotent and quick when done.
+SHELL := /bin/bash
+.SHELLFLAGS := -eo pipefail -c
+ROOT := $(CURDIR)
+SYS_PY := /usr/bin/python3
+VENV := $(ROOT)/.venv
+WS := $(ROOT)/.ws
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+# Debian's ROS 1 packages (ros_comm 1.15) and what the package uses besides.
+APT_PACKAGES := ros-core-dev catkin python3-catkin-pkg python3-rospy python3-actionlib \
+	python3-actionlib-msgs python3-tf2-ros python3-tf2-geometry-msgs python3-tf2-msgs \
+	python3-move-base-msgs ros-move-base-msgs libmove-base-msgs-dev python3-nav-msgs \
+	python3-sensor-msgs python3-geometry-msgs python3-std-msgs python3-std-srvs \
+	python3-visualization-msgs python3-rosgraph-msgs python3-rostest python3-roslaunch \
+	python3-rosnode python3-rostopic python3-rosservice python3-rosgraph rosbash \
+	python3-numpy python3-scipy python3-yaml python3-matplotlib python3-pytest python3-venv \
+	cmake g++ catkin-lint
+# PyPI-only packages, in the virtualenv (which sees the system's packages).
+PIP_PACKAGES := pybullet==3.2.7
+# What the workspace build depends on (file(GLOB) lists are re-read when these change).
+WS_INPUTS := CMakeLists.txt package.xml setup.py $(wildcard msg/* srv/* action/* nodes/* test/*.test env-hooks/*)
+ROS_ENV := source $(WS)/devel/setup.bash
+BENCH ?= simulator
+
+.PHONY: setup apt venv ws demo test unit rostest bench lint clean
+.DEFAULT_GOAL := setup
+
+setup: apt venv ws
+
+apt:
+	@missing=$$(dpkg-query -W -f='$${Package} $${Status}\n' $(APT_PACKAGES) 2>/dev/null \
+	  | awk '$$NF == "installed" {print $$1}' | sort | comm -13 - <(tr ' ' '\n' <<< "$(APT_PACKAGES)" | sed '/^$$/d' | sort)); \
+	if [ -n "$$missing" ]; then \
+	  echo "[setup] apt-get install:" $$missing; \
+	  $(SUDO) apt-get update -qq; \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $$missing >/dev/null; \
+	fi
+
+venv: $(VENV)/.done
+$(VENV)/.done: Makefile
+	@[ -x $(VENV)/bin/python ] || { echo "[setup] virtualenv $(VENV)"; $(SYS_PY) -m venv --system-site-packages $(VENV); }
+	@echo "[setup] pip install $(PIP_PACKAGES)"
+	@$(VENV)/bin/python -m pip install -q --disable-pip-version-check $(PIP_PACKAGES)
+	@touch $@
+
+# .ws/src/tiago_nav is a folder of links to the repository's entries (not one link to the
+# repository, whose .ws/ inside would make a loop that rosrun's `find -L` walks into).
+ws: $(WS)/.done
+$(WS)/.done: $(WS_INPUTS) $(VENV)/.done
+	@mkdir -p $(WS)/src/tiago_nav
+	@find $(WS)/src/tiago_nav -maxdepth 1 -type l -delete
+	@for f in $(ROOT)/* $(ROOT)/.ci; do \
+	  case "$$(basename $$f)" in .ws|.venv|.git) ;; *) ln -sfn "$$f" $(WS)/src/tiago_nav/ ;; esac; done
+	@echo "[setup] catkin_make in $(WS)"
+	@cd $(WS) && catkin_make --force-cmake -DPYTHON_EXECUTABLE=$(SYS_PY) \
+	  -DTIAGO_NAV_VENV=$(VENV) -DCATKIN_ENABLE_TESTING=ON > $(WS)/build.log 2>&1 \
+	  || { tail -40 $(WS)/build.log; echo "[setup] catkin_make failed, see $(WS)/build.log"; exit 1; }
+	@touch $@
+
+demo: setup
+	@$(ROS_ENV) && $(SYS_PY) $(ROOT)/bench/demo_run.py
+
+test: setup
+	@$(ROS_ENV) && $(SYS_PY) $(ROOT)/test/run_all.py
+
+unit: setup
+	@$(ROS_ENV) && $(SYS_PY) $(ROOT)/test/run_all.py --unit-only
+
+rostest: setup
+	@$(ROS_ENV) && $(SYS_PY) $(ROOT)/test/run_all.py --rostest-only
+
+bench: setup
+	@mkdir -p bench/results
+	@$(ROS_ENV) && for b in $(ROOT)/bench/bench_*.py; do echo "== $$(basename $$b)"; $(SYS_PY) $$b || exit 1; done
+
+lint: setup
+	@$(ROS_ENV) && catkin_lint --strict -W2 $(WS)/src/tiago_nav
+
+clean:
+	rm -rf $(WS) $(VENV)

@@ -1,0 +1,125 @@
+"""Conversions between ROS messages and the library's plain types (the only library module that
+imports ROS message classes; it needs no ROS master).
+
+Poses are ``(x, y, yaw)`` [m, m, rad]; grids are :class:`tiago_nav.gridmap.GridMap`.
+"""
+import numpy as np
+import rospy
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped
+from nav_msgs.msg import MapMetaData, OccupancyGrid
+
+from tiago_nav.geometry import quaternion_to_yaw, scan_to_points, yaw_to_quaternion
+from tiago_nav.gridmap import GridMap
+
+
+def pose_msg(pose):
+    """``(x, y, yaw)`` → geometry_msgs/Pose."""
+    x, y, yaw = pose
+    return Pose(position=Point(x, y, 0.0), orientation=Quaternion(*yaw_to_quaternion(yaw)))
+
+
+def pose_stamped(pose, frame_id, stamp=None):
+    """``(x, y, yaw)`` → geometry_msgs/PoseStamped in ``frame_id``."""
+    msg = PoseStamped(pose=pose_msg(pose))
+    msg.header.frame_id = frame_id
+    msg.header.stamp = stamp if stamp is not None else rospy.Time()
+    return msg
+
+
+def pose_from_msg(pose):
+    """geometry_msgs/Pose → ``(x, y, yaw)``."""
+    q = pose.orientation
+    return (pose.position.x, pose.position.y, quaternion_to_yaw(q.x, q.y, q.z, q.w))
+
+
+def transform_msg(pose):
+    """``(x, y, yaw)`` → geometry_msgs/Transform."""
+    x, y, yaw = pose
+    t = Transform()
+    t.translation.x, t.translation.y = x, y
+    t.rotation = Quaternion(*yaw_to_quaternion(yaw))
+    return t
+
+
+def transform_stamped(pose, parent, child, stamp):
+    """A TransformStamped ``parent → child`` whose child frame sits at ``pose`` in ``parent``."""
+    msg = TransformStamped(transform=transform_msg(pose))
+    msg.header.frame_id = parent
+    msg.header.stamp = stamp
+    msg.child_frame_id = child
+    return msg
+
+
+def pose_from_transform(transform):
+    """geometry_msgs/Transform → ``(x, y, yaw)``."""
+    t, q = transform.translation, transform.rotation
+    return (t.x, t.y, quaternion_to_yaw(q.x, q.y, q.z, q.w))
+
+
+def gridmap_to_msg(grid, frame_id='map', stamp=None):
+    """:class:`GridMap` → nav_msgs/OccupancyGrid (row-major, row 0 at the origin)."""
+    msg = OccupancyGrid()
+    msg.header.frame_id = frame_id
+    msg.header.stamp = stamp if stamp is not None else rospy.Time()
+    msg.info = MapMetaData(map_load_time=msg.header.stamp, resolution=grid.resolution,
+                           width=grid.width, height=grid.height,
+                           origin=pose_msg((grid.origin[0], grid.origin[1], 0.0)))
+    msg.data = grid.data.astype(np.int8).ravel().tolist()
+    return msg
+
+
+def gridmap_from_msg(msg):
+    """nav_msgs/OccupancyGrid → :class:`GridMap`. A rotated map origin is refused."""
+    info = msg.info
+    yaw = pose_from_msg(info.origin)[2]
+    if abs(yaw) > 1e-6:
+        raise ValueError('maps with a rotated origin are not supported (yaw %.3f rad)' % yaw)
+    if len(msg.data) != info.width * info.height:
+        raise ValueError('map data has %d cells, expected %d x %d'
+                         % (len(msg.data), info.width, info.height))
+    data = np.asarray(msg.data, dtype=np.int8).reshape(info.height, info.width)
+    return GridMap(data, float(info.resolution), (info.origin.position.x, info.origin.position.y))
+
+
+def scan_points(scan):
+    """sensor_msgs/LaserScan → ``(points, index)`` in the scan's frame (invalid beams dropped,
+    see :func:`tiago_nav.geometry.scan_to_points`)."""
+    return scan_to_points(scan.ranges, scan.angle_min, scan.angle_increment,
+                          scan.range_min, scan.range_max)
+
+
+class ParamError(ValueError):
+    """A node parameter has a value the node cannot use."""
+
+
+def param(name, default, kind=float, check=None, why=''):
+    """Read the parameter ``name`` (e.g. ``'~rate'``) as ``kind`` (float, int, bool, str).
+
+    Raises :class:`ParamError` naming the parameter when the value has the wrong type or
+    ``check(value)`` is false (``why`` says what is expected).
+    """
+    value = rospy.get_param(name, default)
+    try:
+        if kind is bool:
+            if not isinstance(value, bool):
+                raise TypeError
+        elif kind in (int, float):
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise TypeError
+            if kind is int and float(value) != int(value):
+                raise TypeError
+            value = kind(value)
+            if not np.isfinite(value):
+                raise TypeError
+        elif kind is str:
+            if not isinstance(value, str):
+                raise TypeError
+        else:
+            value = kind(value)
+    except (TypeError, ValueError):
+        raise ParamError('parameter %s: expected %s, got %r' % (rospy.resolve_name(name),
+                                                                  kind.__name__, value)) from None
+    if check is not None and not check(value):
+        raise ParamError('parameter %s: %r is not allowed%s'
+                         % (rospy.resolve_name(name), value, ' (%s)' % why if why else ''))
+    return value

@@ -1,0 +1,1 @@
+"""The mock TIAGo: world files, the pybullet scene, the laser, the base and the map."""

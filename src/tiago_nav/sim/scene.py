@@ -1,0 +1,237 @@
+"""The pybullet scene of a world: static bodies, movable cylinders, a TIAGo-like base and
+its 2-D laser, ray cast with pybullet's batch ray test.
+
+Frames: the world frame is the map frame; the base pose ``(x, y, yaw)`` is base_footprint's;
+the laser (base_laser_link) sits ``laser_offset`` [m] ahead of the base centre, at
+``laser_height`` above the floor (above the base's collision body, so beams never hit it).
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pybullet
+
+from tiago_nav.geometry import compose
+
+WALL_HEIGHT = 1.0          # [m] every static and movable body spans the floor to this height
+ROBOT_HEIGHT = 0.25        # [m] the base's collision body, floor to this height
+
+
+@dataclass(frozen=True)
+class LaserConfig:
+    """A TIAGo-like planar laser: 666 beams over ±110°, 0.05–25 m (angles [rad], ranges [m])."""
+    num_beams: int = 666
+    angle_min: float = -math.radians(110.0)
+    angle_max: float = math.radians(110.0)
+    range_min: float = 0.05
+    range_max: float = 25.0
+    offset: float = 0.2          # [m] ahead of the base centre (base_footprint → base_laser_link)
+    height: float = 0.3          # [m] above the floor
+
+    @property
+    def angle_increment(self):
+        return (self.angle_max - self.angle_min) / (self.num_beams - 1)
+
+    def angles(self):
+        """Beam angles [rad] in base_laser_link, from ``angle_min`` to ``angle_max``."""
+        return np.linspace(self.angle_min, self.angle_max, self.num_beams)
+
+
+class Scene:
+    """A world built in its own pybullet client (DIRECT by default, GUI on request).
+
+    Use as a context manager or call :meth:`close`. Several scenes may coexist.
+    """
+
+    def __init__(self, world, robot_radius=0.27, laser=LaserConfig(), gui=False):
+        self.world = world
+        self.laser = laser
+        self.robot_radius = float(robot_radius)
+        self.client = pybullet.connect(pybullet.GUI if gui else pybullet.DIRECT)
+        if self.client < 0:
+            raise RuntimeError('pybullet could not connect (%s mode)' % ('GUI' if gui else 'DIRECT'))
+        p = self._p = _Client(self.client)
+        if gui:
+            p.configureDebugVisualizer(pybullet.COV_ENABLE_GUI, 0)
+        # Static geometry is one triangle mesh and each movable cylinder one more: pybullet ray
+        # casts against meshes are 5-10x faster than against its box and cylinder primitives.
+        self.static_id = None
+        if world.walls or world.static_cylinders:
+            mesh = _Mesh()
+            for w in world.walls:
+                mesh.box(w.corners())
+            for c in world.static_cylinders:
+                mesh.cylinder(c.x, c.y, c.radius)
+            self.static_id = self._mesh_body(mesh, (0.6, 0.6, 0.6, 1))
+        self.movable_ids = []
+        for c in world.movable_obstacles:
+            mesh = _Mesh()
+            mesh.cylinder(c.x, c.y, c.radius)
+            self.movable_ids.append(self._mesh_body(mesh, (0.9, 0.3, 0.2, 1)))
+        col = p.createCollisionShape(pybullet.GEOM_CYLINDER, radius=self.robot_radius,
+                                     height=ROBOT_HEIGHT)
+        vis = p.createVisualShape(pybullet.GEOM_CYLINDER, radius=self.robot_radius,
+                                  length=ROBOT_HEIGHT, rgbaColor=(0.2, 0.4, 0.9, 1))
+        # mass > 0 so that pybullet computes its contacts with the static bodies; the base is
+        # moved kinematically (reset each step), never by the physics.
+        self.robot_id = p.createMultiBody(1.0, col, vis, basePosition=(0, 0, ROBOT_HEIGHT / 2))
+        self._bounds = world.bounds
+        self._pose = None
+        self.set_robot_pose(world.start_pose)
+        self._body_to_movable = {b: i for i, b in enumerate(self.movable_ids)}
+
+    # --- building -------------------------------------------------------------------------
+    def _mesh_body(self, mesh, rgba):
+        p = self._p
+        col = p.createCollisionShape(pybullet.GEOM_MESH, vertices=mesh.vertices, indices=mesh.indices,
+                                     flags=pybullet.GEOM_FORCE_CONCAVE_TRIMESH)
+        vis = p.createVisualShape(pybullet.GEOM_MESH, vertices=mesh.vertices, indices=mesh.indices,
+                                  rgbaColor=rgba)
+        return p.createMultiBody(0, col, vis)
+
+    # --- robot ----------------------------------------------------------------------------
+    @property
+    def robot_pose(self):
+        """The base's ground-truth pose ``(x, y, yaw)`` in the world (map) frame."""
+        return self._pose
+
+    def set_robot_pose(self, pose):
+        """Place the base at ``pose`` ``(x, y, yaw)`` (no collision check)."""
+        x, y, yaw = (float(v) for v in pose)
+        self._pose = (x, y, yaw)
+        self._p.resetBasePositionAndOrientation(
+            self.robot_id, (x, y, ROBOT_HEIGHT / 2.0 + 0.001),
+            pybullet.getQuaternionFromEuler((0, 0, yaw)))
+
+    def robot_contacts(self):
+        """Body ids the base touches or penetrates at its current pose."""
+        p = self._p
+        p.performCollisionDetection()
+        return sorted({c[2] for c in p.getContactPoints(bodyA=self.robot_id) if c[8] <= 1e-4})
+
+    # --- laser ----------------------------------------------------------------------------
+    def laser_pose(self, base_pose=None):
+        """Pose ``(x, y, yaw)`` of base_laser_link in the world for a base pose (default: the
+        current one)."""
+        return compose(base_pose or self._pose, (self.laser.offset, 0.0, 0.0))
+
+    def cast(self, base_pose=None, include_robot=False):
+        """Noise-free ray cast of the laser from ``base_pose`` (default: the current pose).
+
+        Returns ``(ranges, body_ids)``: ranges [m] measured from base_laser_link (``inf`` where
+        nothing is hit within ``range_max``, REP 117) and the pybullet body id hit by each beam
+        (-1 for none). The robot's own body lies below the beams and is never hit.
+        """
+        lx, ly, lyaw = self.laser_pose(base_pose)
+        cfg = self.laser
+        ang = lyaw + cfg.angles()
+        c, s = np.cos(ang), np.sin(ang)
+        # Nothing lies outside the world's bounds: stop each ray where it leaves them (plus a
+        # margin), which makes pybullet's ray test several times faster than 25 m rays.
+        length = np.minimum(cfg.range_max, _exit_distance(self._bounds, lx, ly, c, s) + 0.5)
+        z = cfg.height
+        start = np.empty((ang.size, 3))
+        start[:] = (lx, ly, z)
+        end = np.column_stack((lx + length * c, ly + length * s, np.full(ang.size, z)))
+        res = self._p.rayTestBatch(start, end, numThreads=1)
+        ids = np.fromiter((r[0] for r in res), dtype=int, count=len(res))
+        frac = np.fromiter((r[2] for r in res), dtype=float, count=len(res))
+        ranges = np.where(ids >= 0, frac * length, np.inf)
+        return ranges, ids
+
+    def visible_obstacles(self, base_pose=None, min_beams=5):
+        """Ground truth of "in view": indices into ``world.movable_obstacles`` hit by at least
+        ``min_beams`` beams of a noise-free cast from ``base_pose`` (default: current pose)."""
+        _, ids = self.cast(base_pose)
+        counts = {}
+        for b in ids[ids >= 0]:
+            i = self._body_to_movable.get(int(b))
+            if i is not None:
+                counts[i] = counts.get(i, 0) + 1
+        return sorted(i for i, n in counts.items() if n >= min_beams)
+
+    # --- life cycle -----------------------------------------------------------------------
+    def close(self):
+        if self.client is not None and self.client >= 0:
+            try:
+                pybullet.disconnect(self.client)
+            except pybullet.error:
+                pass
+            self.client = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __del__(self):
+        self.close()
+
+
+def _exit_distance(bounds, x, y, c, s):
+    """Distance [m] along unit directions ``(c, s)`` from ``(x, y)`` to the edge of the box
+    ``bounds`` (0 where the point is already outside in that direction)."""
+    xmin, ymin, xmax, ymax = bounds
+    with np.errstate(divide='ignore', invalid='ignore'):
+        tx = np.where(c > 0, (xmax - x) / c, np.where(c < 0, (xmin - x) / c, np.inf))
+        ty = np.where(s > 0, (ymax - y) / s, np.where(s < 0, (ymin - y) / s, np.inf))
+    return np.maximum(np.minimum(tx, ty), 0.0)
+
+
+def noisy(ranges, std, rng, range_min, range_max):
+    """Add Gaussian range noise of ``std`` [m] to finite ``ranges``; readings that leave
+    ``[range_min, range_max]`` become ``inf`` (out of range), as a real laser reports them."""
+    r = np.array(ranges, dtype=float)
+    finite = np.isfinite(r)
+    if std > 0:
+        r[finite] += rng.normal(0.0, std, int(finite.sum()))
+    r[finite & ((r < range_min) | (r > range_max))] = np.inf
+    return r
+
+
+class _Mesh:
+    """Vertical prisms (boxes, cylinders) from the floor to ``WALL_HEIGHT`` as one triangle mesh."""
+    CYLINDER_SIDES = 96
+
+    def __init__(self):
+        self.vertices = []
+        self.indices = []
+
+    def prism(self, outline):
+        """A prism over a convex ``(n, 2)`` counter-clockwise outline [m]."""
+        n = len(outline)
+        b = len(self.vertices)
+        for z in (0.0, WALL_HEIGHT):
+            self.vertices.extend([float(x), float(y), z] for x, y in outline)
+        for i in range(n):
+            j = (i + 1) % n
+            self.indices += [b + i, b + j, b + n + j, b + i, b + n + j, b + n + i]   # side
+        for i in range(1, n - 1):
+            self.indices += [b, b + i + 1, b + i]                                   # bottom
+            self.indices += [b + n, b + n + i, b + n + i + 1]                       # top
+
+    def box(self, corners):
+        self.prism(corners)
+
+    def cylinder(self, x, y, radius):
+        """A regular polygon whose sides touch the circle (error < 0.1 mm at r = 0.2 m)."""
+        n = self.CYLINDER_SIDES
+        t = np.linspace(0.0, 2.0 * math.pi, n, endpoint=False)
+        big = radius / math.cos(math.pi / n)
+        self.prism(np.column_stack((x + big * np.cos(t), y + big * np.sin(t))))
+
+
+class _Client:
+    """Binds a pybullet client id to every call, so scenes never talk to each other's worlds."""
+
+    def __init__(self, cid):
+        self._cid = cid
+
+    def __getattr__(self, name):
+        fn = getattr(pybullet, name)
+
+        def call(*args, **kwargs):
+            kwargs['physicsClientId'] = self._cid
+            return fn(*args, **kwargs)
+        return call

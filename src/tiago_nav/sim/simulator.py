@@ -1,0 +1,145 @@
+"""The mock TIAGo without ROS: a :class:`Scene`, a :class:`DiffDrive` base and a noisy laser,
+stepped at a fixed rate of simulated time. ``nodes/simulator`` wires it to ROS.
+
+Ground truth lives in the world (map) frame. Odometry is exact and expressed in the odom
+frame, which is the robot's start pose (so ``map → odom`` is the start pose, REP 105).
+"""
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tiago_nav.geometry import compose, inverse
+from tiago_nav.sim.diffdrive import BaseLimits, DiffDrive
+from tiago_nav.sim.scene import LaserConfig, Scene, noisy
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Simulator settings. Rates are in Hz of simulated time; ``scan_rate`` and ``odom_rate``
+    must divide ``rate``. ``laser_noise`` is the range noise's std [m]; ``cmd_timeout`` [s]
+    stops the base when no command arrives for that long."""
+    rate: float = 60.0
+    scan_rate: float = 15.0
+    odom_rate: float = 30.0
+    laser_noise: float = 0.01
+    cmd_timeout: float = 0.5
+    robot_radius: float = 0.27
+    seed: int = 0
+    limits: BaseLimits = field(default_factory=BaseLimits)
+    laser: LaserConfig = field(default_factory=LaserConfig)
+
+    def __post_init__(self):
+        for k in ('rate', 'scan_rate', 'odom_rate', 'cmd_timeout', 'robot_radius'):
+            v = getattr(self, k)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError('%s must be a positive number, got %r' % (k, v))
+        if not (isinstance(self.laser_noise, (int, float)) and 0 <= self.laser_noise < 1):
+            raise ValueError('laser_noise must be a number in [0, 1) m, got %r' % (self.laser_noise,))
+        for k in ('scan_rate', 'odom_rate'):
+            n = self.rate / getattr(self, k)
+            if abs(n - round(n)) > 1e-6 or round(n) < 1:
+                raise ValueError('%s (%g Hz) must divide rate (%g Hz)' % (k, getattr(self, k), self.rate))
+
+    @property
+    def dt(self):
+        return 1.0 / self.rate
+
+
+class Simulator:
+    """Steps the world by ``config.dt`` of simulated time per :meth:`step`."""
+
+    def __init__(self, world, config=SimConfig(), start_pose=None, gui=False):
+        self.world = world
+        self.config = config
+        self.scene = Scene(world, robot_radius=config.robot_radius, laser=config.laser, gui=gui)
+        self.start_pose = tuple(start_pose) if start_pose is not None else world.start_pose
+        self.scene.set_robot_pose(self.start_pose)
+        touching = self.scene.robot_contacts()
+        if touching:
+            self.scene.close()
+            raise ValueError('%s: the robot at its start pose (%.3f, %.3f) overlaps an obstacle'
+                             % (world.source, self.start_pose[0], self.start_pose[1]))
+        self.base = DiffDrive(self.start_pose, config.limits)
+        self.rng = np.random.default_rng(config.seed)
+        self.steps = 0
+        self.collisions = 0
+        self._blocked = False
+        self._cmd = (0.0, 0.0)
+        self._cmd_time = -math.inf
+        self._scan_every = int(round(config.rate / config.scan_rate))
+        self._odom_every = int(round(config.rate / config.odom_rate))
+
+    # --- time -----------------------------------------------------------------------------
+    @property
+    def time(self):
+        """Simulated time [s] since start."""
+        return self.steps / self.config.rate
+
+    @property
+    def time_ns(self):
+        """Simulated time [ns] since start, exact (no accumulated rounding)."""
+        return self.steps * 10**9 // int(round(self.config.rate)) if float(self.config.rate).is_integer() \
+            else int(round(self.time * 1e9))
+
+    # --- commands and stepping ------------------------------------------------------------
+    def command(self, v, w):
+        """A velocity command ``v`` [m/s], ``w`` [rad/s] in base_footprint, held for
+        ``cmd_timeout`` of simulated time."""
+        if not (math.isfinite(v) and math.isfinite(w)):
+            return False
+        self._cmd = (float(v), float(w))
+        self._cmd_time = self.time
+        return True
+
+    def step(self):
+        """Advance one step. Returns ``(scan_due, odom_due)`` for the new time."""
+        dt = self.config.dt
+        v, w = self._cmd if self.time - self._cmd_time <= self.config.cmd_timeout else (0.0, 0.0)
+        before = self.base.pose
+        prev_speed = (self.base.v, self.base.w)
+        pose = self.base.step(v, w, dt)
+        self.scene.set_robot_pose(pose)
+        if self.scene.robot_contacts():
+            # a bump: the base stays where it was and stops
+            if not self._blocked:
+                self.collisions += 1
+            self._blocked = True
+            self.base.pose = before
+            self.base.stop()
+            self.scene.set_robot_pose(before)
+        elif pose != before or prev_speed != (0.0, 0.0):
+            self._blocked = False
+        self.steps += 1
+        return (self.steps % self._scan_every == 0, self.steps % self._odom_every == 0)
+
+    # --- sensing --------------------------------------------------------------------------
+    @property
+    def pose(self):
+        """Ground-truth base pose ``(x, y, yaw)`` in the map frame."""
+        return self.base.pose
+
+    @property
+    def odom_pose(self):
+        """Base pose in the odom frame (the start pose is the odom origin)."""
+        return compose(inverse(self.start_pose), self.base.pose)
+
+    @property
+    def map_to_odom(self):
+        """The transform map → odom as a pose ``(x, y, yaw)``: the start pose."""
+        return self.start_pose
+
+    @property
+    def velocity(self):
+        """Current ``(v, w)`` [m/s, rad/s] of the base."""
+        return (self.base.v, self.base.w)
+
+    def scan(self):
+        """One laser scan from the current pose: ranges [m] with Gaussian noise, inf for no
+        return; beam angles are ``config.laser.angles()``."""
+        ranges, _ = self.scene.cast()
+        c = self.config
+        return noisy(ranges, c.laser_noise, self.rng, c.laser.range_min, c.laser.range_max)
+
+    def close(self):
+        self.scene.close()
