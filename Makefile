@@ -59,7 +59,7 @@ $(WS)/.done: $(WS_INPUTS) $(VENV)/.done
 	@touch $@
 
 demo: setup
-	@$(ROS_ENV) && $(SYS_PY) $(ROOT)/bench/demo_run.py
+	@$(ROS_ENV) && $(SYS_PY) $(ROOT)/scripts/run_demo.py
 
 test: setup
 	@$(ROS_ENV) && $(SYS_PY) $(ROOT)/test/run_all.py
