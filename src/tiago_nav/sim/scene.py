@@ -109,6 +109,10 @@ class Scene:
         p.performCollisionDetection()
         return sorted({c[2] for c in p.getContactPoints(bodyA=self.robot_id) if c[8] <= 1e-4})
 
+    def robot_clear_of(self, bodies, margin):
+        """True when the base is more than ``margin`` [m] away from every body in ``bodies``."""
+        return not any(self._p.getClosestPoints(self.robot_id, b, margin) for b in bodies)
+
     # --- laser ----------------------------------------------------------------------------
     def laser_pose(self, base_pose=None):
         """Pose ``(x, y, yaw)`` of base_laser_link in the world for a base pose (default: the

@@ -14,6 +14,9 @@ from tiago_nav.sim.diffdrive import BaseLimits, DiffDrive
 from tiago_nav.sim.scene import LaserConfig, Scene, noisy
 
 
+CONTACT_CLEARANCE = 0.02   # [m] a contact event ends when the base is this far from what it hit
+
+
 @dataclass(frozen=True)
 class SimConfig:
     """Simulator settings. Rates are in Hz of simulated time; ``scan_rate`` and ``odom_rate``
@@ -64,7 +67,7 @@ class Simulator:
         self.rng = np.random.default_rng(config.seed)
         self.steps = 0
         self.collisions = 0
-        self._blocked = False
+        self._touching = ()
         self._cmd = (0.0, 0.0)
         self._cmd_time = -math.inf
         self._scan_every = int(round(config.rate / config.scan_rate))
@@ -97,19 +100,20 @@ class Simulator:
         dt = self.config.dt
         v, w = self._cmd if self.time - self._cmd_time <= self.config.cmd_timeout else (0.0, 0.0)
         before = self.base.pose
-        prev_speed = (self.base.v, self.base.w)
         pose = self.base.step(v, w, dt)
         self.scene.set_robot_pose(pose)
-        if self.scene.robot_contacts():
-            # a bump: the base stays where it was and stops
-            if not self._blocked:
+        touching = self.scene.robot_contacts()
+        if touching:
+            # a bump: the base stays where it was and stops. One contact event lasts until the
+            # base has moved clear (CONTACT_CLEARANCE) of what it touched.
+            if not self._touching:
                 self.collisions += 1
-            self._blocked = True
+            self._touching = set(self._touching) | set(touching)
             self.base.pose = before
             self.base.stop()
             self.scene.set_robot_pose(before)
-        elif pose != before or prev_speed != (0.0, 0.0):
-            self._blocked = False
+        elif self._touching and self.scene.robot_clear_of(self._touching, CONTACT_CLEARANCE):
+            self._touching = ()
         self.steps += 1
         return (self.steps % self._scan_every == 0, self.steps % self._odom_every == 0)
 

@@ -1,0 +1,147 @@
+#!/usr/bin/python3
+"""Rostest of nodes/simulator in test/worlds/sim_box.yaml (checked against the world file)."""
+import math
+import unittest
+
+import numpy as np
+import rospy
+import rostest
+import tf2_ros
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import OccupancyGrid, Odometry
+from sensor_msgs.msg import LaserScan
+from std_msgs.msg import UInt32
+
+from tiago_nav.geometry import scan_to_points, transform_points
+from tiago_nav.rosutil import gridmap_from_msg, pose_from_msg, pose_from_transform
+from tiago_nav.sim.raster import rasterise_world
+from tiago_nav.sim.scene import Scene
+from tiago_nav.sim.world import load_world
+
+TIMEOUT = 20.0
+
+
+class SimulatorNodeTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node('test_sim_node')
+        cls.world = load_world(rospy.get_param('~world'))
+        cls.tf = tf2_ros.Buffer()
+        cls.listener = tf2_ros.TransformListener(cls.tf)
+        cls.cmd = rospy.Publisher('/mobile_base_controller/cmd_vel', Twist, queue_size=1)
+        rospy.wait_for_message('/clock', rospy.AnyMsg, timeout=TIMEOUT)
+
+    def base_pose(self):
+        t = self.tf.lookup_transform('map', 'base_footprint', rospy.Time(), rospy.Duration(TIMEOUT))
+        return pose_from_transform(t.transform)
+
+    def drive(self, v, w, seconds):
+        end = rospy.Time.now() + rospy.Duration(seconds)
+        rate = rospy.Rate(20)
+        while rospy.Time.now() < end and not rospy.is_shutdown():
+            self.cmd.publish(self._twist(v, w))
+            rate.sleep()
+        self.cmd.publish(self._twist(0, 0))
+        rospy.sleep(1.0)
+
+    @staticmethod
+    def _twist(v, w):
+        t = Twist()
+        t.linear.x, t.angular.z = v, w
+        return t
+
+    def test_1_map_is_latched_and_matches_the_world(self):
+        msg = rospy.wait_for_message('/map', OccupancyGrid, timeout=TIMEOUT)
+        self.assertEqual(msg.header.frame_id, 'map')
+        grid = gridmap_from_msg(msg)
+        xmin, ymin, xmax, ymax = self.world.bounds
+        self.assertAlmostEqual(grid.resolution, self.world.resolution, places=6)
+        self.assertAlmostEqual(grid.origin[0], xmin, places=6)
+        self.assertEqual(grid.width, int(round((xmax - xmin) / self.world.resolution)))
+        expected = rasterise_world(self.world)
+        np.testing.assert_array_equal(grid.data, expected.data)
+        # a cell on each wall is occupied; the movable cylinder's centre and the robot's are free
+        for w in self.world.walls:
+            (r, c), = grid.world_to_cell([[w.x, w.y]])
+            self.assertEqual(grid.data[r, c], 100)
+        for c in self.world.movable_obstacles:
+            (r, cc), = grid.world_to_cell([[c.x, c.y]])
+            self.assertEqual(grid.data[r, cc], 0)
+
+    def test_2_tf_chain_and_scan(self):
+        pose = self.base_pose()
+        sx, sy, syaw = self.world.start_pose
+        self.assertAlmostEqual(pose[0], sx, delta=0.02)
+        self.assertAlmostEqual(pose[1], sy, delta=0.02)
+        laser = self.tf.lookup_transform('base_footprint', 'base_laser_link', rospy.Time(),
+                                         rospy.Duration(TIMEOUT))
+        self.assertAlmostEqual(laser.transform.translation.x, 0.2, places=6)
+        self.tf.lookup_transform('odom', 'base_footprint', rospy.Time(), rospy.Duration(TIMEOUT))
+
+        scan = rospy.wait_for_message('/scan', LaserScan, timeout=TIMEOUT)
+        self.assertEqual(scan.header.frame_id, 'base_laser_link')
+        self.assertEqual(len(scan.ranges), 666)
+        self.assertAlmostEqual(math.degrees(scan.angle_min), -110, delta=0.1)
+        self.assertAlmostEqual(math.degrees(scan.angle_max), 110, delta=0.1)
+        self.assertAlmostEqual(scan.range_min, 0.05)
+        self.assertAlmostEqual(scan.range_max, 25.0)
+        # every beam agrees with a noise-free cast from the ground-truth pose, within noise
+        t = self.tf.lookup_transform('map', 'base_laser_link', scan.header.stamp, rospy.Duration(5))
+        laser_pose = pose_from_transform(t.transform)
+        with Scene(self.world) as scene:
+            base = (laser_pose[0] - 0.2 * math.cos(laser_pose[2]),
+                    laser_pose[1] - 0.2 * math.sin(laser_pose[2]), laser_pose[2])
+            truth, _ = scene.cast(base)
+        r = np.asarray(scan.ranges)
+        both = np.isfinite(r) & np.isfinite(truth)
+        self.assertGreater(both.sum(), 600)
+        err = r[both] - truth[both]
+        self.assertLess(np.abs(err).max(), 0.06)            # 6 sigma of 0.01 m noise
+        self.assertAlmostEqual(float(np.std(err)), 0.01, delta=0.004)
+        # and every scan point lies inside the box (no beam through a wall)
+        pts, _ = scan_to_points(r, scan.angle_min, scan.angle_increment, scan.range_min, scan.range_max)
+        world_pts = transform_points(laser_pose, pts)
+        self.assertTrue(np.all(world_pts[:, 0] < 2.5 + 0.05))
+
+    def test_3_scan_rate_is_15hz_of_sim_time(self):
+        stamps = []
+        sub = rospy.Subscriber('/scan', LaserScan, lambda m: stamps.append(m.header.stamp.to_sec()))
+        rospy.sleep(2.0)
+        sub.unregister()
+        self.assertGreater(len(stamps), 20)
+        self.assertAlmostEqual(float(np.median(np.diff(stamps))), 1 / 15.0, delta=0.005)
+
+    def test_4_cmd_vel_moves_the_robot(self):
+        before = self.base_pose()
+        odom0 = rospy.wait_for_message('/mobile_base_controller/odom', Odometry, timeout=TIMEOUT)
+        self.drive(0.0, 1.0, 1.5)          # turn left in place ~1.3 rad
+        mid = self.base_pose()
+        self.assertAlmostEqual(mid[0], before[0], delta=0.01)
+        turned = math.atan2(math.sin(mid[2] - before[2]), math.cos(mid[2] - before[2]))
+        self.assertGreater(turned, 0.9)
+        self.assertLess(turned, 1.8)
+        self.drive(0.0, -1.0, 1.5)         # and back
+        self.drive(0.3, 0.0, 2.0)          # ~0.5 m forward along +x
+        after = self.base_pose()
+        self.assertGreater(after[0] - before[0], 0.35)
+        self.assertLess(after[0] - before[0], 0.75)
+        odom1 = rospy.wait_for_message('/mobile_base_controller/odom', Odometry, timeout=TIMEOUT)
+        moved_odom = np.hypot(*(np.subtract(pose_from_msg(odom1.pose.pose)[:2],
+                                            pose_from_msg(odom0.pose.pose)[:2])))
+        self.assertAlmostEqual(moved_odom, math.hypot(after[0] - before[0], after[1] - before[1]),
+                               delta=0.02)
+        self.assertEqual(odom1.header.frame_id, 'odom')
+        self.assertEqual(odom1.child_frame_id, 'base_footprint')
+        collisions = rospy.wait_for_message('/sim/collisions', UInt32, timeout=TIMEOUT)
+        self.assertEqual(collisions.data, 0)
+
+    def test_5_driving_into_a_wall_counts_a_collision(self):
+        self.drive(0.5, 0.0, 5.0)          # the east wall is ~1 m ahead
+        pose = self.base_pose()
+        self.assertLess(pose[0], 2.5 - 0.27 + 0.01)         # stopped at the wall, not through it
+        collisions = rospy.wait_for_message('/sim/collisions', UInt32, timeout=TIMEOUT)
+        self.assertEqual(collisions.data, 1)
+
+
+if __name__ == '__main__':
+    rostest.rosrun('tiago_nav', 'test_sim_node', SimulatorNodeTest)
