@@ -1,0 +1,82 @@
+#!/usr/bin/python3
+"""Rostest of the obstacle_detection service: what it finds is checked against the world file's
+ground truth (movable obstacles hit by >= 5 beams of a noise-free cast from the robot's pose)."""
+import math
+import unittest
+
+import rospy
+import rostest
+import tf2_ros
+
+from tiago_nav.geometry import compose, inverse
+from tiago_nav.rosutil import pose_from_transform
+from tiago_nav.sim.scene import Scene
+from tiago_nav.sim.world import load_world
+from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
+
+TIMEOUT = 30.0
+
+
+class DetectionNodeTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node('test_detection_node')
+        cls.world = load_world(rospy.get_param('~world'))
+        tf = tf2_ros.Buffer()
+        cls.listener = tf2_ros.TransformListener(tf)
+        t = tf.lookup_transform('map', 'base_footprint', rospy.Time(), rospy.Duration(TIMEOUT))
+        cls.pose = pose_from_transform(t.transform)
+        with Scene(cls.world) as scene:
+            cls.visible = scene.visible_obstacles(cls.pose)
+        rospy.wait_for_service('obstacle_detection', timeout=TIMEOUT)
+        cls.call = rospy.ServiceProxy('obstacle_detection', DetectObstacles)
+
+    def check(self, resp, tol):
+        truth = [self.world.movable_obstacles[i] for i in self.visible]
+        self.assertEqual(len(resp.obstacles), len(truth), resp.message)
+        for c in truth:
+            errs = [math.hypot(o.center.x - c.x, o.center.y - c.y) for o in resp.obstacles]
+            self.assertLess(min(errs), tol, 'obstacle at (%.2f, %.2f) not found within %.2f m: %s'
+                            % (c.x, c.y, tol, resp.message))
+        return truth
+
+    def test_expected_count_in_view(self):
+        expected = rospy.get_param('~expect_in_view', 0)
+        if expected:
+            self.assertEqual(len(self.visible), expected)
+        self.assertGreaterEqual(len(self.visible), 4)
+
+    def test_default_request_finds_all_within_3cm(self):
+        resp = self.call(DetectObstaclesRequest())
+        truth = self.check(resp, 0.03)
+        # robot-frame centres agree with the map-frame ones through the robot's pose
+        to_robot = inverse(self.pose)
+        for o in resp.obstacles:
+            rx, ry, _ = compose(to_robot, (o.center.x, o.center.y, 0.0))
+            self.assertAlmostEqual(o.center_robot.x, rx, delta=0.01)
+            self.assertAlmostEqual(o.center_robot.y, ry, delta=0.01)
+            self.assertGreaterEqual(o.num_points, 5)
+        # ordered by distance from the robot
+        d = [math.hypot(o.center_robot.x, o.center_robot.y) for o in resp.obstacles]
+        self.assertEqual(d, sorted(d))
+        for c in truth:
+            o = min(resp.obstacles, key=lambda o: math.hypot(o.center.x - c.x, o.center.y - c.y))
+            self.assertAlmostEqual(o.radius, c.radius, delta=0.04)
+
+    def test_classic_methods(self):
+        self.check(self.call(DetectObstaclesRequest(method='centroid')), 0.25)
+        self.check(self.call(DetectObstaclesRequest(method='discontinuity')), 0.12)
+
+    def test_unknown_method_is_an_error(self):
+        resp = self.call(DetectObstaclesRequest(method='hough'))
+        self.assertEqual(len(resp.obstacles), 0)
+        self.assertIn('unknown method', resp.message)
+
+    def test_negative_threshold_is_an_error(self):
+        resp = self.call(DetectObstaclesRequest(cluster_threshold=-1.0))
+        self.assertEqual(len(resp.obstacles), 0)
+        self.assertIn('cluster_threshold', resp.message)
+
+
+if __name__ == '__main__':
+    rostest.rosrun('tiago_nav', 'test_detection_node', DetectionNodeTest)
