@@ -29,7 +29,7 @@ BENCH ?= simulator
 setup: apt venv ws
 
 apt:
-	@missing=$$(dpkg-query -W -f='$${Package} $${Status}\n' $(APT_PACKAGES) 2>/dev/null \
+	@missing=$$({ dpkg-query -W -f='$${Package} $${Status}\n' $(APT_PACKAGES) 2>/dev/null || true; } \
 	  | awk '$$NF == "installed" {print $$1}' | sort | comm -13 - <(tr ' ' '\n' <<< "$(APT_PACKAGES)" | sed '/^$$/d' | sort)); \
 	if [ -n "$$missing" ]; then \
 	  echo "[setup] apt-get install:" $$missing; \
