@@ -4,6 +4,8 @@ A laser sees less than half of a cylinder, so the centroid of its points lies be
 centre and the sensor (by about ``r·(1 - 2/π)`` for a half circle): :func:`circle_fit` fits the
 circle itself, geometric least squares (scipy.optimize) started from an algebraic fit.
 """
+import math
+
 import numpy as np
 from scipy.optimize import least_squares
 
@@ -17,32 +19,104 @@ def algebraic_circle(points):
     return cx, cy, float(np.sqrt(max(c + cx * cx + cy * cy, 0.0)))
 
 
-def circle_fit(points, radius=0.0, sensor=None):
+PASSING_WEIGHT = 3.0   # a passing beam counts as a point three times as precise
+
+
+def _blocked(c, r, sensor, passing, margin):
+    """How far [m] the circle ``(c, r)`` reaches into each ray from ``sensor`` along the unit
+    ``passing`` directions, beyond ``margin`` [m] (0 where the ray passes outside it, or the
+    circle lies behind)."""
+    d = np.asarray(c, dtype=float) - sensor
+    along = passing @ d
+    h = np.abs(passing[:, 0] * d[1] - passing[:, 1] * d[0])
+    return np.where(along > 0, np.maximum(r - h - margin, 0.0), 0.0)
+
+
+def circle_fit(points, radius=0.0, sensor=None, passing=None, margin=0.0):
     """Geometric least-squares circle ``(cx, cy, r, rms)`` through ``(N, 2)`` points (N ≥ 3).
 
     ``radius`` > 0 fixes the radius and fits the centre only. ``sensor`` (the laser's position in
     the same frame) breaks the tie of a fixed-radius fit: the centre lies beyond the points, away
-    from the sensor. ``rms`` is the root-mean-square of the radial residuals [m].
+    from the sensor. ``passing`` (``(K, 2)`` unit directions from ``sensor``, needs ``sensor``):
+    beams beside the cluster that were measured to go past it; a circle they would have hit is
+    penalised when it reaches more than ``margin`` [m] into them (a beam's width: one missing
+    return at the edge of an obstacle must not pull the fit), which keeps a short, noisy arc
+    from growing a too-large circle. Levenberg-Marquardt (scipy.optimize.least_squares) with
+    the analytic Jacobian, started from the algebraic fit.
+    ``rms`` is the root-mean-square of the radial residuals [m].
     """
     p = np.asarray(points, dtype=float)
+    rays = None
+    if passing is not None and len(passing) and sensor is not None:
+        s = np.asarray(sensor, dtype=float)
+        rays = np.asarray(passing, dtype=float).reshape(-1, 2)
+    fixed = radius > 0
+
+    def split(x):
+        return x[:2], (radius if fixed else x[2])
+
+    def fun(x):
+        c, r = split(x)
+        res = np.hypot(p[:, 0] - c[0], p[:, 1] - c[1]) - r
+        if rays is None:
+            return res
+        return np.concatenate((res, PASSING_WEIGHT * _blocked(c, r, s, rays, margin)))
+
+    def jac(x):
+        c, r = split(x)
+        d = p - c
+        n = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)
+        J = np.column_stack((-d / n[:, None], -np.ones(len(p))))
+        if rays is not None:
+            e = c - s
+            along = rays @ e
+            cross = rays[:, 0] * e[1] - rays[:, 1] * e[0]
+            active = (along > 0) & (r - np.abs(cross) - margin > 0)
+            sg = np.sign(cross) * active * PASSING_WEIGHT
+            # d(r - |cross|)/dc = -sign(cross) * (-u_y, u_x); d/dr = 1
+            Jp = np.column_stack((sg * rays[:, 1], -sg * rays[:, 0], active * PASSING_WEIGHT))
+            J = np.vstack((J, Jp))
+        return J[:, :2] if fixed else J
+
     cx, cy, r0 = algebraic_circle(p)
-    if radius > 0:
+    if fixed:
         if sensor is not None:
             # start on the far side of the arc: its middle point pushed back by the radius
             mid = p.mean(axis=0)
             away = mid - np.asarray(sensor, dtype=float)
             away /= max(np.linalg.norm(away), 1e-9)
             cx, cy = mid + away * radius * 0.8
-        sol = least_squares(lambda c: np.hypot(p[:, 0] - c[0], p[:, 1] - c[1]) - radius,
-                            (cx, cy), method='lm')
-        cx, cy = sol.x
-        r = radius
+        sol = least_squares(fun, (cx, cy), jac=jac, method='lm')
+        (cx, cy), r = sol.x, radius
     else:
-        sol = least_squares(lambda c: np.hypot(p[:, 0] - c[0], p[:, 1] - c[1]) - c[2],
-                            (cx, cy, r0), method='lm')
+        sol = least_squares(fun, (cx, cy, r0), jac=jac, method='lm')
         cx, cy, r = sol.x
     rms = float(np.sqrt(np.mean((np.hypot(p[:, 0] - cx, p[:, 1] - cy) - abs(r)) ** 2)))
     return float(cx), float(cy), float(abs(r)), rms
+
+
+def radius_std(points, cx, cy, r, noise_floor=0.005):
+    """Standard error [m] of the fitted radius of the circle ``(cx, cy, r)`` through ``(N, 2)``
+    points, from the fit's Jacobian and its residuals (at least ``noise_floor`` [m] per point).
+    Large on a short arc, where the radius and the centre's range trade off: the circle is then
+    ill-conditioned. ``inf`` when the problem is singular."""
+    p = np.asarray(points, dtype=float)
+    d = p - (cx, cy)
+    n = np.hypot(d[:, 0], d[:, 1])
+    if len(p) < 4 or np.any(n < 1e-9):
+        return math.inf
+    u = d / n[:, None]                       # the Jacobian is [-u, -1]: JᵀJ = [[A, b], [bᵀ, N]]
+    sigma = max(float(np.sqrt(np.mean((n - r) ** 2))), noise_floor)
+    a11, a12, a22 = float(u[:, 0] @ u[:, 0]), float(u[:, 0] @ u[:, 1]), float(u[:, 1] @ u[:, 1])
+    b1, b2 = float(u[:, 0].sum()), float(u[:, 1].sum())
+    det = a11 * a22 - a12 * a12
+    if det <= 1e-12:
+        return math.inf
+    # (JᵀJ)⁻¹ at (r, r) is the inverse of the Schur complement N - bᵀA⁻¹b
+    schur = len(p) - (a22 * b1 * b1 - 2 * a12 * b1 * b2 + a11 * b2 * b2) / det
+    if schur <= 1e-12:
+        return math.inf
+    return sigma / math.sqrt(schur)
 
 
 def centroid(points):

@@ -13,11 +13,16 @@ from scipy.spatial import cKDTree
 
 
 def centroid_clusters(points, threshold, gap):
-    """Cluster ``(N, 2)`` points [m] given in scan order. Returns a list of index arrays."""
+    """Cluster ``(N, 2)`` points [m] given in scan order. Returns a list of index arrays.
+
+    ``gap`` [m] is a scalar or one value per point (the beams spread with range, so a far
+    point may sit farther from its neighbour than a near one).
+    """
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     n = len(pts)
     if n == 0:
         return []
+    gaps = np.broadcast_to(np.asarray(gap, dtype=float), (n,))
     labels = np.empty(n, dtype=int)
     sums = np.zeros((n, 2))
     counts = np.zeros(n)
@@ -27,7 +32,7 @@ def centroid_clusters(points, threshold, gap):
         p = pts[i]
         if k:
             d = np.hypot(*(sums[:k] / counts[:k, None] - p).T)
-            near = np.hypot(*(last[:k] - p).T) <= gap
+            near = np.hypot(*(last[:k] - p).T) <= gaps[i]
             d[~near] = np.inf
             j = int(np.argmin(d))
             if d[j] <= threshold:
@@ -41,12 +46,13 @@ def centroid_clusters(points, threshold, gap):
         counts[k] = 1
         last[k] = p
         k += 1
-    return _merge([np.flatnonzero(labels == j) for j in range(k)], pts, threshold, gap)
+    return _merge([np.flatnonzero(labels == j) for j in range(k)], pts, threshold, gaps)
 
 
-def _merge(clusters, pts, threshold, gap):
+def _merge(clusters, pts, threshold, gaps):
     """Merge clusters whose centroids are within ``threshold`` and whose points touch within
-    ``gap``; repeated until nothing changes."""
+    the larger gap of the two touching points (``gaps``: one per point); transitively, through a
+    union-find over the pairs (centroids of the clusters found by the pass)."""
     if len(clusters) < 2:
         return clusters
     cent = np.array([pts[c].mean(axis=0) for c in clusters])
@@ -60,7 +66,12 @@ def _merge(clusters, pts, threshold, gap):
 
     trees = [cKDTree(pts[c]) for c in clusters]
     for a, b in cKDTree(cent).query_pairs(threshold):
-        if root(a) != root(b) and trees[a].query(pts[clusters[b]], distance_upper_bound=gap)[0].min() <= gap:
+        if root(a) == root(b):
+            continue
+        gb = gaps[clusters[b]]
+        d, j = trees[a].query(pts[clusters[b]], distance_upper_bound=float(gaps.max()))
+        ok = np.isfinite(d)
+        if np.any(d[ok] <= np.maximum(gb[ok], gaps[clusters[a]][j[ok]])):
             parent[root(a)] = root(b)
     groups = {}
     for i in range(len(clusters)):

@@ -2,6 +2,11 @@
 
 ``circle_fit`` (default) and ``centroid``: scan → points in map → map subtraction (distance
 transform) → centroid clustering → obstacle-shape filter → one centre per cluster.
+The circle fit also uses the beams beside each cluster that went past it (a fitted circle may
+not block them), and when an arc is too short for its radius to be measured (radius standard
+error above ``max_radius_std``: a partly hidden obstacle) it fits the centre with a known
+radius: ``obstacle_radius`` if set, else the median radius of the scan's well-measured
+obstacles when those agree within ``radius_spread``; otherwise the free fit stands.
 ``discontinuity``: the classic pipeline on the raw scan, without the map: range-jump segmentation,
 each segment that stands out in front of its neighbours is an obstacle whose closest point is
 pushed back by a fixed depth along its beam.
@@ -11,7 +16,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from tiago_nav.detection.centres import centroid, circle_fit
+from tiago_nav.detection.centres import centroid, circle_fit, radius_std
 from tiago_nav.detection.clustering import centroid_clusters
 from tiago_nav.detection.subtraction import MapDistance, subtract
 from tiago_nav.geometry import scan_to_points, transform_points
@@ -24,13 +29,19 @@ class DetectionParams:
     """Defaults of the node (config/detection.yaml). Lengths in metres."""
     scan_minus_map_threshold: float = 0.12  # points closer than this to the map are the map's
     cluster_threshold: float = 0.4          # centroid distance to join or merge a cluster
-    gap: float = 0.08                       # a cluster's points must touch within this (at 1 m;
-                                            # grows with range as the beams spread)
+    gap: float = 0.08                       # a cluster's points must touch within this, or 3
+                                            # beam spacings at their range (+1 per invalid beam)
     min_points: int = 5                     # fewer points: noise
     min_radius: float = 0.03                # fitted radius outside [min, max]: not an obstacle
     max_radius: float = 0.6
     max_fit_rms: float = 0.03               # residual of the circle fit above this: not round
     obstacle_radius: float = 0.0            # > 0: fit centres with this radius fixed
+    max_radius_std: float = 0.02            # radius std error above this (a short arc):
+                                            # fit the centre with the median radius of the
+                                            # scan's well-measured obstacles instead
+    radius_spread: float = 0.03             # ... when those radii agree within this
+    range_noise: float = 0.01               # the laser's range noise std: the least residual
+                                            # assumed when judging a fitted radius's precision
     max_range: float = 10.0                 # ignore beams longer than this
     jump: float = 0.15                      # discontinuity: range jump that separates segments
     depth: float = 0.2                      # discontinuity: closest point pushed back this far
@@ -72,41 +83,83 @@ class ObstacleDetector:
             found = _discontinuity(r, angle_min, angle_increment, range_min,
                                    min(range_max, p.max_range), laser_pose, p)
         else:
-            found = self._clusters(r, angle_min, angle_increment, range_min,
+            found = self._clusters(r, angle_min, angle_increment, range_min, range_max,
                                    min(range_max, p.max_range), laser_pose, method, p)
         lx, ly = laser_pose[0], laser_pose[1]
         return sorted(found, key=lambda d: math.hypot(d.center[0] - lx, d.center[1] - ly))
 
-    def _clusters(self, r, angle_min, inc, rmin, rmax, laser_pose, method, p):
-        local, _ = scan_to_points(r, angle_min, inc, rmin, rmax)
+    def _clusters(self, r, angle_min, inc, rmin, laser_max, rmax, laser_pose, method, p):
+        local, beam = scan_to_points(r, angle_min, inc, rmin, rmax)
+        # invalid beams (NaN, inf, out of limits) just before each valid one: a hole in the scan
+        # must not split an obstacle
+        holes = np.diff(np.concatenate(([-1], beam))) - 1
         pts = transform_points(laser_pose, local)
         keep = subtract(pts, self.distance, p.scan_minus_map_threshold)
-        pts = pts[keep]
+        pts, beam, holes = pts[keep], beam[keep], holes[keep]
         sensor = np.array(laser_pose[:2])
-        out = []
-        for idx in centroid_clusters(pts, p.cluster_threshold, _gap(pts, sensor, inc, p.gap)):
+        rng = np.hypot(*(pts - sensor).T) if len(pts) else np.empty(0)
+        cands = []
+        for idx in centroid_clusters(pts, p.cluster_threshold, _gap(rng, inc, p.gap, holes)):
             c = pts[idx]
             if len(c) < p.min_points:
                 continue
-            cx, cy, rad, rms = circle_fit(c)
-            if not _is_obstacle(c, (cx, cy), rad, rms, sensor, p):
-                continue
-            if method == 'circle_fit':
-                if p.obstacle_radius > 0:
-                    cx, cy, rad, _ = circle_fit(c, p.obstacle_radius, sensor)
-            else:
+            passing = _passing_rays(r, beam[idx], rng[idx], angle_min, inc, laser_pose[2],
+                                    laser_max)
+            margin = PASSING_MARGIN * inc * float(rng[idx].max())
+            cx, cy, rad, rms = circle_fit(c, sensor=sensor, passing=passing, margin=margin)
+            if _is_obstacle(c, (cx, cy), rad, rms, sensor, p):
+                cands.append((c, cx, cy, rad, radius_std(c, cx, cy, rad, p.range_noise),
+                              passing, margin))
+        # The radius to assume where an arc is too short to measure it: the configured one, or,
+        # when at least two obstacles of this scan are well measured and agree (all within
+        # radius_spread), their median. Otherwise the free fit stands.
+        prior = p.obstacle_radius
+        if prior <= 0:
+            good = [k[3] for k in cands if k[4] <= p.max_radius_std]
+            if len(good) >= 2 and max(good) - min(good) <= p.radius_spread:
+                prior = float(np.median(good))
+        out = []
+        for c, cx, cy, rad, std, passing, margin in cands:
+            if method == 'centroid':
                 cx, cy = centroid(c)
+            elif p.obstacle_radius > 0 or (prior > 0 and std > p.max_radius_std):
+                fx, fy, frad, frms = circle_fit(c, prior, sensor, passing, margin)
+                if frms <= p.max_fit_rms:
+                    cx, cy, rad = fx, fy, frad
             out.append(Detection((cx, cy), rad, len(c), c))
         return out
 
 
-def _gap(pts, sensor, inc, gap):
-    """The neighbour distance [m] below which points belong together: ``gap`` at 1 m, growing
-    with the beams' spacing at the farthest point (grazing beams spread up to ~3 spacings)."""
-    if len(pts) == 0:
-        return gap
-    far = float(np.max(np.hypot(*(pts - sensor).T)))
-    return max(gap, 3.0 * far * inc)
+def _gap(ranges, inc, gap, holes=0):
+    """Per point, the neighbour distance [m] below which points belong together: ``gap``, or
+    three beam spacings at the point's range [m] when larger (beams spread with range, and more
+    on oblique surfaces), plus one spacing per invalid beam (``holes``) just before the point."""
+    return np.maximum(gap, (3.0 + np.asarray(holes)) * np.asarray(ranges, dtype=float) * inc)
+
+
+PASSING_BEAMS = 3     # beams each side of a cluster checked for going past it
+PASSING_MARGIN = 0.25  # a passing beam may graze the fitted circle by this many beam spacings
+
+
+def _passing_rays(r, beams, ranges, angle_min, inc, yaw, laser_max):
+    """Unit directions (map frame) of the beams beside a cluster (beam indices ``beams``,
+    ranges ``ranges`` [m]) that went past it: walking out from each end of the cluster, up to
+    ``PASSING_BEAMS`` beams with no return (+inf, REP 117) or a valid return (<= ``laser_max``)
+    well behind the cluster's farthest point. The walk stops at the first beam that says nothing
+    (NaN, out of limits: it may be a dropout on the obstacle itself) or hits something nearer."""
+    lo, hi, n = int(beams.min()), int(beams.max()), len(r)
+    behind = float(ranges.max()) + 0.1
+    keep = []
+    for start, step in ((lo - 1, -1), (hi + 1, 1)):
+        j = start
+        while 0 <= j < n and abs(j - start) < PASSING_BEAMS:
+            v = float(r[j])
+            if not (v == math.inf or (behind < v <= laser_max)):
+                break
+            keep.append(j)
+            j += step
+    a = yaw + angle_min + inc * np.asarray(keep, dtype=float)
+    return np.column_stack((np.cos(a), np.sin(a))).reshape(-1, 2)
 
 
 def _is_obstacle(c, centre, rad, rms, sensor, p):
@@ -121,11 +174,13 @@ def _is_obstacle(c, centre, rad, rms, sensor, p):
 
 def _discontinuity(r, angle_min, inc, rmin, rmax, laser_pose, p):
     """Range-jump segmentation of the raw scan (no map)."""
-    valid = np.isfinite(r) & (r >= rmin) & (r <= rmax)
+    with np.errstate(invalid='ignore'):
+        valid = np.isfinite(r) & (r >= rmin) & (r <= rmax)
     rr = np.where(valid, r, np.inf)
     n = len(rr)
     # segment boundaries where the range jumps (or validity changes)
-    jumps = np.flatnonzero(~(np.abs(np.diff(rr)) <= p.jump)) + 1
+    with np.errstate(invalid='ignore'):
+        jumps = np.flatnonzero(~(np.abs(np.diff(rr)) <= p.jump)) + 1
     starts = np.concatenate(([0], jumps))
     ends = np.concatenate((jumps, [n]))
     ang = angle_min + inc * np.arange(n)
