@@ -1,0 +1,169 @@
+"""Local controller: regulated pure pursuit along the global plan, with the base's velocity and
+acceleration limits, speed regulated by curvature, distance to the goal and clearance, a
+forward-collision check of every command against the laser points, and a final in-place turn
+to the goal yaw.
+
+Frames: poses and points in ``map``; ``(x, y, yaw)`` [m, m, rad]; speeds [m/s, rad/s].
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from tiago_nav.geometry import wrap_angle
+
+
+@dataclass
+class ControllerConfig:
+    robot_radius: float = 0.27        # [m]
+    max_vel_x: float = 1.0            # [m/s]
+    min_vel_x: float = 0.05           # [m/s] slowest forward cruise
+    max_vel_theta: float = 1.5        # [rad/s]
+    acc_lim_x: float = 1.0            # [m/s^2]
+    acc_lim_theta: float = 2.0        # [rad/s^2]
+    decel_x: float = 0.9              # [m/s^2] planned braking (a bit under the limit)
+    lookahead_min: float = 0.35       # [m]
+    lookahead_time: float = 0.7       # [s] lookahead = min + time * v
+    lookahead_max: float = 1.2        # [m]
+    rotate_in_place_angle: float = 1.3   # [rad] heading error above which the base turns on the spot
+    slow_clearance: float = 0.15      # [m] surface gap below which speed is scaled down
+    slow_clearance_speed: float = 0.35   # [m/s] speed at zero gap
+    safety_margin: float = 0.04       # [m] the collision check's extra radius
+    tight_clearance: float = 0.25     # [m] gap below which the base tracks the plan closely
+    tight_rotate_angle: float = 0.5   # [rad] ... and turns on the spot above this heading error
+    heading_gain: float = 2.5         # [1/s] in-place turning gain
+    xy_goal_tolerance: float = 0.15   # [m]
+    yaw_goal_tolerance: float = 0.1   # [rad]
+
+
+def _ramp(target, current, limit, dt):
+    return current + max(-limit * dt, min(limit * dt, target - current))
+
+
+def arc_poses(pose, v, w, horizon, dt):
+    """Poses ``(K, 3)`` of the unicycle from ``pose`` under constant ``(v, w)``."""
+    n = max(1, int(math.ceil(horizon / dt)))
+    t = np.arange(1, n + 1) * dt
+    x, y, th = pose
+    if abs(w) < 1e-6:
+        return np.column_stack((x + v * t * math.cos(th), y + v * t * math.sin(th), np.full(n, th)))
+    ths = th + w * t
+    return np.column_stack((x + v / w * (np.sin(ths) - math.sin(th)),
+                            y - v / w * (np.cos(ths) - math.cos(th)), ths))
+
+
+def min_gap(positions, points, radius):
+    """Smallest gap [m] between circles of ``radius`` at ``positions (K, 2)`` and ``points (M, 2)``."""
+    if len(points) == 0 or len(positions) == 0:
+        return math.inf
+    d = np.hypot(positions[:, None, 0] - points[None, :, 0], positions[:, None, 1] - points[None, :, 1])
+    return float(d.min() - radius)
+
+
+class Controller:
+    """Stateful: remembers the last command (for the acceleration ramp) and the path progress."""
+
+    def __init__(self, config=ControllerConfig()):
+        self.c = config
+        self.reset()
+
+    def reset(self, path=None):
+        self.v = 0.0
+        self.w = 0.0
+        self.set_path(path)
+
+    def set_path(self, path):
+        self.path = None if path is None else np.asarray(path, dtype=float)
+        self.index = 0
+
+    # ------------------------------------------------------------------------------------
+    def _progress(self, xy):
+        p = self.path
+        lo = self.index
+        hi = min(len(p), lo + 60)
+        d = np.hypot(p[lo:hi, 0] - xy[0], p[lo:hi, 1] - xy[1])
+        self.index = lo + int(np.argmin(d))
+        return float(d.min())
+
+    def _lookahead(self, xy, dist):
+        p = self.path[self.index:]
+        d = np.hypot(p[:, 0] - xy[0], p[:, 1] - xy[1])
+        beyond = np.nonzero(d >= dist)[0]
+        return p[beyond[0]] if len(beyond) else p[-1]
+
+    def safe(self, pose, v, w, points, dt):
+        """True when ``(v, w)`` held for ``dt`` and then braked at ``decel_x`` keeps the footprint
+        (plus ``safety_margin``) clear of ``points``."""
+        if v <= 1e-3:
+            return True   # a round base turning on the spot or stopping cannot hit anything new
+        horizon = dt + v / self.c.decel_x + 0.1
+        poses = arc_poses(pose, v, w, horizon, 0.05)
+        near = points[np.hypot(points[:, 0] - pose[0], points[:, 1] - pose[1])
+                      < v * horizon + self.c.robot_radius + 0.3] if len(points) else points
+        return min_gap(poses[:, :2], near, self.c.robot_radius + self.c.safety_margin) > 0.0
+
+    def command(self, pose, goal, points, dt):
+        """One control step. ``points``: laser hits ``(M, 2)`` in map. Returns
+        ``(v, w, phase)`` with phase ``'follow'``, ``'rotate'``, ``'arrived'`` or ``'blocked'``."""
+        c = self.c
+        x, y, yaw = pose
+        dg = math.hypot(goal[0] - x, goal[1] - y)
+        if self.path is None or dg <= c.xy_goal_tolerance:
+            err = wrap_angle(goal[2] - yaw)
+            if dg <= c.xy_goal_tolerance and abs(err) <= c.yaw_goal_tolerance and abs(self.w) < 0.3:
+                self.v, self.w = 0.0, 0.0
+                return 0.0, 0.0, 'arrived'
+            w_t = math.copysign(min(c.max_vel_theta, c.heading_gain * abs(err),
+                                    math.sqrt(2 * c.acc_lim_theta * 0.8 * abs(err))), err)
+            self.v = _ramp(0.0, self.v, c.acc_lim_x, dt)
+            self.w = _ramp(w_t, self.w, c.acc_lim_theta, dt)
+            return self.v, self.w, 'rotate'
+
+        self._progress((x, y))
+        gap = math.inf
+        if len(points):
+            near = points[np.hypot(points[:, 0] - x, points[:, 1] - y) < c.robot_radius + 0.8]
+            gap = min_gap(np.array([[x, y]]), near, c.robot_radius)
+        tight = gap < c.tight_clearance
+        L = min(c.lookahead_max, max(c.lookahead_min, c.lookahead_min + c.lookahead_time * self.v))
+        if tight:
+            L = c.lookahead_min
+        L = min(L, max(dg, 0.05))
+        tx, ty = self._lookahead((x, y), L)
+        alpha = wrap_angle(math.atan2(ty - y, tx - x) - yaw)
+        turn_limit = c.tight_rotate_angle if tight else c.rotate_in_place_angle
+        if abs(alpha) > turn_limit and self.v < 0.3:
+            return self._turn(alpha, dt, 'rotate')
+        Ld = max(math.hypot(tx - x, ty - y), 1e-3)
+        k = 2.0 * math.sin(alpha) / Ld                          # curvature [1/m]
+        v_t = c.max_vel_x
+        v_t = min(v_t, c.max_vel_theta / max(abs(k), 1e-6))
+        v_t = min(v_t, max(0.0, c.max_vel_x * (1.0 - 0.5 * max(0.0, abs(alpha) - 0.3) / c.rotate_in_place_angle)))
+        v_t = min(v_t, math.sqrt(2 * c.decel_x * max(dg - 0.5 * c.xy_goal_tolerance, 0.0)) + 0.02)
+        if gap < c.slow_clearance:
+            v_t = min(v_t, c.slow_clearance_speed + (c.max_vel_x - c.slow_clearance_speed)
+                      * max(gap, 0.0) / c.slow_clearance)
+        v_t = max(v_t, c.min_vel_x)
+        v = _ramp(v_t, self.v, c.acc_lim_x, dt)
+        w_t = max(-c.max_vel_theta, min(c.max_vel_theta, k * max(v, c.min_vel_x)))
+        w = _ramp(w_t, self.w, c.acc_lim_theta, dt)
+        if not self.safe(pose, v, w, points, dt):
+            # slower, then on the spot towards the plan (a round base cannot hit anything turning)
+            for vs in (0.5 * v, 0.25 * v, 0.1, 0.05):
+                vs = min(vs, v)
+                if vs > 0.02 and self.safe(pose, vs, w, points, dt):
+                    self.v, self.w = vs, w
+                    return vs, w, 'follow'
+            return self._turn(alpha, dt, 'blocked')
+        self.v, self.w = v, w
+        return v, w, 'follow'
+
+    def _turn(self, alpha, dt, phase):
+        """Brake and turn on the spot towards heading error ``alpha`` [rad]."""
+        c = self.c
+        w_t = math.copysign(min(c.max_vel_theta, c.heading_gain * abs(alpha),
+                                math.sqrt(2 * c.acc_lim_theta * 0.8 * abs(alpha))), alpha)
+        self.v = _ramp(0.0, self.v, c.acc_lim_x, dt)
+        self.v = 0.0 if self.v < 0.05 else self.v
+        self.w = _ramp(w_t, self.w, c.acc_lim_theta, dt)
+        return self.v, self.w, phase

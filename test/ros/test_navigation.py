@@ -1,0 +1,193 @@
+#!/usr/bin/python3
+"""Rostest of nodes/navigation (move_base) in the shipped world, with a plain
+SimpleActionClient of MoveBaseAction, checked against the world file's ground truth (tf
+map -> base_footprint is the simulator's true pose, /sim/collisions its contact count):
+goals past the movable cylinders are reached within tolerance, a goal inside a wall and a goal in
+a free pocket no path reaches are ABORTED with a reason, a cancelled goal is PREEMPTED and the
+base stops, /move_base/make_plan answers, and /sim/collisions stays 0 throughout."""
+import math
+import unittest
+
+import actionlib
+import numpy as np
+import rospy
+import rostest
+import tf2_ros
+from actionlib_msgs.msg import GoalStatus
+from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+from nav_msgs.msg import Odometry
+from nav_msgs.srv import GetPlan
+from scipy import ndimage
+from std_msgs.msg import UInt32
+from std_srvs.srv import Empty
+from geometry_msgs.msg import PoseStamped
+
+from tiago_nav.geometry import wrap_angle
+from tiago_nav.rosutil import pose_from_transform, pose_stamped
+from tiago_nav.sim.raster import rasterise_world
+from tiago_nav.sim.world import load_world
+
+TIMEOUT = 30.0
+ROBOT_RADIUS = 0.27
+
+
+def goal_msg(x, y, yaw_deg, frame='map'):
+    return MoveBaseGoal(target_pose=pose_stamped((x, y, math.radians(yaw_deg)), frame, rospy.Time.now()))
+
+
+def clearance(world, x, y):
+    """Distance [m] from (x, y) to the nearest movable cylinder's surface (ground truth)."""
+    return min(math.hypot(x - c.x, y - c.y) - c.radius for c in world.movable_obstacles)
+
+
+class NavigationTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node('test_navigation')
+        cls.world = load_world(rospy.get_param('~world'))
+        cls.tf = tf2_ros.Buffer()
+        cls.listener = tf2_ros.TransformListener(cls.tf)
+        cls.collisions = None
+        rospy.Subscriber('/sim/collisions', UInt32, cls._on_collisions)
+        cls.odom = None
+        rospy.Subscriber('/mobile_base_controller/odom', Odometry, cls._on_odom)
+        rospy.wait_for_message('/clock', rospy.AnyMsg, timeout=TIMEOUT)
+        cls.client = actionlib.SimpleActionClient('move_base', MoveBaseAction)
+        assert cls.client.wait_for_server(rospy.Duration(TIMEOUT)), 'no move_base server'
+
+    @classmethod
+    def _on_collisions(cls, msg):
+        cls.collisions = msg.data
+
+    @classmethod
+    def _on_odom(cls, msg):
+        cls.odom = msg
+
+    def base_pose(self):
+        t = self.tf.lookup_transform('map', 'base_footprint', rospy.Time(), rospy.Duration(TIMEOUT))
+        return pose_from_transform(t.transform)
+
+    def assert_no_collision(self):
+        end = rospy.Time.now() + rospy.Duration(2.0)
+        while self.collisions is None and rospy.Time.now() < end:
+            rospy.sleep(0.1)
+        self.assertEqual(self.collisions, 0, 'the robot touched something (/sim/collisions)')
+
+    def send_and_wait(self, goal, timeout):
+        feedback = []
+        self.client.send_goal(goal, feedback_cb=lambda f: feedback.append(rospy.Time.now().to_sec()))
+        self.assertTrue(self.client.wait_for_result(rospy.Duration(timeout)), 'no result in %.0f s' % timeout)
+        return self.client.get_state(), self.client.get_goal_status_text(), feedback
+
+    def reach(self, x, y, yaw_deg, timeout=90.0):
+        state, text, feedback = self.send_and_wait(goal_msg(x, y, yaw_deg), timeout)
+        self.assertEqual(state, GoalStatus.SUCCEEDED, 'goal (%g, %g): state %d, %r' % (x, y, state, text))
+        px, py, pyaw = self.base_pose()
+        self.assertLess(math.hypot(px - x, py - y), 0.15 + 0.03, 'ended at (%.2f, %.2f)' % (px, py))
+        self.assertLess(abs(wrap_angle(pyaw - math.radians(yaw_deg))), 0.1 + 0.03)
+        if len(feedback) > 10:
+            rate = (len(feedback) - 1) / (feedback[-1] - feedback[0])
+            self.assertGreaterEqual(rate, 4.5, 'feedback at %.1f Hz' % rate)
+        self.assert_no_collision()
+
+    def test_1_reaches_pose_b_and_goals_past_the_cylinders(self):
+        # pose B of the course, then two goals whose straight line crosses a movable cylinder
+        self.reach(11.0, 0.0, -45.0)
+        for x, y, yaw in ((12.0, -2.0, 0.0), (10.2, -3.2, 180.0)):
+            self.assertGreater(clearance(self.world, x, y), ROBOT_RADIUS + 0.2)
+            self.reach(x, y, yaw)
+
+    def test_2_goal_inside_a_wall_aborts_quickly(self):
+        w = self.world.walls[len(self.world.walls) // 2]
+        t0 = rospy.Time.now()
+        state, text, _ = self.send_and_wait(goal_msg(w.x, w.y, 0.0), 10.0)
+        self.assertEqual(state, GoalStatus.ABORTED)
+        self.assertIn('obstacle', text)
+        self.assertLess((rospy.Time.now() - t0).to_sec(), 2.0)
+
+    def test_3_goal_outside_the_map_aborts(self):
+        xmin, ymin, xmax, ymax = self.world.bounds
+        state, text, _ = self.send_and_wait(goal_msg(xmax + 5.0, ymax + 5.0, 0.0), 10.0)
+        self.assertEqual(state, GoalStatus.ABORTED)
+        self.assertIn('outside the map', text)
+
+    def test_4_unreachable_goal_aborts(self):
+        # a free pocket (ground truth: the world's own raster) not connected to the robot's
+        grid = rasterise_world(self.world)
+        dist = ndimage.distance_transform_edt(~grid.occupied()) * grid.resolution
+        labels, n = ndimage.label(dist > ROBOT_RADIUS + 0.1)
+        rc = grid.world_to_cell([self.base_pose()[:2]])[0]
+        mine = labels[rc[0], rc[1]]
+        other = (labels > 0) & (labels != mine)
+        if not other.any():
+            self.skipTest('this world has no unreachable free pocket')
+        best = np.unravel_index(np.argmax(np.where(other, dist, 0)), dist.shape)
+        x, y = grid.cell_to_world([best])[0]
+        state, text, _ = self.send_and_wait(goal_msg(x, y, 0.0), 30.0)
+        self.assertEqual(state, GoalStatus.ABORTED, 'goal (%.2f, %.2f): %r' % (x, y, text))
+        self.assertIn('no path', text)
+        self.assert_no_collision()
+
+    def test_5_make_plan_service(self):
+        rospy.wait_for_service('/move_base/make_plan', timeout=TIMEOUT)
+        srv = rospy.ServiceProxy('/move_base/make_plan', GetPlan)
+        start = self.base_pose()
+        resp = srv(start=pose_stamped(start, 'map'), goal=pose_stamped((11.0, 0.0, 0.0), 'map'),
+                   tolerance=0.0)
+        self.assertGreater(len(resp.plan.poses), 10)
+        last = resp.plan.poses[-1].pose.position
+        self.assertLess(math.hypot(last.x - 11.0, last.y), 0.1)
+        # every plan point keeps the robot clear of the static walls (ground truth raster)
+        grid = rasterise_world(self.world)
+        dist = ndimage.distance_transform_edt(~grid.occupied()) * grid.resolution
+        pts = np.array([[p.pose.position.x, p.pose.position.y] for p in resp.plan.poses])
+        rc = grid.world_to_cell(pts)
+        self.assertGreaterEqual(dist[rc[:, 0], rc[:, 1]][3:].min(), ROBOT_RADIUS)
+
+    def test_6_cancel_preempts_and_stops(self):
+        self.client.send_goal(goal_msg(3.0, 0.0, 180.0))
+        end = rospy.Time.now() + rospy.Duration(20.0)
+        while rospy.Time.now() < end and (self.odom is None or self.odom.twist.twist.linear.x < 0.3):
+            rospy.sleep(0.05)
+        self.assertGreater(self.odom.twist.twist.linear.x, 0.3, 'the robot never got moving')
+        self.client.cancel_goal()
+        self.assertTrue(self.client.wait_for_result(rospy.Duration(10.0)))
+        self.assertEqual(self.client.get_state(), GoalStatus.PREEMPTED)
+        rospy.sleep(1.5)
+        tw = self.odom.twist.twist
+        self.assertLess(abs(tw.linear.x), 0.02, 'still moving after the cancel')
+        self.assertLess(abs(tw.angular.z), 0.02)
+        self.assert_no_collision()
+
+    def test_7_newer_goal_preempts(self):
+        self.client.send_goal(goal_msg(11.0, 0.0, 0.0))
+        rospy.sleep(1.0)
+        first = actionlib.SimpleActionClient('move_base', MoveBaseAction)
+        first.wait_for_server(rospy.Duration(TIMEOUT))
+        # the second client's goal replaces the first client's
+        first.send_goal(goal_msg(*self.base_pose()[:2], 0.0))
+        self.assertTrue(self.client.wait_for_result(rospy.Duration(10.0)))
+        self.assertEqual(self.client.get_state(), GoalStatus.PREEMPTED)
+        self.assertTrue(first.wait_for_result(rospy.Duration(30.0)))
+        self.assertEqual(first.get_state(), GoalStatus.SUCCEEDED, first.get_goal_status_text())
+        self.assert_no_collision()
+
+    def test_8_simple_goal_topic_and_clear_costmaps(self):
+        rospy.wait_for_service('/move_base/clear_costmaps', timeout=TIMEOUT)
+        rospy.ServiceProxy('/move_base/clear_costmaps', Empty)()
+        pub = rospy.Publisher('/move_base_simple/goal', PoseStamped, queue_size=1, latch=True)
+        x, y, yaw = 8.0, -0.5, 90.0
+        pub.publish(pose_stamped((x, y, math.radians(yaw)), 'map', rospy.Time.now()))
+        end = rospy.Time.now() + rospy.Duration(60.0)
+        reached = False
+        while rospy.Time.now() < end and not reached:
+            rospy.sleep(0.2)
+            px, py, pyaw = self.base_pose()
+            reached = (math.hypot(px - x, py - y) < 0.18 and abs(wrap_angle(pyaw - math.radians(yaw))) < 0.13
+                       and self.odom is not None and abs(self.odom.twist.twist.angular.z) < 0.02)
+        self.assertTrue(reached, 'the /move_base_simple/goal pose was not reached')
+        self.assert_no_collision()
+
+
+if __name__ == '__main__':
+    rostest.rosrun('tiago_nav', 'test_navigation', NavigationTest)

@@ -1,0 +1,86 @@
+"""Closed-loop tests of the navigation library (the code nodes/navigation runs) driving the
+simulator without ROS: ground truth is the simulator's pose and contact count."""
+import math
+import os
+
+import pytest
+
+from conftest import WORLDS
+from tiago_nav.nav.navigator import ABORTED, ACTIVE, SUCCEEDED, Navigator, NavConfig
+from tiago_nav.nav.planner import PlanError
+from tiago_nav.sim.raster import rasterise_world
+from tiago_nav.sim.simulator import SimConfig, Simulator
+from tiago_nav.sim.world import World, load_world
+
+
+def drive(world, goal, start=None, limit=60.0):
+    sim = Simulator(world, SimConfig(seed=3), start_pose=start)
+    nav = Navigator(rasterise_world(world), NavConfig())
+    angles = sim.config.laser.angles()
+
+    def scan():
+        lp = sim.scene.laser_pose()
+        nav.add_scan(lp[:2], angles + lp[2], sim.scan())
+
+    scan()
+    nav.start(goal, sim.pose, sim.time)
+    state, reason, closest = ACTIVE, '', math.inf
+    while state == ACTIVE and sim.time < limit:
+        for _ in range(6):
+            if sim.step()[0]:
+                scan()
+        v, w, state, reason = nav.step(sim.pose, sim.time, 0.1)
+        sim.command(v, w)
+        for c in world.movable_obstacles:
+            closest = min(closest, math.hypot(sim.pose[0] - c.x, sim.pose[1] - c.y) - c.radius)
+    out = dict(state=state, reason=reason, pose=sim.pose, collisions=sim.collisions, time=sim.time,
+               closest=closest)
+    sim.close()
+    return out
+
+
+def test_reaches_a_goal_behind_an_unmapped_cylinder():
+    # open floor, a movable cylinder right on the straight line from start to goal
+    w = World.from_dict(dict(name='t', resolution=0.05, bounds=[-1, -2, 6, 2], robot_start=[0, 0, 0],
+                             walls=[], static_cylinders=[],
+                             movable_obstacles=[dict(x=2.5, y=0.0, radius=0.25)]))
+    r = drive(w, (5.0, 0.0, math.pi / 2))
+    assert r['state'] == SUCCEEDED, r['reason']
+    x, y, yaw = r['pose']
+    assert math.hypot(x - 5.0, y) <= 0.15
+    assert abs(math.atan2(math.sin(yaw - math.pi / 2), math.cos(yaw - math.pi / 2))) <= 0.1
+    assert r['collisions'] == 0
+    assert r['closest'] > 0.27                         # went around, not through
+
+
+def test_drives_the_shipped_corridor_without_contact():
+    w = load_world(os.path.join(WORLDS, 'ias_lab_room_full.yaml'))
+    ex, ey = w.corridor.exit
+    r = drive(w, (ex, ey, 0.0))
+    assert r['state'] == SUCCEEDED, r['reason']
+    assert math.hypot(r['pose'][0] - ex, r['pose'][1] - ey) <= 0.15
+    assert r['collisions'] == 0
+    length = math.hypot(ex - w.start_pose[0], ey - w.start_pose[1])
+    assert r['time'] < 1.3 * length / 1.0 + 1.5       # fast in the straight corridor (sim time)
+
+
+def test_path_closed_by_an_unmapped_obstacle_aborts_with_no_path():
+    # a corridor the map shows open, closed by a movable cylinder the laser will see
+    walls = [dict(x=3.0, y=0.6, length=6.0, width=0.15, yaw_deg=0),
+             dict(x=3.0, y=-0.6, length=6.0, width=0.15, yaw_deg=0),
+             dict(x=6.05, y=0.0, length=1.35, width=0.15, yaw_deg=90)]
+    w = World.from_dict(dict(name='t', resolution=0.05, bounds=[-0.5, -1, 6.5, 1], robot_start=[0.5, 0, 0],
+                             walls=walls, static_cylinders=[],
+                             movable_obstacles=[dict(x=3.0, y=0.0, radius=0.3)]))
+    r = drive(w, (5.0, 0.0, 0.0), limit=90.0)
+    assert r['state'] == ABORTED
+    assert 'no path' in r['reason'] or 'stuck' in r['reason']
+    assert r['collisions'] == 0
+
+
+def test_goal_in_wall_rejected_before_moving():
+    w = load_world(os.path.join(WORLDS, 'ias_lab_room_full.yaml'))
+    nav = Navigator(rasterise_world(w), NavConfig())
+    wall = w.walls[5]
+    with pytest.raises(PlanError, match='inside an obstacle'):
+        nav.start((wall.x, wall.y, 0.0), w.start_pose, 0.0)

@@ -1,0 +1,133 @@
+"""Unit tests of the navigation costmap, planner and controller (no ROS master)."""
+import math
+import os
+
+import numpy as np
+import pytest
+
+from conftest import WORLDS
+from tiago_nav.gridmap import GridMap
+from tiago_nav.nav.controller import Controller, ControllerConfig
+from tiago_nav.nav.costmap import INSCRIBED, LETHAL, Costmap, inflate
+from tiago_nav.nav.planner import PlanError, grid_path, path_length, plan
+
+
+def empty(rows=40, cols=60, res=0.05):
+    return GridMap(np.zeros((rows, cols), dtype=np.int8), res, (0.0, 0.0))
+
+
+# --- costmap -----------------------------------------------------------------------------
+def test_inflation_values_follow_distance():
+    occ = np.zeros((41, 41), dtype=bool)
+    occ[20, 20] = True
+    cost, dist = inflate(occ, 0.05, 0.27, 0.8, 4.0)
+    assert cost[20, 20] == LETHAL
+    assert cost[20, 20 + 5] == LETHAL                 # 0.25 m < radius
+    d = 0.30                                          # 6 cells: in the gradient band
+    assert cost[20, 26] == round(252 * math.exp(-4.0 * (d - 0.27)))
+    assert cost[20, 20 + 17] == 0                     # 0.85 m > inflation radius
+    row = cost[20, 26:37].astype(int)
+    assert np.all(np.diff(row) <= 0)                  # decreasing away from the obstacle
+
+
+def test_obstacle_marking_and_clearing():
+    cm = Costmap(empty(60, 60), obstacle_range=4.0, raytrace_range=5.0)
+    origin = (0.5, 1.5)
+    cm.add_scan(origin, [0.0], [1.0])                 # a hit 1 m east of the laser
+    cm.update()
+    assert cm.cost_at([(1.5, 1.5)])[0] == LETHAL
+    assert cm.cost_at([(1.5, 1.7)])[0] >= INSCRIBED   # inflated by the robot radius (0.2 m away)
+    cm.add_scan(origin, [0.0], [np.inf])              # the beam now sees through: cleared
+    cm.update()
+    assert cm.cost_at([(1.5, 1.5)])[0] == 0
+    cm.add_scan(origin, [0.0], [1.0])
+    cm.clear_obstacles()
+    assert cm.cost_at([(1.5, 1.5)])[0] == 0
+
+
+# --- planner -----------------------------------------------------------------------------
+def test_optimal_length_on_empty_grid():
+    cost = np.zeros((20, 30), dtype=np.uint8)
+    cells = grid_path(cost, (2, 2), (2, 22), cost_weight=0.0)
+    assert len(cells) == 21                           # straight: 20 steps
+    cells = grid_path(cost, (0, 0), (10, 10), cost_weight=0.0)
+    assert len(cells) == 11                           # pure diagonal
+
+
+def test_no_path_through_a_wall():
+    g = empty(60, 60)
+    g.data[:, 30] = 100                               # a full-height wall
+    cm = Costmap(g)
+    with pytest.raises(PlanError, match='no path'):
+        plan(cm, (0.5, 1.5), (2.5, 1.5))
+
+
+def test_goal_in_obstacle_and_outside_rejected():
+    g = empty(60, 60)
+    g.data[30, 30] = 100
+    cm = Costmap(g)
+    with pytest.raises(PlanError, match='inside an obstacle'):
+        plan(cm, (0.5, 0.5), (1.55, 1.6))             # 0.05 m from the occupied cell
+    with pytest.raises(PlanError, match='outside the map'):
+        plan(cm, (0.5, 0.5), (9.0, 1.0))
+
+
+def test_plan_goes_around_a_wall_gap_and_keeps_clear():
+    g = empty(60, 80)
+    g.data[:45, 40] = 100                             # wall with a gap at the top
+    cm = Costmap(g)
+    p = plan(cm, (0.5, 0.5), (3.5, 0.5))
+    assert np.hypot(*(p[-1] - (3.5, 0.5))) < 1e-9
+    assert (cm.cost_at(p) < INSCRIBED).all()
+    assert p[:, 1].max() > 45 * 0.05                  # went through the gap
+    lower = 2 * math.hypot(1.5, 45 * 0.05 + 0.27 - 0.5)   # straight lines via the gap
+    assert lower < path_length(p) < 1.3 * lower
+
+
+def test_shipped_world_corridor_is_found():
+    from tiago_nav.sim.raster import rasterise_world
+    from tiago_nav.sim.world import load_world
+    w = load_world(os.path.join(WORLDS, 'ias_lab_room_full.yaml'))
+    cm = Costmap(rasterise_world(w))
+    p = plan(cm, w.start_pose[:2], w.corridor.exit)
+    inside = (p[:, 0] > w.corridor.entry[0] + 0.5) & (p[:, 0] < w.corridor.exit[0] - 1.0)
+    assert inside.any()
+    assert np.abs(p[inside, 1] - w.corridor.entry[1]).max() < 0.1     # keeps to the middle
+    assert path_length(p) < 1.05 * math.hypot(*np.subtract(w.corridor.exit, w.start_pose[:2]))
+
+
+# --- controller: closed loop on a kinematic unicycle with the base's limits --------------
+@pytest.mark.parametrize('goal', [(3.0, 1.0, 1.5), (-2.0, 0.5, math.pi), (0.3, -2.0, -0.5)])
+def test_controller_converges_to_pose(goal):
+    from tiago_nav.sim.diffdrive import BaseLimits, DiffDrive
+    from tiago_nav.nav.planner import densify
+    base = DiffDrive((0.0, 0.0, 0.0), BaseLimits())
+    ctl = Controller(ControllerConfig())
+    ctl.set_path(densify([(0.0, 0.0), goal[:2]], 0.05))
+    dt = 0.1
+    for _ in range(400):
+        v, w, phase = ctl.command(base.pose, goal, np.zeros((0, 2)), dt)
+        if phase == 'arrived':
+            break
+        for _ in range(6):
+            base.step(v, w, dt / 6)
+    x, y, yaw = base.pose
+    assert phase == 'arrived'
+    assert math.hypot(x - goal[0], y - goal[1]) <= 0.15
+    assert abs(math.atan2(math.sin(yaw - goal[2]), math.cos(yaw - goal[2]))) <= 0.1
+
+
+def test_controller_stops_before_an_obstacle():
+    from tiago_nav.sim.diffdrive import BaseLimits, DiffDrive
+    from tiago_nav.nav.planner import densify
+    base = DiffDrive((0.0, 0.0, 0.0), BaseLimits())
+    ctl = Controller(ControllerConfig())
+    ctl.set_path(densify([(0.0, 0.0), (5.0, 0.0)], 0.05))
+    wall = np.column_stack((np.full(21, 2.0), np.linspace(-0.5, 0.5, 21)))   # across the path
+    dt = 0.1
+    for _ in range(100):
+        v, w, _ = ctl.command(base.pose, (5.0, 0.0, 0.0), wall, dt)
+        for _ in range(6):
+            base.step(v, w, dt / 6)
+        assert 2.0 - base.pose[0] > 0.27             # never touches
+    assert abs(base.v) < 0.05                         # and has stopped
