@@ -1,0 +1,203 @@
+"""Running whole missions from a script (scripts/run_demo.py, bench/bench_mission.py): start
+demo.launch on a private master, watch the robot (tf path, last scan, /map, /sim/collisions),
+send TiagoTask goals with the client library, shut everything down.
+
+A process can join one ROS master only: use one :class:`Harness` per process.
+"""
+import os
+import signal
+import socket
+import subprocess
+import tempfile
+import threading
+import time
+
+from tiago_nav.geometry import compose, transform_points
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(('localhost', 0))
+        return s.getsockname()[1]
+
+
+class HarnessError(RuntimeError):
+    pass
+
+
+class Harness:
+    """demo.launch (without its client) on ``port``; this process becomes a node of it.
+    ``launch``: the roslaunch arguments naming the launch file (package and file, or a path)."""
+
+    def __init__(self, world, real_time_factor=5.0, laser_noise=0.01, port=None, robot_start=None,
+                 log_path=None, extra_args=(), launch=('tiago_nav', 'demo.launch')):
+        self.port = port or free_port()
+        self.uri = 'http://localhost:%d' % self.port
+        self.log_path = log_path or os.path.join(tempfile.gettempdir(),
+                                                 'tiago_nav_demo_%d.log' % self.port)
+        args = ['roslaunch', '-p', str(self.port), '--wait'] + list(launch) + [
+                'world:=' + os.path.abspath(world), 'real_time_factor:=%g' % real_time_factor,
+                'laser_noise:=%g' % laser_noise, 'client:=false', 'rviz:=false', 'gui:=false']
+        if robot_start is not None:
+            args.append('robot_start:=[%g, %g, %g]' % tuple(robot_start))
+        args += list(extra_args)
+        self.env = dict(os.environ, ROS_MASTER_URI=self.uri)
+        self.log = open(self.log_path, 'w')
+        # roscore first (roslaunch --wait), in its own session so that it can be stopped as a group
+        self.core = subprocess.Popen(['roscore', '-p', str(self.port)], env=self.env,
+                                     stdout=self.log, stderr=subprocess.STDOUT,
+                                     start_new_session=True)
+        self.launch = subprocess.Popen(args, env=self.env, stdout=self.log,
+                                       stderr=subprocess.STDOUT, start_new_session=True)
+        self.path = []
+        self.scan = None
+        self.grid = None
+        self.collisions = None
+        self.lock = threading.Lock()
+        self._node = False
+
+    # --- ROS side ------------------------------------------------------------------------------
+    def connect(self, timeout=60.0):
+        """Join the master, subscribe, and wait (wall ``timeout``) for /clock, /map and every
+        server of the mission."""
+        os.environ['ROS_MASTER_URI'] = self.uri
+        import rosgraph
+        t0 = time.monotonic()
+        while not rosgraph.is_master_online(self.uri):
+            self._check_alive()
+            if time.monotonic() - t0 > timeout:
+                raise HarnessError('no ROS master at %s after %g s' % (self.uri, timeout))
+            time.sleep(0.2)
+        master = rosgraph.Master('/mission_harness')
+        while not master.hasParam('/use_sim_time'):      # set by sim.launch before any node
+            self._check_alive()
+            if time.monotonic() - t0 > timeout:
+                raise HarnessError('/use_sim_time never set (see %s)' % self.log_path)
+            time.sleep(0.1)
+        import rospy
+        import tf2_ros
+        from nav_msgs.msg import OccupancyGrid
+        from sensor_msgs.msg import LaserScan
+        from std_msgs.msg import UInt32
+        rospy.init_node('mission_harness', anonymous=True, disable_signals=True)
+        self._node = True
+        self.tf = tf2_ros.Buffer(rospy.Duration(30))
+        self.tf_listener = tf2_ros.TransformListener(self.tf)
+        rospy.Subscriber('/scan', LaserScan, self._on_scan, queue_size=1)
+        rospy.Subscriber('/map', OccupancyGrid, self._on_map, queue_size=1)
+        rospy.Subscriber('/sim/collisions', UInt32, self._on_collisions, queue_size=1)
+        self.wait_servers(timeout - (time.monotonic() - t0))
+        threading.Thread(target=self._track, daemon=True).start()
+
+    def wait_servers(self, timeout):
+        import actionlib
+        import rospy
+        from move_base_msgs.msg import MoveBaseAction
+        from tiago_nav.mission_client import wait_server
+        from tiago_nav.msg import CorridorAction, TiagoTaskAction
+        t0 = time.monotonic()
+        for name, kind in (('tiago_controller', TiagoTaskAction), ('move_base', MoveBaseAction),
+                           ('corridor_controller', CorridorAction)):
+            c = actionlib.SimpleActionClient(name, kind)
+            if not wait_server(c, max(1.0, timeout - (time.monotonic() - t0))):
+                self._check_alive()
+                raise HarnessError('no %s action server (see %s)' % (name, self.log_path))
+        try:
+            rospy.wait_for_service('obstacle_detection', max(1.0, timeout - (time.monotonic() - t0)))
+        except rospy.ROSException:
+            raise HarnessError('no obstacle_detection service (see %s)' % self.log_path) from None
+        while self.grid is None or self.pose() is None:
+            if time.monotonic() - t0 > timeout:
+                raise HarnessError('no /map or no tf map -> base_footprint (see %s)' % self.log_path)
+            time.sleep(0.1)
+
+    def _check_alive(self):
+        if self.launch.poll() is not None:
+            raise HarnessError('roslaunch exited with %s (see %s)' % (self.launch.returncode,
+                                                                    self.log_path))
+
+    def _on_scan(self, msg):
+        self.scan = msg
+
+    def _on_map(self, msg):
+        from tiago_nav.rosutil import gridmap_from_msg
+        self.grid = gridmap_from_msg(msg)
+
+    def _on_collisions(self, msg):
+        self.collisions = msg.data
+
+    def pose(self):
+        """Ground-truth base pose (the simulator's tf is ground truth) or None."""
+        import rospy
+        from tiago_nav.rosutil import pose_from_transform
+        try:
+            t = self.tf.lookup_transform('map', 'base_footprint', rospy.Time(0))
+        except Exception:
+            return None
+        return pose_from_transform(t.transform)
+
+    def _track(self):
+        import rospy
+        while not rospy.is_shutdown():
+            p = self.pose()
+            if p is not None:
+                with self.lock:
+                    if not self.path or abs(p[0] - self.path[-1][0]) + abs(p[1] - self.path[-1][1]) > 0.01:
+                        self.path.append(p)
+            time.sleep(0.05)
+
+    def scan_points_map(self, timeout=5.0):
+        """The latest scan's points in the map frame (laser pose from tf at the scan's stamp)."""
+        from tiago_nav.rosutil import pose_from_transform, scan_points
+        t0 = time.monotonic()
+        s0 = self.scan
+        while self.scan is s0 and time.monotonic() - t0 < timeout:
+            time.sleep(0.05)
+        scan = self.scan
+        if scan is None:
+            return None
+        try:
+            t = self.tf.lookup_transform('map', scan.header.frame_id, scan.header.stamp)
+            laser = pose_from_transform(t.transform)
+        except Exception:
+            laser = compose(self.pose(), (0.2, 0.0, 0.0))
+        pts, _ = scan_points(scan)
+        return transform_points(laser, pts)
+
+    def mission(self, x, y, yaw_deg, use_corridor_law, out=print):
+        """Run one TiagoTask with the client library; ``(exit code, GoalStatus, result,
+        wall seconds)``."""
+        from tiago_nav.mission_client import run
+        box = {}
+
+        def on_result(state, result):
+            box['state'], box['result'] = state, result
+        goal = {'x': x, 'y': y, 'yaw_deg': yaw_deg, 'use_corridor_law': use_corridor_law}
+        t0 = time.monotonic()
+        code = run(goal, out=out, server_timeout=10.0, on_result=on_result)
+        return code, box.get('state'), box.get('result'), time.monotonic() - t0
+
+    # --- shutdown ------------------------------------------------------------------------------
+    def close(self):
+        """Leave the master and stop roslaunch and roscore (SIGINT, then SIGTERM, SIGKILL)."""
+        if self._node:
+            import rospy
+            rospy.signal_shutdown('harness done')
+        for p in (self.launch, self.core):
+            _stop(p)
+        self.log.close()
+
+
+def _stop(proc):
+    if proc.poll() is not None:
+        return
+    for sig, wait in ((signal.SIGINT, 15.0), (signal.SIGTERM, 5.0), (signal.SIGKILL, 5.0)):
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            return
+        try:
+            proc.wait(wait)
+            return
+        except subprocess.TimeoutExpired:
+            continue

@@ -1,0 +1,206 @@
+#!/usr/bin/python3
+"""Rostest of the whole mission over the real chain (demo.launch: simulator, move_base,
+corridor_controller, obstacle_detection, tiago_controller), judged against the world file.
+
+Private params: ``world`` (path), ``x``, ``y``, ``yaw`` (pose B, deg), ``use_corridor_law``.
+With the argument ``failures`` (``<test args="failures">``) the failure paths run after the
+mission, from pose B: pose B inside a wall, outside the map, cancel mid-way, detection server
+killed (last: it kills /obstacle_detection).
+"""
+import math
+import subprocess
+import sys
+import time
+import unittest
+
+import actionlib
+import numpy as np
+import rospy
+import rostest
+import tf2_ros
+from actionlib_msgs.msg import GoalStatus
+from geometry_msgs.msg import Twist
+from std_msgs.msg import UInt32
+
+from tiago_nav.mission_eval import score, visible_truth
+from tiago_nav.msg import TiagoTaskFeedback as FB, TiagoTaskGoal
+from tiago_nav.mission_client import TaskClient
+from tiago_nav.rosutil import pose_from_msg, pose_from_transform
+from tiago_nav.sim.raster import rasterise_world
+from tiago_nav.sim.world import load_world
+
+WAIT = 60.0            # wall bound on server waits [s]
+MISSION = 240.0        # bound on one mission [s wall] (a hang guard, not a performance check)
+TOL = 0.05             # every in-view obstacle found within this [m]
+
+
+class MissionTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node('test_mission')
+        cls.world = load_world(rospy.get_param('~world'))
+        cls.goal = (rospy.get_param('~x'), rospy.get_param('~y'), rospy.get_param('~yaw'))
+        cls.corridor = rospy.get_param('~use_corridor_law', True)
+        cls.tf = tf2_ros.Buffer()
+        cls.listener = tf2_ros.TransformListener(cls.tf)
+        cls.cmds = []
+        rospy.Subscriber('/mobile_base_controller/cmd_vel', Twist,
+                         lambda m: cls.cmds.append((rospy.get_time(), m.linear.x, m.angular.z)))
+        cls.client = TaskClient('tiago_controller')
+        t0 = time.monotonic()
+        while not cls.client.wait_for_server(rospy.Duration(0.1)):
+            assert time.monotonic() - t0 < WAIT, 'no tiago_controller action server'
+            time.sleep(0.1)
+        for name in ('move_base', 'corridor_controller'):
+            from move_base_msgs.msg import MoveBaseAction
+            from tiago_nav.msg import CorridorAction
+            c = actionlib.SimpleActionClient(name, MoveBaseAction if name == 'move_base' else CorridorAction)
+            while not c.wait_for_server(rospy.Duration(0.1)):
+                assert time.monotonic() - t0 < WAIT, 'no %s action server' % name
+                time.sleep(0.1)
+        rospy.wait_for_service('obstacle_detection', WAIT)
+
+    # --- helpers ---------------------------------------------------------------------------
+    def pose(self):
+        t = self.tf.lookup_transform('map', 'base_footprint', rospy.Time(0), rospy.Duration(10))
+        return pose_from_transform(t.transform)
+
+    def send(self, x, y, yaw, corridor, cancel_when=None, limit=MISSION):
+        fbs = []
+        self.client.send_goal(TiagoTaskGoal(x=x, y=y, yaw_deg=yaw, use_corridor_law=corridor),
+                              feedback_cb=fbs.append)
+        if cancel_when is not None:
+            end = time.monotonic() + WAIT
+            while not any(cancel_when(f) for f in list(fbs)):
+                self.assertLess(time.monotonic(), end, 'the cancel condition never came')
+                time.sleep(0.05)
+            self.client.cancel_goal()
+        self.assertTrue(self.client.wait_for_result(rospy.Duration(limit)), 'no result in time')
+        return (self.client.get_state(), self.client.get_result(),
+                self.client.get_goal_status_text(), fbs)
+
+    @staticmethod
+    def states(fbs):
+        out = []
+        for f in fbs:
+            if not out or out[-1] != f.state:
+                out.append(f.state)
+        return out
+
+    def collisions(self):
+        return rospy.wait_for_message('/sim/collisions', UInt32, timeout=10).data
+
+    def free_goal_near(self, pose, dist):
+        """A free map cell about ``dist`` m from ``pose``, clear of walls and movable obstacles
+        by 0.6 m (from the world file), for short missions."""
+        grid = rasterise_world(self.world)
+        cx, cy = grid.cell_centres()
+        occ = np.column_stack((cx[grid.occupied()], cy[grid.occupied()]))
+        for ang in np.linspace(0, 2 * math.pi, 24, endpoint=False):
+            for d in (dist, dist * 0.6):
+                gx, gy = pose[0] + d * math.cos(pose[2] + ang), pose[1] + d * math.sin(pose[2] + ang)
+                if not grid.contains([[gx, gy]])[0]:
+                    continue
+                if np.min(np.hypot(occ[:, 0] - gx, occ[:, 1] - gy)) < 0.6:
+                    continue
+                if any(math.hypot(c.x - gx, c.y - gy) < c.radius + 0.6 for c in self.world.movable_obstacles):
+                    continue
+                # the straight segment there is clear too (a short, easy goal)
+                seg = np.linspace([pose[0], pose[1]], [gx, gy], 20)
+                if min(np.min(np.hypot(occ[:, 0] - sx, occ[:, 1] - sy)) for sx, sy in seg) < 0.45:
+                    continue
+                return gx, gy
+        self.fail('no free goal near %s' % (pose,))
+
+    # --- the mission -----------------------------------------------------------------------
+    def test_1_mission_reaches_pose_b_and_finds_the_obstacles_in_view(self):
+        x, y, yaw = self.goal
+        state, result, text, fbs = self.send(x, y, yaw, self.corridor)
+        self.assertEqual(state, GoalStatus.SUCCEEDED, text)
+        st = self.states(fbs)
+        expected = [FB.GOAL_RECEIVED] + ([FB.CORRIDOR] if self.corridor else []) + [FB.NAVIGATING]
+        self.assertEqual(st[:len(expected)], expected, st)
+        self.assertIn(FB.MOVING, st)
+        self.assertEqual(st[-3:], [FB.ARRIVED, FB.DETECTING, FB.DETECTION_DONE], st)
+        self.assertTrue(set(st[len(expected):-3]) <= {FB.MOVING, FB.STOPPED}, st)
+        # the robot is at pose B (ground truth: the simulator's tf)
+        px, py, pyaw = self.pose()
+        self.assertLess(math.hypot(px - x, py - y), 0.3)
+        self.assertLess(abs(math.degrees(math.atan2(math.sin(pyaw - math.radians(yaw)),
+                                                    math.cos(pyaw - math.radians(yaw))))), 15.0)
+        fx, fy, _ = pose_from_msg(result.final_pose.pose)
+        self.assertLess(math.hypot(fx - px, fy - py), 0.05)
+        # every movable obstacle in view found within 5 cm, and nothing else
+        truth = visible_truth(self.world, (px, py, pyaw))
+        self.assertGreater(len(truth), 0, 'choose a pose B that sees an obstacle')
+        found = [(o.center.x, o.center.y) for o in result.obstacles]
+        s = score([(tx, ty) for _, tx, ty, _ in truth], found)
+        self.assertEqual(s['matched'], len(truth), 'missed %s; found %s' % (s['missed'], found))
+        self.assertEqual(s['false_positives'], 0, 'found %s, truth %s' % (found, truth))
+        self.assertLessEqual(s['max_error'], TOL)
+        # robot-frame centres agree with the map-frame ones through the final pose
+        for o in result.obstacles:
+            c, sn = math.cos(pyaw), math.sin(pyaw)
+            rx, ry = o.center_robot.x, o.center_robot.y
+            self.assertAlmostEqual(px + c * rx - sn * ry, o.center.x, delta=0.1)
+            self.assertAlmostEqual(py + sn * rx + c * ry, o.center.y, delta=0.1)
+        self.assertEqual(self.collisions(), 0)
+
+
+
+class MissionFailuresTest(MissionTest):
+    """The mission, then the failure paths from pose B."""
+
+    def test_2_pose_b_inside_a_wall_aborts_naming_navigation(self):
+        w = max(self.world.walls, key=lambda w: w.width * w.length)     # the thickest wall's centre
+        before = self.pose()
+        t0 = rospy.get_time()
+        state, result, text, _ = self.send(w.x, w.y, 0.0, False, limit=60)
+        self.assertEqual(state, GoalStatus.ABORTED)
+        self.assertIn('navigation', result.message)
+        self.assertLess(rospy.get_time() - t0, 20.0)                    # quickly (sim seconds)
+        after = self.pose()
+        self.assertLess(math.hypot(after[0] - before[0], after[1] - before[1]), 0.3)
+
+    def test_3_pose_b_outside_the_map_aborts_naming_navigation(self):
+        xmin, ymin, xmax, ymax = self.world.bounds
+        t0 = rospy.get_time()
+        state, result, text, _ = self.send(xmax + 20.0, ymax + 5.0, 0.0, False, limit=60)
+        self.assertEqual(state, GoalStatus.ABORTED)
+        self.assertIn('navigation', result.message)
+        self.assertLess(rospy.get_time() - t0, 20.0)
+
+    def test_4_cancel_mid_way_preempts_and_stops_the_robot(self):
+        start = self.pose()
+        gx, gy = self.free_goal_near(start, 2.5)
+        t_cancel = []
+
+        def moving(f):
+            if f.state == FB.MOVING:
+                t_cancel.append(rospy.get_time())
+                return True
+            return False
+        state, result, text, _ = self.send(gx, gy, 0.0, False, cancel_when=moving, limit=60)
+        self.assertEqual(state, GoalStatus.PREEMPTED, text)
+        self.assertIn('cancelled', result.message)
+        p1 = self.pose()
+        rospy.sleep(1.0)
+        p2 = self.pose()
+        self.assertLess(math.hypot(p2[0] - p1[0], p2[1] - p1[1]), 0.02)    # stopped
+        self.assertTrue(any(t >= t_cancel[0] and v == 0 and w == 0 for t, v, w in self.cmds))
+        self.assertEqual(self.collisions(), 0)
+
+    def test_5_detection_server_killed_aborts_naming_detection(self):
+        subprocess.run(['rosnode', 'kill', '/obstacle_detection'], stdout=subprocess.DEVNULL,
+                       stderr=subprocess.DEVNULL, timeout=30)
+        start = self.pose()
+        gx, gy = self.free_goal_near(start, 1.0)
+        state, result, text, fbs = self.send(gx, gy, 0.0, False, limit=120)
+        self.assertEqual(state, GoalStatus.ABORTED, text)
+        self.assertTrue(result.message.startswith('detection failed'), result.message)
+        self.assertIn(FB.DETECTING, self.states(fbs))    # (a hang fails on the time-limit)
+
+
+if __name__ == '__main__':
+    rostest.rosrun('tiago_nav', 'test_mission',
+                   MissionFailuresTest if 'failures' in sys.argv[1:] else MissionTest)

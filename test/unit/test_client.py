@@ -1,0 +1,72 @@
+"""The client's argument parsing and validation (tiago_nav.mission_client): nothing is sent
+unless every value is a finite number and the yaw is in degrees; missing values are asked for
+only in a terminal."""
+import os
+import subprocess
+import sys
+
+import pytest
+
+from tiago_nav.mission_client import (EXIT_USAGE, UsageError, feedback_line, parse_client_args)
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def test_parses_pose_b_and_the_corridor_flag():
+    g = parse_client_args(['11', '0', '-45'])
+    assert (g['x'], g['y'], g['yaw_deg'], g['use_corridor_law']) == (11.0, 0.0, -45.0, True)
+    g = parse_client_args(['--no-corridor', '1.5', '-2', '90', '--server-timeout=3'])
+    assert (g['x'], g['y'], g['yaw_deg'], g['use_corridor_law']) == (1.5, -2.0, 90.0, False)
+    assert g['server_timeout'] == 3.0
+    assert parse_client_args(['-h']) == {'help': True}
+    assert parse_client_args(['1', '2', '3', '--corridor=false'])['use_corridor_law'] is False
+    assert parse_client_args(['1', '2', '3', '--corridor=True'])['use_corridor_law'] is True
+
+
+@pytest.mark.parametrize('argv, words', [
+    (['a', '0', '0'], "'a' is not a number"),
+    (['1', 'nan', '0'], 'not a finite number'),
+    (['1', '0', 'inf'], 'not a finite number'),
+    (['1', '0', '1000'], 'in degrees'),
+    (['1', '0'], 'missing YAW_DEG'),
+    ([], 'missing X, Y, YAW_DEG'),
+    (['1', '2', '3', '4'], 'too many'),
+    (['1', '2', '3', '--fast'], 'unknown option --fast'),
+    (['1', '2', '3', '--corridor=maybe'], 'expected true or false'),
+    (['1', '2', '3', '--server-timeout', '-1'], 'must be > 0'),
+])
+def test_bad_input_is_a_usage_error(argv, words):
+    with pytest.raises(UsageError) as e:
+        parse_client_args(argv, interactive=False)
+    assert words in str(e.value)
+
+
+def test_prompts_for_missing_values_in_a_terminal():
+    answers = iter(['0.5', '-30'])
+    asked = []
+
+    def ask(prompt):
+        asked.append(prompt)
+        return next(answers)
+    g = parse_client_args(['2'], interactive=True, ask=ask)
+    assert (g['x'], g['y'], g['yaw_deg']) == (2.0, 0.5, -30.0)
+    assert asked == ['y [m]: ', 'yaw [deg]: ']
+    with pytest.raises(UsageError):
+        parse_client_args(['2'], interactive=True, ask=lambda p: 'north')
+
+
+def test_feedback_line():
+    line = feedback_line(12.5, 3, 'moving, 3.2 m to go', (1.0, 2.0, 0.0))
+    assert 'MOVING' in line and 'moving, 3.2 m to go' in line and '(1.00, 2.00, 0 deg)' in line
+
+
+@pytest.mark.parametrize('argv', [['x', '0', '0'], ['1', '2'], ['1', '2', '-400']])
+def test_the_node_exits_2_without_a_master(argv):
+    """Bad input is refused before rospy is even initialised: no master needed, nothing sent."""
+    env = dict(os.environ, ROS_MASTER_URI='http://localhost:1')     # nothing listens there
+    env['PYTHONPATH'] = os.path.join(ROOT, 'src') + os.pathsep + env.get('PYTHONPATH', '')
+    p = subprocess.run([sys.executable, os.path.join(ROOT, 'nodes', 'client')] + argv,
+                       stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                       text=True, env=env, timeout=60)
+    assert p.returncode == EXIT_USAGE, p.stderr
+    assert 'client: error:' in p.stderr and 'usage:' in p.stderr

@@ -1,0 +1,293 @@
+"""The mission state machine (tiago_nav.mission) against a fake backend: a kinematic robot that
+drives toward the goal at a fixed speed in simulated time, fake stages that succeed, abort,
+hang, vanish or never come, and a fake detection service."""
+import math
+
+import pytest
+
+from tiago_nav import mission
+from tiago_nav.mission import (ABORTED, ACTIVE, PREEMPTED, SUCCEEDED, DetectionError, Goal,
+                               GoalError, MissionConfig, MissionRunner, MotionMonitor, Poll,
+                               obstacle_table, remaining_path_length, validate_goal)
+
+
+class FakeBackend:
+    """Simulated time advances by ``dt`` per sleep (wall time too, unless ``clock_stalls``).
+    The robot moves toward the navigation goal at ``speed`` m/s while that stage is active."""
+
+    def __init__(self, corridor='succeed', navigation='succeed', detection='ok', speed=1.0,
+                 servers=('corridor', 'navigation', 'detection'), preempt_at=None,
+                 clock_stalls=False, vanish_at=None):
+        self.t = 0.0
+        self.w = 0.0
+        self.robot = [0.0, 0.0, 0.0]
+        self.v = 0.0
+        self.modes = {'corridor': corridor, 'navigation': navigation}
+        self.detection = detection
+        self.speed = speed
+        self.servers = set(servers)
+        self.preempt_at = preempt_at
+        self.clock_stalls = clock_stalls
+        self.vanish_at = vanish_at
+        self.feedbacks = []
+        self.sent = []
+        self.cancelled = []
+        self.stops = 0
+        self.active = None
+        self.goal = None
+        self.started = None
+
+    # clocks
+    def now(self):
+        return self.t
+
+    def wall(self):
+        return self.w
+
+    def sleep(self, dt):
+        self.w += dt
+        if not self.clock_stalls:
+            self.t += dt
+            self._move(dt)
+        if self.vanish_at is not None and self.t >= self.vanish_at:
+            self.servers.discard(self.active)
+
+    def _move(self, dt):
+        if self.active == 'navigation' and self.modes['navigation'] in ('succeed', 'hang'):
+            gx, gy, _ = self.goal
+            d = math.hypot(gx - self.robot[0], gy - self.robot[1])
+            step = min(d, self.speed * dt)
+            if d > 1e-9:
+                self.robot[0] += step * (gx - self.robot[0]) / d
+                self.robot[1] += step * (gy - self.robot[1]) / d
+        elif self.active == 'corridor':
+            self.robot[0] += self.speed * dt * 0.5
+
+    def preempt_requested(self):
+        return self.preempt_at is not None and self.t >= self.preempt_at
+
+    def pose(self):
+        return tuple(self.robot)
+
+    def path(self):
+        return None
+
+    def server_ready(self, stage):
+        return stage in self.servers
+
+    def send_goal(self, stage, goal):
+        self.sent.append(stage)
+        self.active, self.goal, self.started = stage, goal, self.t
+
+    def poll(self, stage):
+        mode = self.modes[stage]
+        if stage == 'navigation' and mode == 'succeed':
+            gx, gy, yaw = self.goal
+            if math.hypot(gx - self.robot[0], gy - self.robot[1]) < 1e-6:
+                self.robot[2] = yaw
+                self.active = None
+                return Poll(SUCCEEDED, 'goal reached', result=object())
+            return Poll(ACTIVE)
+        if stage == 'corridor' and mode == 'succeed':
+            if self.t - self.started > 2.0:
+                self.active = None
+                result = type('R', (), {'distance': 1.0, 'reason': 'corridor end'})()
+                return Poll(SUCCEEDED, '', result=result)
+            return Poll(ACTIVE, feedback=type('F', (), {'distance': self.t - self.started,
+                                                        'lateral_offset': 0.01,
+                                                        'left_distance': 0.5,
+                                                        'right_distance': 0.52})())
+        if mode == 'abort':
+            self.active = None
+            return Poll(mission.ABORTED, 'goal is inside an obstacle')
+        return Poll(ACTIVE)           # 'hang'
+
+    def cancel(self, stage):
+        self.cancelled.append(stage)
+        self.active = None
+
+    def detect(self, timeout):
+        if 'detection' not in self.servers:
+            raise DetectionError('no obstacle_detection service after 10 s')
+        if self.detection == 'error':
+            raise DetectionError('the obstacle_detection service failed: no scan')
+        return ['o1', 'o2'], ''
+
+    def stop_robot(self):
+        self.stops += 1
+
+    def publish_feedback(self, state, status, pose):
+        self.feedbacks.append((self.t, state, status, pose))
+
+    def states(self):
+        out = []
+        for _, s, _, _ in self.feedbacks:
+            if not out or out[-1] != s:
+                out.append(s)
+        return out
+
+
+CFG = MissionConfig(server_timeout=2.0, corridor_timeout=20.0, navigation_timeout=30.0,
+                    poll_period=0.05, clock_timeout=3.0)
+
+
+def run(backend, goal=Goal(5.0, 0.0, -45.0, True), cfg=CFG):
+    return MissionRunner(backend, cfg).run(goal)
+
+
+def test_success_runs_the_stages_in_order_with_feedback():
+    b = FakeBackend()
+    out = run(b)
+    assert out.status == SUCCEEDED, out.message
+    assert b.sent == ['corridor', 'navigation']
+    assert out.obstacles == ['o1', 'o2']
+    assert 'found 2 obstacles' in out.message
+    assert out.final_pose[0] == pytest.approx(5.0)
+    assert out.final_pose[2] == pytest.approx(math.radians(-45))
+    st = b.states()
+    assert st[0] == mission.GOAL_RECEIVED and st[1] == mission.CORRIDOR
+    assert st[2] == mission.NAVIGATING and st[3] == mission.MOVING
+    assert st[-3:] == [mission.ARRIVED, mission.DETECTING, mission.DETECTION_DONE]
+    # "moving, X m to go" sentences count down toward the goal
+    to_go = [float(s.split(', ')[1].split(' ')[0]) for _, st_, s, _ in b.feedbacks
+             if st_ == mission.MOVING and 'to go' in s]
+    assert len(to_go) >= 2 and to_go == sorted(to_go, reverse=True)
+    assert to_go[0] <= 4.0
+    assert b.stops >= 1                          # the robot is told to stop at the end
+
+
+def test_without_corridor_law_skips_the_corridor():
+    b = FakeBackend()
+    out = run(b, Goal(2.0, 1.0, 90.0, False))
+    assert out.status == SUCCEEDED
+    assert b.sent == ['navigation']
+    assert mission.CORRIDOR not in b.states()
+
+
+@pytest.mark.parametrize('x, y, yaw', [(float('nan'), 0, 0), (0, float('inf'), 0), (0, 0, 720)])
+def test_bad_goal_aborts_before_any_stage(x, y, yaw):
+    b = FakeBackend()
+    out = run(b, Goal(x, y, yaw, True))
+    assert out.status == ABORTED
+    assert 'goal validation' in out.message
+    assert b.sent == []
+
+
+def test_navigation_aborted_names_navigation_and_the_reason():
+    b = FakeBackend(navigation='abort')
+    out = run(b)
+    assert out.status == ABORTED
+    assert out.stage == 'navigation'
+    assert out.message.startswith('navigation failed') and 'inside an obstacle' in out.message
+    assert b.stops >= 1
+
+
+def test_absent_server_aborts_after_the_server_timeout():
+    b = FakeBackend(servers=('navigation', 'detection'))
+    out = run(b)
+    assert out.status == ABORTED and out.stage == 'corridor'
+    assert 'no corridor_controller server' in out.message
+    assert b.sent == []
+    assert b.w == pytest.approx(CFG.server_timeout, abs=0.5)
+
+
+def test_stage_timeout_cancels_the_goal():
+    b = FakeBackend(corridor='hang')
+    out = run(b)
+    assert out.status == ABORTED and out.stage == 'corridor'
+    assert 'timed out after 20 s' in out.message
+    assert b.cancelled == ['corridor']
+
+
+def test_stopped_clock_does_not_hang():
+    b = FakeBackend(navigation='hang', clock_stalls=True)
+    out = run(b, Goal(3, 0, 0, False))
+    assert out.status == ABORTED and out.stage == 'navigation'
+    assert 'ROS time stopped' in out.message
+    assert b.w < 10.0
+
+
+def test_server_that_goes_away_mid_stage_aborts():
+    b = FakeBackend(navigation='hang', vanish_at=1.0)
+    out = run(b, Goal(30, 0, 0, False))
+    assert out.status == ABORTED and 'went away' in out.message
+    assert b.cancelled == ['navigation']
+
+
+@pytest.mark.parametrize('servers, mode, words', [
+    (('corridor', 'navigation'), 'ok', 'no obstacle_detection service'),
+    (('corridor', 'navigation', 'detection'), 'error', 'failed: no scan')])
+def test_detection_failure_aborts_naming_detection(servers, mode, words):
+    b = FakeBackend(servers=servers, detection=mode)
+    out = run(b)
+    assert out.status == ABORTED and out.message.startswith('detection failed') and words in out.message
+    assert mission.DETECTING in b.states() and mission.DETECTION_DONE not in b.states()
+
+
+def test_cancel_preempts_the_running_stage_and_stops_the_robot():
+    b = FakeBackend(preempt_at=2.0)
+    out = run(b, Goal(10, 0, 0, False))
+    assert out.status == PREEMPTED and out.stage == 'navigation'
+    assert b.cancelled == ['navigation']
+    assert b.stops >= 1
+    assert 'cancelled during navigation' in out.message and 'stopped' in out.message
+    assert 1.0 < out.final_pose[0] < 3.0       # it stopped where it was, not at the goal
+
+
+def test_feedback_is_rate_limited():
+    b = FakeBackend(speed=0.5)
+    run(b, Goal(10, 0, 0, False))
+    moving = [t for t, s, _, _ in b.feedbacks if s == mission.MOVING]
+    assert len(moving) >= 10
+    gaps = [b_ - a for a, b_ in zip(moving, moving[1:])]
+    assert min(gaps) >= CFG.feedback_period - 1e-9
+
+
+# --- pieces ----------------------------------------------------------------------------------
+def test_validate_goal():
+    assert validate_goal('11', ' 0 ', '-45') == (11.0, 0.0, -45.0)
+    for bad in [('a', 0, 0), (0, 'nan', 0), (0, 0, 'inf'), (0, 0, 400), (True, 0, 0)]:
+        with pytest.raises(GoalError):
+            validate_goal(*bad)
+
+
+def test_motion_monitor_thresholds():
+    m = MotionMonitor(window=0.5, speed_threshold=0.05, turn_threshold=0.1)
+    assert m.update(0.0, (0, 0, 0)) is None
+    assert m.update(0.1, (0.001, 0, 0)) is None         # less than half a window
+    for i in range(2, 12):
+        res = m.update(0.1 * i, (0.01 * i, 0, 0))        # 0.1 m/s
+    assert res is True
+    m.reset()
+    for i in range(12):
+        res = m.update(0.1 * i, (1.0 + 0.002 * i, 0, 0))  # 0.02 m/s: creeping counts as stopped
+    assert res is False
+    m.reset()
+    for i in range(12):
+        res = m.update(0.1 * i, (0, 0, 0.03 * i))         # turning in place at 0.3 rad/s
+    assert res is True
+
+
+def test_remaining_path_length():
+    path = [(0, 0), (2, 0), (2, 2)]
+    assert remaining_path_length(path, (0, 0)) == pytest.approx(4.0)
+    assert remaining_path_length(path, (1, 0.5)) == pytest.approx(0.5 + 1 + 2)
+    assert remaining_path_length(path, (2, 2)) == pytest.approx(0.0)
+    assert remaining_path_length([], (0, 0)) is None
+
+
+def test_config_rejects_bad_values():
+    with pytest.raises(ValueError):
+        MissionConfig(server_timeout=0)
+    with pytest.raises(ValueError):
+        MissionConfig(navigation_timeout=float('nan'))
+    with pytest.raises(ValueError):
+        MissionConfig(corridor_max_speed=-1)
+    MissionConfig(corridor_max_speed=0)
+
+
+def test_obstacle_table():
+    lines = obstacle_table([(10.736, -1.665, 1.2, -0.5, 0.183, 42)])
+    assert len(lines) == 3
+    assert '10.74' in lines[2] and '-1.67' in lines[2] and '0.183' in lines[2] and '42' in lines[2]
+    assert 'no obstacles' in obstacle_table([])[-1]
