@@ -1,0 +1,595 @@
+"""The corridor motion-control law: drive a narrow corridor from the laser alone, stop at its end.
+
+Frames and units: metres, radians. Scan points are handled in two frames:
+
+* the robot frame (base_footprint: x forward, y left, REP 103), where walls are fitted;
+* a fixed odometric frame (``odom``, REP 105), where the corridor's centre line, its end and
+  the scan points are kept between scans, so the law can run at any rate from odometry.
+
+Wall model. The corridor is two parallel lines: with ``theta`` the corridor's direction in the
+robot frame and ``n = (-sin theta, cos theta)`` its left normal, the left wall is ``n.p = d_left``
+(> 0) and the right wall ``n.p = d_right`` (< 0). From one scan, :func:`fit_walls` keeps, per
+0.1 m slice along the corridor, the innermost point on each side of the current guess of the
+centre line (the wall faces the robot sees), and fits both lines jointly by iteratively
+re-weighted least squares with Tukey's biweight (robust to door frames, clutter and where a
+wall turns away). Errors of the robot with respect to the centre line:
+
+* lateral offset ``e_y = -(d_left + d_right) / 2`` (positive when the robot is left of it),
+* heading error ``e_theta = -theta`` (positive when the robot points left of the corridor).
+
+Control law (:func:`control_law`), with gains expressed per metre travelled so convergence is
+the same at any speed::
+
+    sin(e_theta_ref) = -clip(k_y * e_y / k_theta, -sin(theta_max), sin(theta_max))
+    omega = -max(v, v_turn) * k_theta * (sin(e_theta) - sin(e_theta_ref))
+
+which for small errors is ``omega = -v (k_y e_y + k_theta e_theta)``: along the path
+``e_y'' + k_theta e_y' + k_y e_y = 0`` (natural frequency ``sqrt(k_y)`` per metre, damping
+``k_theta / (2 sqrt(k_y))``); the clip bounds the angle at which the robot rejoins the centre
+line. ``v`` is ``max_speed`` scaled by ``1 - (e_theta / slow_heading)^2`` and by
+``max(0.3, 1 - (e_y / (width/2 - robot_radius))^2)`` (the lateral offset relative to the free
+play; both quadratic, so small errors barely slow it and large ones, which need room and time
+to turn within the angular acceleration limit, do), capped so that the wall the robot heads
+for is at least ``wall_time`` away (``v |sin e_theta| <= clearance / wall_time``), scaled
+further so that ``|omega|`` stays within its limit (keeping the path's curvature), and capped
+so that the robot can brake (``decel``) before the stop point and before anything in its swept
+footprint ahead (front safety check).
+
+Before the corridor (the robot up to ~1.5 m in front of its entrance, facing it),
+:func:`find_corridor` finds the widest-reaching free strip ahead and fits the walls beyond the
+entrance; the same law then steers onto the centre line extended out of the corridor, so it
+aims at the opening and takes over seamlessly once walls are on both sides.
+
+End of the corridor (:func:`wall_end`): along each wall line, slices where that side has any
+point within ``end_band`` of the line; the end is where, after the wall was seen, a side has no
+wall for ``end_gap`` metres (a wall turning away at an angle leaves the band within a few
+centimetres; a slight bend does not). The end point is kept in the odom frame; the robot stops
+``exit_margin`` past it, facing along the corridor.
+"""
+import math
+from dataclasses import dataclass
+from typing import Tuple
+
+import numpy as np
+
+from tiago_nav.geometry import compose, inverse, transform_points, wrap_angle
+
+
+@dataclass(frozen=True)
+class CorridorParams:
+    """Settings of the law (defaults: config/corridor.yaml). Lengths [m], angles [rad],
+    speeds [m/s, rad/s], accelerations [m/s^2]."""
+    robot_radius: float = 0.27
+    max_speed: float = 1.0            # default forward speed (goal max_speed 0 -> this)
+    speed_limit: float = 1.0          # the base's limit: goal speeds are clamped to it
+    min_speed: float = 0.1            # slowest cruise (errors large)
+    max_angular: float = 1.5
+    decel: float = 0.95               # braking used for stop points (just below the base's 1.0)
+    k_lateral: float = 9.0            # k_y [1/m^2]
+    k_heading: float = 5.0            # k_theta [1/m]
+    max_approach: float = 0.5         # theta_max: steepest approach to the centre line [rad]
+    v_turn: float = 0.25              # steering acts as if at least this fast [m/s]
+    slow_heading: float = 0.5         # heading error at which v reaches its floor [rad]
+    wall_time: float = 0.5            # heading for a wall: at least this long to reach it [s]
+    look_ahead: float = 3.0           # a corridor must start within this distance
+    fit_behind: float = 0.3           # wall fit window along the corridor, behind the robot
+    fit_ahead: float = 2.0            # ... and ahead of it
+    max_width: float = 2.0            # wider passages are not corridors
+    min_width_margin: float = 0.03    # a corridor must be >= 2 (radius + margin) wide
+    slice_length: float = 0.1
+    tukey_scale: float = 0.06         # residual beyond which a point has no weight
+    face_band: float = 0.04           # a slice's wall face: points this close to its innermost
+    min_wall_points: int = 8          # per side
+    min_wall_length: float = 0.4      # inlier extent along the corridor, per side
+    end_band: float = 0.25            # a slice "has a wall" with a point this close to the line
+    end_gap: float = 0.5              # no wall on one side for this long: the corridor ends
+    exit_margin: float = 0.35         # stop the base centre this far past the end
+    stop_margin: float = 0.08         # front safety: stop this far before a contact
+    max_jump: float = 0.2             # a fit this far (m) from the track is rejected
+    max_turn: float = 0.35            # ... or turned this much (rad)
+    search_half_angle: float = math.radians(60.0)
+
+    def __post_init__(self):
+        for k, v in vars(self).items():
+            if not (isinstance(v, (int, float)) and math.isfinite(v)):
+                raise ValueError('%s must be a finite number, got %r' % (k, v))
+        for k in ('robot_radius', 'max_speed', 'speed_limit', 'max_angular', 'decel', 'k_lateral',
+                  'k_heading', 'max_approach', 'wall_time', 'look_ahead', 'fit_ahead', 'max_width',
+                  'slice_length', 'tukey_scale', 'end_band', 'end_gap', 'slow_heading'):
+            if getattr(self, k) <= 0:
+                raise ValueError('%s must be > 0, got %r' % (k, getattr(self, k)))
+        if self.min_wall_points < 2:
+            raise ValueError('min_wall_points must be >= 2')
+
+    @property
+    def min_width(self):
+        return 2.0 * (self.robot_radius + self.min_width_margin)
+
+
+@dataclass
+class Walls:
+    """Two parallel wall lines in the robot frame (see the module docstring)."""
+    theta: float                  # corridor direction in the robot frame [rad]
+    d_left: float                 # n.p of the left wall [m] (> 0 when the robot is inside)
+    d_right: float                # n.p of the right wall [m] (< 0 when the robot is inside)
+    n_left: int = 0               # inliers per side
+    n_right: int = 0
+    extent_left: Tuple[float, float] = (0.0, 0.0)    # inliers' span along the corridor [m]
+    extent_right: Tuple[float, float] = (0.0, 0.0)
+    rms: float = 0.0              # inliers' residual RMS [m]
+
+    @property
+    def width(self):
+        return self.d_left - self.d_right
+
+    @property
+    def lateral_offset(self):
+        """Robot's signed distance from the centre line, positive to the left [m]."""
+        return -0.5 * (self.d_left + self.d_right)
+
+    @property
+    def heading_error(self):
+        """Robot heading minus corridor direction [rad]."""
+        return wrap_angle(-self.theta)
+
+
+def _frame(points, theta):
+    """(u, w): coordinates of robot-frame points along direction ``theta`` and its left normal."""
+    c, s = math.cos(theta), math.sin(theta)
+    return points[:, 0] * c + points[:, 1] * s, -points[:, 0] * s + points[:, 1] * c
+
+
+def free_strip_directions(points, half_width, half_angle=math.radians(60.0), step=math.radians(2.0),
+                          horizon=25.0):
+    """Free length [m] of straight strips of ``half_width`` [m] leaving the robot (robot frame
+    points) in directions ``-half_angle..half_angle``. Returns ``(angles, lengths)``."""
+    angles = np.arange(-half_angle, half_angle + 1e-9, step)
+    pts = np.asarray(points, float).reshape(-1, 2)
+    c, s = np.cos(angles)[:, None], np.sin(angles)[:, None]
+    u = pts[None, :, 0] * c + pts[None, :, 1] * s
+    w = -pts[None, :, 0] * s + pts[None, :, 1] * c
+    blocked = (np.abs(w) < half_width) & (u > 0)
+    lengths = np.where(blocked, u, horizon).min(axis=1) if pts.size else np.full(angles.size, horizon)
+    return angles, lengths
+
+
+def fit_walls(points, theta, centre, params, window=None, iterations=3):
+    """Robust joint fit of two parallel walls to robot-frame ``points`` [m].
+
+    ``theta`` [rad] and ``centre`` [m] (the centre line's ``n.p``) are the initial guess; the
+    fit uses points within ``window = (u_min, u_max)`` along the corridor (default
+    ``(-fit_behind, fit_ahead)``) and within ``max_width / 2`` of the centre line.
+    Returns :class:`Walls` or ``None`` when a side has fewer than ``min_wall_points`` inliers
+    or spans less than ``min_wall_length``, or the width is not a corridor's.
+    """
+    p = params
+    pts = np.asarray(points, float).reshape(-1, 2)
+    if window is None:
+        window = (-p.fit_behind, p.fit_ahead)
+    result = None
+    for _ in range(iterations):
+        u, w = _frame(pts, theta)
+        rel = w - centre
+        sel = (u >= window[0]) & (u <= window[1]) & (np.abs(rel) <= 0.5 * p.max_width)
+        if not np.any(sel):
+            return None
+        us, rs = u[sel], rel[sel]
+        nb = int(math.ceil((window[1] - window[0]) / p.slice_length)) + 1
+        b = np.clip(((us - window[0]) / p.slice_length).astype(int), 0, nb - 1)
+        side_pts = []
+        for sign in (1, -1):
+            m = sign * rs > 0
+            if not np.any(m):
+                return None
+            key = np.full(nb, np.inf)
+            np.minimum.at(key, b[m], sign * rs[m])
+            # the wall face of each slice on this side: points within face_band of the
+            # innermost one (all of them, so that range noise does not bias the fit inwards)
+            idx = np.flatnonzero(m)
+            inner = idx[sign * rs[idx] <= key[b[idx]] + p.face_band]
+            side_pts.append((us[inner], rs[inner]))
+        (ul, rl), (ur, rr) = side_pts
+        if ul.size < p.min_wall_points or ur.size < p.min_wall_points:
+            return None
+        # model: rel = a_side + delta * u  (small rotation delta of the guess), IRLS with Tukey
+        U = np.concatenate((ul, ur))
+        R = np.concatenate((rl, rr))
+        A = np.zeros((U.size, 3))
+        A[:ul.size, 0] = 1.0
+        A[ul.size:, 1] = 1.0
+        A[:, 2] = U
+        wts = np.ones(U.size)
+        # start from the medians: robust to a wall that turns away
+        x = np.array([np.median(rl), np.median(rr), 0.0])
+        for _ in range(6):
+            res = R - A @ x
+            wts = np.where(np.abs(res) < p.tukey_scale, (1 - (res / p.tukey_scale) ** 2) ** 2, 0.0)
+            if (wts[:ul.size] > 0).sum() < 2 or (wts[ul.size:] > 0).sum() < 2:
+                return None
+            sw = np.sqrt(wts)
+            x, *_ = np.linalg.lstsq(A * sw[:, None], R * sw, rcond=None)
+        res = R - A @ x
+        inl = np.abs(res) < 0.5 * p.tukey_scale
+        inl_l, inl_r = inl[:ul.size], inl[ul.size:]
+        a_l, a_r, delta = x
+        # back to a line in the robot frame: rotate the guess by atan(delta)
+        d_ang = math.atan(delta)
+        cos_d = math.cos(d_ang)
+        theta = wrap_angle(theta + d_ang)
+        d_left = (centre + a_l) * cos_d
+        d_right = (centre + a_r) * cos_d
+        centre = 0.5 * (d_left + d_right)
+        result = Walls(theta, d_left, d_right, int(inl_l.sum()), int(inl_r.sum()),
+                       (float(ul[inl_l].min()), float(ul[inl_l].max())) if inl_l.any() else (0.0, 0.0),
+                       (float(ur[inl_r].min()), float(ur[inl_r].max())) if inl_r.any() else (0.0, 0.0),
+                       float(np.sqrt(np.mean(res[inl] ** 2))) if inl.any() else 0.0)
+    r = result
+    if (r.n_left < p.min_wall_points or r.n_right < p.min_wall_points
+            or r.extent_left[1] - r.extent_left[0] < p.min_wall_length
+            or r.extent_right[1] - r.extent_right[0] < p.min_wall_length
+            or not (p.min_width <= r.width <= p.max_width)):
+        return None
+    return r
+
+
+def find_corridor(points, params):
+    """A corridor ahead of the robot, from robot-frame scan ``points`` alone (no prior).
+
+    Picks the direction of the free strip (robot width plus margin) that reaches farthest,
+    then fits the walls along it within ``look_ahead``. Returns :class:`Walls` or ``None``.
+    """
+    p = params
+    pts = np.asarray(points, float).reshape(-1, 2)
+    if pts.shape[0] < 2 * p.min_wall_points:
+        return None
+    half = p.robot_radius + p.min_width_margin
+    angles, lengths = free_strip_directions(pts, half, p.search_half_angle)
+    best = lengths.max()
+    if best < p.min_wall_length:
+        return None
+    # runs of neighbouring directions whose strips reach past the look-ahead (or are the
+    # longest): try them from the one nearest straight ahead (the robot faces the entrance)
+    good = lengths >= min(best - 0.05, p.look_ahead)
+    runs, start = [], None
+    for i, g in enumerate(np.append(good, False)):
+        if g and start is None:
+            start = i
+        elif not g and start is not None:
+            runs.append(angles[start:i])
+            start = None
+    runs.sort(key=lambda r: abs(float(np.median(r))))
+    for run in runs:
+        theta = float(run[np.argmin(np.abs(run - np.median(run)))])
+        walls = fit_walls(pts, theta, 0.0, p, window=(-p.fit_behind, p.look_ahead), iterations=4)
+        if walls is None:
+            continue
+        # the walls must start within the look-ahead, the robot roughly facing along them
+        if min(walls.extent_left[0], walls.extent_right[0]) > p.look_ahead:
+            continue
+        if abs(walls.heading_error) > p.search_half_angle + 0.1:
+            continue
+        return walls
+    return None
+
+
+def wall_end(points, walls, params, horizon=None):
+    """Distance [m] along the corridor (from the robot) where a wall ends, or ``None``.
+
+    For each side, slices of ``slice_length`` from the robot to ``horizon`` (default
+    ``look_ahead``) hold a wall when a point lies within ``end_band`` of that side's line. After
+    the first slice with a wall, a run of ``end_gap`` without one (inside the horizon) is an end.
+    Returns the nearest end of the two sides.
+    """
+    p = params
+    horizon = p.look_ahead if horizon is None else horizon
+    pts = np.asarray(points, float).reshape(-1, 2)
+    u, w = _frame(pts, walls.theta)
+    nb = int(horizon / p.slice_length)
+    need = int(math.ceil(p.end_gap / p.slice_length))
+    ends = []
+    for d in (walls.d_left, walls.d_right):
+        m = (np.abs(w - d) <= p.end_band) & (u >= 0.0) & (u < nb * p.slice_length)
+        has = np.zeros(nb, bool)
+        has[(u[m] / p.slice_length).astype(int)] = True
+        seen = np.flatnonzero(has)
+        if seen.size == 0:
+            continue
+        run = 0
+        for i in range(seen[0], nb):
+            if has[i]:
+                run = 0
+                continue
+            run += 1
+            if run >= need:
+                ends.append((i - run + 1) * p.slice_length)
+                break
+    return min(ends) if ends else None
+
+
+def front_free_distance(points, radius, horizon=25.0):
+    """How far [m] the robot (a disc of ``radius``) can drive straight ahead before touching
+    one of the robot-frame ``points``."""
+    pts = np.asarray(points, float).reshape(-1, 2)
+    m = (pts[:, 0] > 0) & (np.abs(pts[:, 1]) < radius)
+    if not np.any(m):
+        return horizon
+    d = pts[m, 0] - np.sqrt(radius ** 2 - pts[m, 1] ** 2)
+    return float(max(0.0, min(horizon, d.min())))
+
+
+def control_law(e_y, e_theta, width, params, max_speed=None):
+    """The steering law of the module docstring. Returns ``(v, omega)`` [m/s, rad/s] before the
+    braking caps (``v >= 0``, ``|omega| <= max_angular``)."""
+    p = params
+    vmax = p.max_speed if max_speed is None else max_speed
+    vmax = min(vmax, p.speed_limit)
+    slack = max(0.5 * width - p.robot_radius, 0.05)
+    # quadratic: small errors barely slow the robot, large ones do
+    s_head = max(0.0, 1.0 - (e_theta / p.slow_heading) ** 2)
+    s_lat = max(0.3, 1.0 - (e_y / slack) ** 2)
+    v = vmax * s_head * s_lat
+    # and slow enough that the wall the robot heads for is >= wall_time away, sideways
+    sin_e = abs(math.sin(e_theta))
+    if sin_e > 1e-6:
+        ahead = slack - e_y if e_theta > 0 else slack + e_y
+        v = min(v, max(ahead, 0.0) / (p.wall_time * sin_e))
+    v = max(p.min_speed, v)
+    v = min(v, vmax)
+    lim = math.sin(p.max_approach)
+    s_ref = -max(-lim, min(lim, p.k_lateral * e_y / p.k_heading))
+    omega = -max(v, p.v_turn) * p.k_heading * (math.sin(e_theta) - s_ref)
+    if abs(omega) > p.max_angular:
+        v *= p.max_angular / abs(omega)
+        omega = math.copysign(p.max_angular, omega)
+    return v, omega
+
+
+@dataclass
+class Command:
+    """What :meth:`CorridorFollower.command` decides."""
+    v: float = 0.0
+    omega: float = 0.0
+    state: str = 'searching'        # searching | driving | done | blocked | failed
+    reason: str = ''
+    lateral_offset: float = float('nan')
+    heading_error: float = float('nan')
+    left_distance: float = float('nan')
+    right_distance: float = float('nan')
+    front_free: float = float('nan')
+
+
+class CorridorFollower:
+    """Keeps the corridor's centre line and end in the odom frame and applies the law.
+
+    Feed it scans with :meth:`update_scan` (points in the odom frame and the robot's odom pose
+    at scan time) and ask :meth:`command` for velocities with the robot's current odom pose.
+    """
+
+    def __init__(self, params=CorridorParams(), max_speed=None, max_distance=None, lost_scans=15):
+        self.p = params
+        self.max_speed = min(max_speed or params.max_speed, params.speed_limit)
+        self.max_distance = max_distance if max_distance else None
+        self.lost_scans = lost_scans
+        self.line = None            # (x, y, theta) of the centre line in odom: point + direction
+        self.width = None
+        self.end = None             # (x, y) odom point on the centre line where a wall ends
+        self.points = np.zeros((0, 2))     # last scan, odom frame
+        self.scans = 0
+        self.misses = 0
+        self.failure = ''
+        self.walls = None
+        self.travelled = 0.0
+        self._last_pose = None
+
+    # --- perception -----------------------------------------------------------------------
+    def update_scan(self, points_odom, pose_odom):
+        """One scan: ``points_odom`` (N, 2) in odom [m], ``pose_odom`` the base pose at scan time.
+        Returns the fitted :class:`Walls` (robot frame) or ``None``."""
+        p = self.p
+        self.points = np.asarray(points_odom, float).reshape(-1, 2)
+        self.scans += 1
+        local = transform_points(inverse(pose_odom), self.points)
+        if self.line is None:
+            walls = find_corridor(local, p)
+            if walls is None:
+                self.misses += 1
+                if self.misses >= 3:
+                    self.failure = 'no corridor ahead within %.1f m' % p.look_ahead
+                return None
+        else:
+            theta0, c0 = self._line_in_robot(pose_odom)
+            walls = fit_walls(local, theta0, c0, p)
+            if walls is not None and (abs(wrap_angle(walls.theta - theta0)) > p.max_turn
+                                      or abs(0.5 * (walls.d_left + walls.d_right) - c0) > p.max_jump):
+                walls = None
+            if walls is None:
+                self.misses += 1
+                if self.end is None and self.misses >= self.lost_scans:
+                    self.failure = 'lost the corridor walls for %d scans' % self.misses
+                return None
+        self.misses = 0
+        self.walls = walls
+        self.width = walls.width
+        x, y, yaw = pose_odom
+        th = wrap_angle(yaw + walls.theta)
+        c = 0.5 * (walls.d_left + walls.d_right)
+        self.line = (x - c * math.sin(th), y + c * math.cos(th), th)
+        end_u = wall_end(local, walls, p)
+        if end_u is not None:
+            # the end's odom point on the centre line, ahead of the robot by end_u
+            px, py = self._project(pose_odom)
+            self.end = (px + end_u * math.cos(th), py + end_u * math.sin(th))
+        return walls
+
+    def _line_in_robot(self, pose):
+        """The tracked centre line as ``(theta, n.p)`` in the robot frame at ``pose``."""
+        lx, ly, lth = self.line
+        theta = wrap_angle(lth - pose[2])
+        # n.p of the line's point expressed in the robot frame
+        q = transform_points(inverse(pose), [[lx, ly]])[0]
+        return theta, -q[0] * math.sin(theta) + q[1] * math.cos(theta)
+
+    def _project(self, pose):
+        lx, ly, lth = self.line
+        c, s = math.cos(lth), math.sin(lth)
+        t = (pose[0] - lx) * c + (pose[1] - ly) * s
+        return lx + t * c, ly + t * s
+
+    def errors(self, pose):
+        """``(e_y, e_theta)`` of the odom ``pose`` with respect to the tracked centre line."""
+        lx, ly, lth = self.line
+        e_y = -(pose[0] - lx) * math.sin(lth) + (pose[1] - ly) * math.cos(lth)
+        return e_y, wrap_angle(pose[2] - lth)
+
+    def remaining(self, pose):
+        """Distance [m] along the corridor to the stop point, or ``None`` before the end is seen."""
+        if self.end is None:
+            return None
+        lth = self.line[2]
+        along = (pose[0] - self.end[0]) * math.cos(lth) + (pose[1] - self.end[1]) * math.sin(lth)
+        return self.p.exit_margin - along
+
+    # --- control --------------------------------------------------------------------------
+    def command(self, pose_odom):
+        """Velocities for the robot at ``pose_odom`` (its current odom pose)."""
+        p = self.p
+        if self._last_pose is not None:
+            self.travelled += math.hypot(pose_odom[0] - self._last_pose[0],
+                                         pose_odom[1] - self._last_pose[1])
+        self._last_pose = pose_odom
+        if self.failure:
+            return Command(state='failed', reason=self.failure)
+        if self.line is None:
+            return Command(state='searching', reason='looking for a corridor ahead')
+        e_y, e_th = self.errors(pose_odom)
+        half = 0.5 * self.width
+        cmd = Command(lateral_offset=e_y, heading_error=e_th, left_distance=half - e_y,
+                      right_distance=half + e_y)
+        rem = self.remaining(pose_odom)
+        if rem is not None and rem <= 0.02:
+            cmd.state, cmd.reason = 'done', 'reached the end of the corridor'
+            return cmd
+        if self.max_distance is not None and self.travelled >= self.max_distance - 0.01:
+            cmd.state = 'done'
+            cmd.reason = 'travelled max_distance %.2f m before the corridor end' % self.max_distance
+            return cmd
+        local = transform_points(inverse(pose_odom), self.points)
+        free = front_free_distance(local, p.robot_radius)
+        cmd.front_free = free
+        if free < p.stop_margin:
+            cmd.state, cmd.reason = 'blocked', 'blocked ahead: obstacle %.2f m in front' % free
+            return cmd
+        v, w = control_law(e_y, e_th, self.width, p, self.max_speed)
+        caps = [free - p.stop_margin]
+        if rem is not None:
+            caps.append(rem)
+        if self.max_distance is not None:
+            caps.append(self.max_distance - self.travelled)
+        vcap = math.sqrt(2.0 * p.decel * max(0.0, min(caps)))
+        if v > vcap:
+            # keep the curvature while braking, but let it still turn when nearly stopped
+            w = w * vcap / v if vcap > 0.05 else w
+            v = vcap
+        cmd.v, cmd.omega, cmd.state = v, w, 'driving'
+        return cmd
+
+
+def laser_points_in_odom(ranges, angles, laser_pose_odom, range_min=0.05, range_max=25.0):
+    """Scan ranges [m] at beam ``angles`` [rad] (laser frame) -> ``(N, 2)`` odom points, given
+    the laser's odom pose. Invalid beams (inf, NaN, out of limits) are dropped."""
+    r = np.asarray(ranges, float)
+    a = np.asarray(angles, float)
+    with np.errstate(invalid='ignore'):
+        ok = np.isfinite(r) & (r >= range_min) & (r <= range_max)
+    pts = np.column_stack((r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])))
+    return transform_points(laser_pose_odom, pts)
+
+
+def run_in_simulator(sim, params=CorridorParams(), max_speed=None, max_distance=None,
+                     timeout=60.0, on_step=None):
+    """Closed loop without ROS: ``sim`` (:class:`tiago_nav.sim.simulator.Simulator`) scans at
+    its scan rate, the law commands at its odometry rate. Returns ``(command, follower)`` with
+    the final :class:`Command`; ``on_step(sim, cmd)`` is called after every physics step."""
+    f = CorridorFollower(params, max_speed, max_distance)
+    cfg = sim.config
+    angles = cfg.laser.angles()
+    cmd = Command()
+    blocked_since = None
+    t_end = sim.time + timeout
+    scan_due, odom_due = True, True
+    while sim.time < t_end:
+        pose = sim.odom_pose
+        if scan_due:
+            laser = compose(pose, (cfg.laser.offset, 0.0, 0.0))
+            f.update_scan(laser_points_in_odom(sim.scan(), angles, laser, cfg.laser.range_min,
+                                               cfg.laser.range_max), pose)
+        if scan_due or odom_due:
+            cmd = f.command(pose)
+            if cmd.state in ('done', 'failed'):
+                sim.command(0.0, 0.0)
+                break
+            if cmd.state == 'blocked':
+                blocked_since = sim.time if blocked_since is None else blocked_since
+                if sim.time - blocked_since > 2.0:
+                    sim.command(0.0, 0.0)
+                    break
+            else:
+                blocked_since = None
+            sim.command(cmd.v, cmd.omega)
+        scan_due, odom_due = sim.step()
+        if on_step is not None:
+            on_step(sim, cmd)
+    else:
+        cmd = Command(state='failed', reason='timeout after %.0f s' % timeout)
+    sim.command(0.0, 0.0)
+    for _ in range(int(cfg.rate)):           # let it brake to a stop
+        sim.step()
+        if on_step is not None:
+            on_step(sim, cmd)
+    return cmd, f
+
+
+def corridor_world(width, length=5.0, bend_deg=0.0, bend_at=None, start=(-1.0, 0.0, 0.0),
+                   wall=0.15, obstacle=None, name='corridor'):
+    """A test and benchmark world (a dict for :meth:`tiago_nav.sim.world.World.from_dict`): a
+    closed room (x < 0) whose doorway at x = 0 opens into a corridor of ``width`` [m] whose
+    centre line runs from (0, 0) along +x for ``bend_at`` (default ``length``) metres, then
+    turns by ``bend_deg`` [deg] for the rest of ``length``; open floor after it (the corridor is
+    the only way out of the room). ``start``
+    is ``(x, y, yaw_deg)``; ``obstacle`` an optional ``(x, y, radius)`` movable cylinder."""
+    bend_at = length if bend_at is None else bend_at
+    h = width / 2.0 + wall / 2.0
+    walls = []
+    b = math.radians(bend_deg)
+    segments = [((0.0, 0.0), 0.0, bend_at)]
+    if length > bend_at:
+        segments.append(((bend_at, 0.0), b, length - bend_at))
+    for (x0, y0), th, ln in segments:
+        for side in (1, -1):
+            # each wall segment's inner face follows the centre line at +-width/2; overlap 0.1 m
+            # at the bend so the outer side has no gap
+            cx = x0 + 0.5 * ln * math.cos(th) - side * h * math.sin(th)
+            cy = y0 + 0.5 * ln * math.sin(th) + side * h * math.cos(th)
+            walls.append({'x': cx, 'y': cy, 'length': ln + (0.1 if len(segments) > 1 else 0.0)
+                          + 0.0, 'width': wall, 'yaw_deg': math.degrees(th)})
+    # a closed room before the corridor: the doorway wall across x = 0 (faces at x = -wall..0)
+    # and walls around; the corridor is the only way out of it
+    half_room = max(2.0, width / 2.0 + 1.0)
+    back = min(start[0], 0.0) - 1.5
+    piece = half_room - width / 2.0
+    for side in (1, -1):
+        walls.append({'x': -wall / 2.0, 'y': side * (width / 2.0 + piece / 2.0), 'length': piece,
+                      'width': wall, 'yaw_deg': 90.0})
+        walls.append({'x': back / 2.0, 'y': side * (half_room + wall / 2.0), 'length': -back + wall,
+                      'width': wall, 'yaw_deg': 0.0})
+    walls.append({'x': back - wall / 2.0, 'y': 0.0, 'length': 2 * half_room + 2 * wall, 'width': wall,
+                  'yaw_deg': 90.0})
+    ex = bend_at + (length - bend_at) * math.cos(b)
+    ey = (length - bend_at) * math.sin(b)
+    d = {'name': name, 'resolution': 0.05,
+         'bounds': [back - 0.5, min(ey, 0.0) - half_room - 1.0, ex + 3.0, max(ey, 0.0) + half_room + 1.0],
+         'robot_start': list(start), 'walls': walls,
+         'corridor': {'entry': [0.0, 0.0], 'exit': [ex, ey], 'width': width}}
+    if obstacle is not None:
+        d['movable_obstacles'] = [{'x': obstacle[0], 'y': obstacle[1], 'radius': obstacle[2]}]
+    return d

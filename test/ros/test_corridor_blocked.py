@@ -1,0 +1,54 @@
+#!/usr/bin/python3
+"""Rostest of nodes/corridor_controller with a cylinder inside the corridor (world file ground
+truth): the goal ABORTS with "blocked ahead", the robot stops in front of it without contact."""
+import math
+import unittest
+
+import actionlib
+import rospy
+import rostest
+import tf2_ros
+from actionlib_msgs.msg import GoalStatus
+from std_msgs.msg import UInt32
+
+from tiago_nav.msg import CorridorAction, CorridorGoal
+from tiago_nav.rosutil import pose_from_transform
+from tiago_nav.sim.world import load_world
+
+TIMEOUT = 30.0
+
+
+class CorridorBlockedTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node('test_corridor_blocked')
+        cls.world = load_world(rospy.get_param('~world'))
+        cls.tf = tf2_ros.Buffer()
+        cls.listener = tf2_ros.TransformListener(cls.tf)
+        rospy.wait_for_message('/clock', rospy.AnyMsg, timeout=TIMEOUT)
+        cls.client = actionlib.SimpleActionClient('corridor_controller', CorridorAction)
+        assert cls.client.wait_for_server(rospy.Duration(TIMEOUT)), 'no corridor_controller server'
+
+    def base_pose(self):
+        t = self.tf.lookup_transform('map', 'base_footprint', rospy.Time(), rospy.Duration(TIMEOUT))
+        return pose_from_transform(t.transform)
+
+    def test_blocked_ahead_aborts_before_the_obstacle(self):
+        self.client.send_goal(CorridorGoal())
+        self.assertTrue(self.client.wait_for_result(rospy.Duration(40.0)), 'no result in 40 s')
+        self.assertEqual(self.client.get_state(), GoalStatus.ABORTED)
+        result = self.client.get_result()
+        self.assertIn('blocked ahead', result.reason)
+        rospy.sleep(1.0)
+        x, y, _ = self.base_pose()
+        obstacle = self.world.movable_obstacles[0]
+        gap = math.hypot(obstacle.x - x, obstacle.y - y) - obstacle.radius - 0.27
+        self.assertGreater(gap, 0.0)
+        self.assertLess(gap, 0.25)                  # it drove up to the obstacle, then stopped
+        self.assertGreater(result.distance, 2.0)
+        collisions = rospy.wait_for_message('/sim/collisions', UInt32, timeout=TIMEOUT)
+        self.assertEqual(collisions.data, 0)
+
+
+if __name__ == '__main__':
+    rostest.rosrun('tiago_nav', 'test_corridor_blocked', CorridorBlockedTest)
