@@ -21,7 +21,6 @@ import argparse
 import json
 import math
 import os
-import socket
 import subprocess
 import sys
 import tempfile
@@ -39,6 +38,7 @@ RESULTS = os.path.join(ROOT, 'bench', 'results')
 
 from tiago_nav.corridor import CorridorParams, corridor_world, run_in_simulator  # noqa: E402
 from tiago_nav.geometry import wrap_angle  # noqa: E402
+from tiago_nav.mission_harness import free_port, stop_process  # noqa: E402
 from tiago_nav.sim.simulator import SimConfig, Simulator  # noqa: E402
 from tiago_nav.sim.world import World, load_world  # noqa: E402
 
@@ -153,18 +153,6 @@ def library_trial(world, start):
 
 
 # --- through ROS -----------------------------------------------------------------------------
-def navigation_ready():
-    with open(os.path.join(ROOT, 'nodes', 'navigation')) as f:
-        head = f.read(400)
-    return 'Placeholder' not in head and os.path.exists(os.path.join(ROOT, 'config', 'navigation.yaml'))
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(('localhost', 0))
-        return s.getsockname()[1]
-
-
 def ros_trial(world_path, start, method, goal_pose, rtf):
     """One launch of navigation.launch; runs in a child process (one master per rospy process).
     Returns the raw record (track, duration, collisions, state, final pose)."""
@@ -186,7 +174,7 @@ def ros_child(spec):
         ['roslaunch', '-p', str(port), 'tiago_nav', 'navigation.launch', 'world:=' + spec['world'],
          'real_time_factor:=%g' % spec['rtf'],
          'robot_start:=[%f, %f, %f]' % tuple(spec['start'])],
-        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     try:
         import actionlib
         import rospy
@@ -243,11 +231,7 @@ def ros_child(spec):
                           'succeeded': bool(finished and state == GoalStatus.SUCCEEDED),
                           'status': client.get_goal_status_text()}))
     finally:
-        launch.terminate()
-        try:
-            launch.wait(20)
-        except subprocess.TimeoutExpired:
-            launch.kill()
+        stop_process(launch)
 
 
 # --- report ---------------------------------------------------------------------------------
@@ -314,7 +298,7 @@ def main():
     os.makedirs(RESULTS, exist_ok=True)
     n_lib = 4 if args.quick else 12
     n_ros = 1 if args.quick else 2
-    use_ros = not args.no_ros and navigation_ready()
+    use_ros = not args.no_ros
     out = {'params': vars(CorridorParams()), 'definitions': {
         'time_to_exit': 'goal sent -> base centre past the first corridor wall end [s, sim time]',
         'time_to_stop': 'goal sent -> standstill [s, sim time]',

@@ -18,7 +18,6 @@ import dataclasses
 import json
 import math
 import os
-import socket
 import subprocess
 import sys
 import time
@@ -31,6 +30,7 @@ if os.path.join(ROOT, 'src') not in sys.path:
     sys.path.append(os.path.join(ROOT, 'src'))   # after the workspace's (which has the messages)
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
+from tiago_nav.mission_harness import free_port, stop_process  # noqa: E402
 from tiago_nav.detection import METHODS, DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.detection.subtraction import MapDistance, brute_force_distance  # noqa: E402
 from tiago_nav.geometry import scan_to_points, transform_points  # noqa: E402
@@ -249,12 +249,6 @@ def _timed(fn):
 
 
 # --- the service round trip (ROS), in a child process on its own master ----------------------
-def free_port():
-    with socket.socket() as s:
-        s.bind(('localhost', 0))
-        return s.getsockname()[1]
-
-
 def service_round_trip(world_path, pose, calls, rtf):
     out = subprocess.run([sys.executable, os.path.abspath(__file__), '--service-child', world_path,
                           json.dumps([pose[0], pose[1], math.degrees(pose[2])]), str(calls), str(rtf)],
@@ -271,7 +265,7 @@ def measure_service(world_path, start, calls, rtf):
     launch = subprocess.Popen(
         ['roslaunch', '-p', str(port), 'tiago_nav', 'sim.launch', 'world:=' + world_path,
          'real_time_factor:=%s' % rtf, 'robot_start:=%s' % start],
-        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     node = None
     try:
         os.environ['ROS_MASTER_URI'] = env['ROS_MASTER_URI']
@@ -284,7 +278,8 @@ def measure_service(world_path, start, calls, rtf):
             time.sleep(0.5)
         node = subprocess.Popen(['rosrun', 'tiago_nav', 'obstacle_detection',
                                  '__name:=obstacle_detection'], env=env,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                start_new_session=True)
         import rospy
         from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
         deadline = time.time() + 60
@@ -319,14 +314,7 @@ def measure_service(world_path, start, calls, rtf):
                 'obstacles_found_median': int(np.median(found))}
     finally:
         for p in (node, launch):
-            if p is not None:
-                p.terminate()
-        for p in (node, launch):
-            if p is not None:
-                try:
-                    p.wait(15)
-                except subprocess.TimeoutExpired:
-                    p.kill()
+            stop_process(p)
 
 
 def _is_float(w):

@@ -11,7 +11,6 @@ import argparse
 import json
 import math
 import os
-import socket
 import subprocess
 import sys
 import time
@@ -22,6 +21,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
+from tiago_nav.mission_harness import free_port, stop_process  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.simulator import SimConfig, Simulator  # noqa: E402
 from tiago_nav.sim.world import load_world  # noqa: E402
@@ -44,12 +44,6 @@ def library_factor(world, sim_seconds):
     return sim_seconds / wall, scans
 
 
-def free_port():
-    with socket.socket() as s:
-        s.bind(('localhost', 0))
-        return s.getsockname()[1]
-
-
 def node_factor(world_path, wall_seconds):
     """Run sim.launch at real_time_factor:=0 with a circling base; sim seconds per wall second.
     Measured in a child process, since a rospy process can join only one master."""
@@ -63,7 +57,8 @@ def measure_node(world_path, wall_seconds):
     env = dict(os.environ, ROS_MASTER_URI='http://localhost:%d' % port)
     launch = subprocess.Popen(['roslaunch', '-p', str(port), 'tiago_nav', 'sim.launch',
                                'world:=' + world_path, 'real_time_factor:=0'],
-                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              start_new_session=True)
     try:
         os.environ['ROS_MASTER_URI'] = env['ROS_MASTER_URI']
         import rospy
@@ -91,11 +86,7 @@ def measure_node(world_path, wall_seconds):
         wall = time.time() - t0
         return (c1 - c0) / wall
     finally:
-        launch.terminate()
-        try:
-            launch.wait(15)
-        except subprocess.TimeoutExpired:
-            launch.kill()
+        stop_process(launch)
 
 
 def plot(world, path):

@@ -2,7 +2,8 @@
 demo.launch on a private master, watch the robot (tf path, last scan, /map, /sim/collisions),
 send TiagoTask goals with the client library, shut everything down.
 
-A process can join one ROS master only: use one :class:`Harness` per process.
+A process can join one ROS master only: use one :class:`Harness` per process. The benchmarks
+use :func:`free_port` and :func:`stop_process` for their own private launches too.
 """
 import os
 import signal
@@ -16,6 +17,7 @@ from tiago_nav.geometry import compose, transform_points
 
 
 def free_port():
+    """A TCP port on localhost that is free now (for a private ROS master)."""
     with socket.socket() as s:
         s.bind(('localhost', 0))
         return s.getsockname()[1]
@@ -184,12 +186,14 @@ class Harness:
             import rospy
             rospy.signal_shutdown('harness done')
         for p in (self.launch, self.core):
-            _stop(p)
+            stop_process(p)
         self.log.close()
 
 
-def _stop(proc):
-    if proc.poll() is not None:
+def stop_process(proc):
+    """Stop a process started with ``start_new_session=True`` and everything it started:
+    SIGINT (roslaunch shuts its nodes down cleanly), then SIGTERM, then SIGKILL."""
+    if proc is None or proc.poll() is not None:
         return
     for sig, wait in ((signal.SIGINT, 15.0), (signal.SIGTERM, 5.0), (signal.SIGKILL, 5.0)):
         try:
