@@ -2,36 +2,28 @@
 """Rostest of nodes/corridor_controller with a cylinder inside the corridor (world file ground
 truth): the goal ABORTS with "blocked ahead", the robot stops in front of it without contact."""
 import math
-import unittest
 
 import actionlib
 import rospy
 import rostest
-import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from std_msgs.msg import UInt32
 
 from tiago_nav.msg import CorridorAction, CorridorGoal
-from tiago_nav.rosutil import pose_from_transform
-from tiago_nav.sim.world import load_world
+
+from simtest import SimTestCase
 
 TIMEOUT = 30.0
 
 
-class CorridorBlockedTest(unittest.TestCase):
+class CorridorBlockedTest(SimTestCase):
+    node_name = 'test_corridor_blocked'
+
     @classmethod
     def setUpClass(cls):
-        rospy.init_node('test_corridor_blocked')
-        cls.world = load_world(rospy.get_param('~world'))
-        cls.tf = tf2_ros.Buffer()
-        cls.listener = tf2_ros.TransformListener(cls.tf)
-        rospy.wait_for_message('/clock', rospy.AnyMsg, timeout=TIMEOUT)
+        super().setUpClass()
         cls.client = actionlib.SimpleActionClient('corridor_controller', CorridorAction)
         assert cls.client.wait_for_server(rospy.Duration(TIMEOUT)), 'no corridor_controller server'
-
-    def base_pose(self):
-        t = self.tf.lookup_transform('map', 'base_footprint', rospy.Time(), rospy.Duration(TIMEOUT))
-        return pose_from_transform(t.transform)
 
     def test_blocked_ahead_aborts_before_the_obstacle(self):
         self.client.send_goal(CorridorGoal())

@@ -4,19 +4,17 @@ the action SUCCEEDS at the corridor's exit from robot_start, /sim/collisions sta
 comes at >= 5 Hz; a second goal, with the robot already out of the corridor, ABORTS; a goal
 cancelled while driving is PREEMPTED and the robot stops."""
 import math
-import unittest
 
 import actionlib
 import rospy
 import rostest
-import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import Twist
 from std_msgs.msg import UInt32
 
 from tiago_nav.msg import CorridorAction, CorridorGoal
-from tiago_nav.rosutil import pose_from_transform
-from tiago_nav.sim.world import load_world
+
+from simtest import SimTestCase
 
 TIMEOUT = 30.0
 
@@ -38,20 +36,14 @@ def corridor_walls(world):
     return th, out
 
 
-class CorridorNodeTest(unittest.TestCase):
+class CorridorNodeTest(SimTestCase):
+    node_name = 'test_corridor_node'
+
     @classmethod
     def setUpClass(cls):
-        rospy.init_node('test_corridor_node')
-        cls.world = load_world(rospy.get_param('~world'))
-        cls.tf = tf2_ros.Buffer()
-        cls.listener = tf2_ros.TransformListener(cls.tf)
-        rospy.wait_for_message('/clock', rospy.AnyMsg, timeout=TIMEOUT)
+        super().setUpClass()
         cls.client = actionlib.SimpleActionClient('corridor_controller', CorridorAction)
         assert cls.client.wait_for_server(rospy.Duration(TIMEOUT)), 'no corridor_controller server'
-
-    def base_pose(self):
-        t = self.tf.lookup_transform('map', 'base_footprint', rospy.Time(), rospy.Duration(TIMEOUT))
-        return pose_from_transform(t.transform)
 
     def test_1_drives_the_corridor_to_its_exit(self):
         feedback = []

@@ -2,30 +2,26 @@
 """Rostest of the obstacle_detection service: what it finds is checked against the world file's
 ground truth (movable obstacles hit by >= 5 beams of a noise-free cast from the robot's pose)."""
 import math
-import unittest
 
 import rospy
 import rostest
-import tf2_ros
 
 from tiago_nav.geometry import compose, inverse
-from tiago_nav.rosutil import pose_from_transform
 from tiago_nav.sim.scene import Scene
-from tiago_nav.sim.world import load_world
 from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
+
+from simtest import SimTestCase
 
 TIMEOUT = 30.0
 
 
-class DetectionNodeTest(unittest.TestCase):
+class DetectionNodeTest(SimTestCase):
+    node_name = 'test_detection_node'
+
     @classmethod
     def setUpClass(cls):
-        rospy.init_node('test_detection_node')
-        cls.world = load_world(rospy.get_param('~world'))
-        tf = tf2_ros.Buffer()
-        cls.listener = tf2_ros.TransformListener(tf)
-        t = tf.lookup_transform('map', 'base_footprint', rospy.Time(), rospy.Duration(TIMEOUT))
-        cls.pose = pose_from_transform(t.transform)
+        super().setUpClass()
+        cls.pose = cls.base_pose()
         with Scene(cls.world) as scene:
             cls.visible = scene.visible_obstacles(cls.pose)
         rospy.wait_for_service('obstacle_detection', timeout=TIMEOUT)

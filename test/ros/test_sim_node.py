@@ -1,12 +1,10 @@
 #!/usr/bin/python3
 """Rostest of nodes/simulator in test/worlds/sim_box.yaml (checked against the world file)."""
 import math
-import unittest
 
 import numpy as np
 import rospy
 import rostest
-import tf2_ros
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import OccupancyGrid, Odometry
 from sensor_msgs.msg import LaserScan
@@ -16,24 +14,19 @@ from tiago_nav.geometry import scan_to_points, transform_points
 from tiago_nav.rosutil import gridmap_from_msg, pose_from_msg, pose_from_transform
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.scene import Scene
-from tiago_nav.sim.world import load_world
+
+from simtest import SimTestCase
 
 TIMEOUT = 20.0
 
 
-class SimulatorNodeTest(unittest.TestCase):
+class SimulatorNodeTest(SimTestCase):
+    node_name = 'test_sim_node'
+
     @classmethod
     def setUpClass(cls):
-        rospy.init_node('test_sim_node')
-        cls.world = load_world(rospy.get_param('~world'))
-        cls.tf = tf2_ros.Buffer()
-        cls.listener = tf2_ros.TransformListener(cls.tf)
+        super().setUpClass()
         cls.cmd = rospy.Publisher('/mobile_base_controller/cmd_vel', Twist, queue_size=1)
-        rospy.wait_for_message('/clock', rospy.AnyMsg, timeout=TIMEOUT)
-
-    def base_pose(self):
-        t = self.tf.lookup_transform('map', 'base_footprint', rospy.Time(), rospy.Duration(TIMEOUT))
-        return pose_from_transform(t.transform)
 
     def drive(self, v, w, seconds):
         end = rospy.Time.now() + rospy.Duration(seconds)
