@@ -6,12 +6,32 @@ the laser (base_laser_link) sits ``laser_offset`` [m] ahead of the base centre, 
 ``laser_height`` above the floor (above the base's collision body, so beams never hit it).
 """
 import math
+import os
 from dataclasses import dataclass
 
 import numpy as np
-import pybullet
 
 from tiago_nav.geometry import compose
+
+
+def _import_pybullet():
+    """Import pybullet without the build-time banner it writes on stderr at import."""
+    try:
+        saved = os.dup(2)
+    except OSError:
+        import pybullet
+        return pybullet
+    try:
+        with open(os.devnull, 'w') as null:
+            os.dup2(null.fileno(), 2)
+            import pybullet
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+    return pybullet
+
+
+pybullet = _import_pybullet()
 
 WALL_HEIGHT = 1.0          # [m] every static and movable body spans the floor to this height
 ROBOT_HEIGHT = 0.25        # [m] the base's collision body, floor to this height
