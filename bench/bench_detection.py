@@ -33,7 +33,7 @@ RESULTS = os.path.join(ROOT, 'bench', 'results')
 from tiago_nav.mission_harness import free_port, stop_process  # noqa: E402
 from tiago_nav.detection import METHODS, DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.detection.subtraction import MapDistance, brute_force_distance  # noqa: E402
-from tiago_nav.geometry import scan_to_points, transform_points  # noqa: E402
+from tiago_nav.geometry import scan_to_points, transform_points, wrap_angle  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.scene import LaserConfig, Scene, noisy  # noqa: E402
 from tiago_nav.sim.world import load_world  # noqa: E402
@@ -88,8 +88,7 @@ def clear_view(world, scene, pose, ids, max_range):
         d = math.hypot(c.x - lx, c.y - ly)
         if hits < 5 or d > max_range or d <= c.radius:
             continue
-        bearing = math.atan2(c.y - ly, c.x - lx) - lyaw
-        bearing = (bearing + math.pi) % (2 * math.pi) - math.pi
+        bearing = wrap_angle(math.atan2(c.y - ly, c.x - lx) - lyaw)
         half = math.asin(c.radius / d)
         if bearing - half < cfg.angle_min or bearing + half > cfg.angle_max:
             continue                                   # cut by the edge of the field of view

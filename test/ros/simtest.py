@@ -1,5 +1,6 @@
-"""Shared set-up of the rostests that run against the simulator: a test node, the world file
-(the ground truth every assertion is checked against) and the robot's pose from tf."""
+"""Shared pieces of the rostests: the set-up of those that run against the simulator (a test
+node, the world file every assertion is checked against, the robot's pose from tf) and
+:func:`distinct_states` for the mission tests."""
 import unittest
 
 import rospy
@@ -28,3 +29,12 @@ class SimTestCase(unittest.TestCase):
         """Ground-truth pose ``(x, y, yaw)`` of base_footprint in map, the latest tf has."""
         t = cls.tf.lookup_transform('map', 'base_footprint', rospy.Time(), rospy.Duration(TIMEOUT))
         return pose_from_transform(t.transform)
+
+
+def distinct_states(feedbacks):
+    """The feedback states in the order they came, each repeat run collapsed to one."""
+    out = []
+    for f in feedbacks:
+        if not out or out[-1] != f.state:
+            out.append(f.state)
+    return out

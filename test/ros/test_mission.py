@@ -29,6 +29,8 @@ from tiago_nav.rosutil import pose_from_msg, pose_from_transform
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.world import load_world
 
+from simtest import distinct_states
+
 WAIT = 60.0            # wall bound on server waits [s]
 MISSION = 240.0        # bound on one mission [s wall] (a hang guard, not a performance check)
 TOL = 0.05             # every in-view obstacle found within this [m]
@@ -79,14 +81,6 @@ class MissionTest(unittest.TestCase):
         return (self.client.get_state(), self.client.get_result(),
                 self.client.get_goal_status_text(), fbs)
 
-    @staticmethod
-    def states(fbs):
-        out = []
-        for f in fbs:
-            if not out or out[-1] != f.state:
-                out.append(f.state)
-        return out
-
     def collisions(self):
         return rospy.wait_for_message('/sim/collisions', UInt32, timeout=10).data
 
@@ -117,7 +111,7 @@ class MissionTest(unittest.TestCase):
         x, y, yaw = self.goal
         state, result, text, fbs = self.send(x, y, yaw, self.corridor)
         self.assertEqual(state, GoalStatus.SUCCEEDED, text)
-        st = self.states(fbs)
+        st = distinct_states(fbs)
         expected = [FB.GOAL_RECEIVED] + ([FB.CORRIDOR] if self.corridor else []) + [FB.NAVIGATING]
         self.assertEqual(st[:len(expected)], expected, st)
         self.assertIn(FB.MOVING, st)
@@ -198,7 +192,7 @@ class MissionFailuresTest(MissionTest):
         state, result, text, fbs = self.send(gx, gy, 0.0, False, limit=120)
         self.assertEqual(state, GoalStatus.ABORTED, text)
         self.assertTrue(result.message.startswith('detection failed'), result.message)
-        self.assertIn(FB.DETECTING, self.states(fbs))    # (a hang fails on the time-limit)
+        self.assertIn(FB.DETECTING, distinct_states(fbs))    # (a hang fails on the time-limit)
 
 
 if __name__ == '__main__':

@@ -26,6 +26,8 @@ from tiago_nav.mission_client import TaskClient
 from tiago_nav.rosutil import pose_from_msg, transform_stamped
 from tiago_nav.srv import DetectObstacles, DetectObstaclesResponse
 
+from simtest import distinct_states
+
 T = 30.0            # generous bound on every wait [s]
 FOUND = [(3.1, 0.4, 0.2), (4.0, -1.2, 0.15)]     # the fake detection's obstacles (x, y, r)
 
@@ -146,14 +148,6 @@ class MissionFakesTest(unittest.TestCase):
         self.assertTrue(client.wait_for_result(rospy.Duration(T)), 'no result')
         return client.get_state(), client.get_result(), client.get_goal_status_text(), fbs
 
-    @staticmethod
-    def states(fbs):
-        out = []
-        for f in fbs:
-            if not out or out[-1] != f.state:
-                out.append(f.state)
-        return out
-
     def assert_stop_commanded_after(self, t):
         self.assertTrue(any(c[0] >= t and c[1] == 0 and c[2] == 0 for c in self.cmds),
                         'no zero cmd_vel after the goal ended')
@@ -162,7 +156,7 @@ class MissionFakesTest(unittest.TestCase):
         t0 = rospy.get_time()
         state, result, text, fbs = self.send(2.0, 1.0, 90.0, True)
         self.assertEqual(state, GoalStatus.SUCCEEDED, text)
-        st = self.states(fbs)
+        st = distinct_states(fbs)
         self.assertEqual(st[:3], [FB.GOAL_RECEIVED, FB.CORRIDOR, FB.NAVIGATING])
         self.assertIn(FB.MOVING, st)
         self.assertEqual(st[-3:], [FB.ARRIVED, FB.DETECTING, FB.DETECTION_DONE])
