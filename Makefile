@@ -9,7 +9,7 @@ WS := $(ROOT)/.ws
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 # Debian's ROS 1 packages (ros_comm 1.15) and what the package uses besides.
 APT_PACKAGES := ros-core-dev catkin python3-catkin-pkg python3-rospy python3-actionlib \
-	python3-actionlib-msgs python3-tf2-ros python3-tf2-geometry-msgs python3-tf2-msgs \
+	python3-actionlib-msgs python3-tf2-ros python3-tf2-msgs \
 	python3-move-base-msgs ros-move-base-msgs libmove-base-msgs-dev python3-nav-msgs \
 	python3-sensor-msgs python3-geometry-msgs python3-std-msgs python3-std-srvs \
 	python3-visualization-msgs python3-rosgraph-msgs python3-rostest python3-roslaunch \

@@ -3,6 +3,7 @@ from setuptools import setup
 from catkin_pkg.python_setup import generate_distutils_setup
 
 setup(**generate_distutils_setup(
-    packages=['tiago_nav', 'tiago_nav.sim', 'tiago_nav.nav', 'tiago_nav.detection'],
+    packages=['tiago_nav', 'tiago_nav.detection', 'tiago_nav.mission', 'tiago_nav.nav', 'tiago_nav.nodes',
+              'tiago_nav.ros', 'tiago_nav.sim', 'tiago_nav.testing'],
     package_dir={'': 'src'},
 ))

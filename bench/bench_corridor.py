@@ -185,7 +185,7 @@ def ros_child(spec):
 
         from tiago_nav.geometry import compose
         from tiago_nav.msg import CorridorAction, CorridorGoal
-        from tiago_nav.rosutil import pose_from_msg, pose_stamped
+        from tiago_nav.ros.conversions import pose_from_msg, pose_stamped
         import rosgraph
         deadline = time.time() + 30.0        # /use_sim_time must be set before init_node reads it
         while time.time() < deadline:

@@ -33,7 +33,8 @@ RESULTS = os.path.join(ROOT, 'bench', 'results')
 from tiago_nav.mission_harness import free_port, stop_process  # noqa: E402
 from tiago_nav.detection import METHODS, DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.detection.subtraction import MapDistance, brute_force_distance  # noqa: E402
-from tiago_nav.geometry import scan_to_points, transform_points, wrap_angle  # noqa: E402
+from tiago_nav.geometry import transform_points, wrap_angle  # noqa: E402
+from tiago_nav.scan import scan_to_points  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.scene import LaserConfig, Scene, noisy  # noqa: E402
 from tiago_nav.sim.world import load_world  # noqa: E402

@@ -47,27 +47,6 @@ def transform_points(pose, points):
     return np.column_stack((x + c * pts[:, 0] - s * pts[:, 1], y + s * pts[:, 0] + c * pts[:, 1]))
 
 
-def scan_angles(angle_min, angle_increment, n):
-    """Beam angles [rad] of a scan with ``n`` beams, in the laser frame."""
-    return angle_min + angle_increment * np.arange(n)
-
-
-def scan_to_points(ranges, angle_min, angle_increment, range_min=0.0, range_max=np.inf):
-    """Turn a scan's ranges [m] into points in the laser frame.
-
-    Returns ``(points, index)``: the ``(M, 2)`` points of the valid beams (finite and within
-    ``[range_min, range_max]``; NaN, inf and out-of-limit readings are dropped) and the beam
-    index of each point.
-    """
-    r = np.asarray(ranges, dtype=float)
-    ang = scan_angles(angle_min, angle_increment, r.size)
-    with np.errstate(invalid='ignore'):
-        valid = np.isfinite(r) & (r >= range_min) & (r <= range_max)
-    idx = np.flatnonzero(valid)
-    rv = r[idx]
-    return np.column_stack((rv * np.cos(ang[idx]), rv * np.sin(ang[idx]))), idx
-
-
 def oriented_box_corners(cx, cy, length, width, yaw):
     """The 4 corners (counter-clockwise, ``(4, 2)``) of a ``length`` × ``width`` box [m]
     centred at ``(cx, cy)`` whose length runs along ``yaw`` [rad]."""

@@ -4,13 +4,23 @@
 corner is at ``origin`` ``(x, y)`` [m] in the map frame (no rotation). Values: 100 occupied,
 0 free, -1 unknown.
 """
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import ndimage
 
 OCCUPIED = 100
 FREE = 0
 UNKNOWN = -1
+
+
+def distance_to_mask(mask, resolution):
+    """Euclidean distance [m] from every cell centre to the nearest ``True`` cell centre of the
+    boolean ``(rows, cols)`` ``mask`` (scipy's exact distance transform); ``inf`` everywhere when
+    the mask is empty."""
+    if not mask.any():
+        return np.full(mask.shape, np.inf)
+    return ndimage.distance_transform_edt(~mask) * resolution
 
 
 @dataclass
@@ -18,6 +28,7 @@ class GridMap:
     data: np.ndarray        # (rows, cols) int8
     resolution: float       # [m] per cell
     origin: tuple           # (x, y) [m] of cell (0, 0)'s lower-left corner
+    _distance: np.ndarray = field(default=None, init=False, repr=False, compare=False)
 
     @property
     def shape(self):
@@ -64,6 +75,14 @@ class GridMap:
     def occupied(self):
         """Boolean ``(rows, cols)`` mask of occupied cells."""
         return self.data >= 50
+
+    def distance_field(self):
+        """``(rows, cols)`` distance [m] from each cell centre to the nearest occupied cell
+        centre (:func:`distance_to_mask`), computed once per grid and cached: do not change
+        ``data`` afterwards."""
+        if self._distance is None:
+            self._distance = distance_to_mask(self.occupied(), self.resolution)
+        return self._distance
 
     def cell_centres(self):
         """Two ``(rows, cols)`` arrays: the x and y [m] of every cell centre."""

@@ -95,7 +95,7 @@ class Harness:
         import actionlib
         import rospy
         from move_base_msgs.msg import MoveBaseAction
-        from tiago_nav.mission_client import wait_server
+        from tiago_nav.ros.actions import wait_server
         from tiago_nav.msg import CorridorAction, TiagoTaskAction
         t0 = time.monotonic()
         for name, kind in (('tiago_controller', TiagoTaskAction), ('move_base', MoveBaseAction),
@@ -122,7 +122,7 @@ class Harness:
         self.scan = msg
 
     def _on_map(self, msg):
-        from tiago_nav.rosutil import gridmap_from_msg
+        from tiago_nav.ros.conversions import gridmap_from_msg
         self.grid = gridmap_from_msg(msg)
 
     def _on_collisions(self, msg):
@@ -131,7 +131,7 @@ class Harness:
     def pose(self):
         """Ground-truth base pose (the simulator's tf is ground truth) or None."""
         import rospy
-        from tiago_nav.rosutil import pose_from_transform
+        from tiago_nav.ros.conversions import pose_from_transform
         try:
             t = self.tf.lookup_transform('map', 'base_footprint', rospy.Time(0))
         except Exception:
@@ -150,7 +150,7 @@ class Harness:
 
     def scan_points_map(self, timeout=5.0):
         """The latest scan's points in the map frame (laser pose from tf at the scan's stamp)."""
-        from tiago_nav.rosutil import pose_from_transform, scan_points
+        from tiago_nav.ros.conversions import pose_from_transform, scan_points
         t0 = time.monotonic()
         s0 = self.scan
         while self.scan is s0 and time.monotonic() - t0 < timeout:

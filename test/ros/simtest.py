@@ -6,7 +6,7 @@ import unittest
 import rospy
 import tf2_ros
 
-from tiago_nav.rosutil import pose_from_transform
+from tiago_nav.ros.conversions import pose_from_transform
 from tiago_nav.sim.world import load_world
 
 TIMEOUT = 30.0

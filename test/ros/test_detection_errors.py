@@ -16,7 +16,7 @@ from sensor_msgs.msg import LaserScan
 from nav_msgs.msg import OccupancyGrid
 
 from tiago_nav.geometry import compose, inverse
-from tiago_nav.rosutil import gridmap_to_msg, transform_stamped
+from tiago_nav.ros.conversions import gridmap_to_msg, transform_stamped
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.scene import LaserConfig, Scene, noisy
 from tiago_nav.sim.world import load_world

@@ -24,8 +24,8 @@ from std_msgs.msg import UInt32
 
 from tiago_nav.mission_eval import score, visible_truth
 from tiago_nav.msg import TiagoTaskFeedback as FB, TiagoTaskGoal
-from tiago_nav.mission_client import TaskClient
-from tiago_nav.rosutil import pose_from_msg, pose_from_transform
+from tiago_nav.ros.actions import TaskClient
+from tiago_nav.ros.conversions import pose_from_msg, pose_from_transform
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.world import load_world
 

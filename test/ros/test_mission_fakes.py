@@ -22,8 +22,8 @@ from visualization_msgs.msg import MarkerArray
 from tiago_nav.msg import (CorridorAction, CorridorFeedback, CorridorResult, Obstacle,
                            TiagoTaskActionGoal, TiagoTaskFeedback as FB,
                            TiagoTaskGoal)
-from tiago_nav.mission_client import TaskClient
-from tiago_nav.rosutil import pose_from_msg, transform_stamped
+from tiago_nav.ros.actions import TaskClient
+from tiago_nav.ros.conversions import pose_from_msg, transform_stamped
 from tiago_nav.srv import DetectObstacles, DetectObstaclesResponse
 
 from simtest import distinct_states
@@ -111,7 +111,7 @@ class Fakes:
             rospy.sleep(6.0)
         obs = [Obstacle(center=Point(x, y, 0), center_robot=Point(x - self.pose[0], y - self.pose[1], 0),
                         radius=r, num_points=20) for x, y, r in FOUND]
-        return DetectObstaclesResponse(obstacles=obs, message='')
+        return DetectObstaclesResponse(success=True, obstacles=obs, message='')
 
 
 class MissionFakesTest(unittest.TestCase):

@@ -21,7 +21,7 @@ from std_srvs.srv import Empty
 from geometry_msgs.msg import PoseStamped
 
 from tiago_nav.geometry import wrap_angle
-from tiago_nav.rosutil import pose_stamped
+from tiago_nav.ros.conversions import pose_stamped
 from tiago_nav.sim.raster import rasterise_world
 
 from simtest import SimTestCase

@@ -10,8 +10,9 @@ from nav_msgs.msg import OccupancyGrid, Odometry
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import UInt32
 
-from tiago_nav.geometry import scan_to_points, transform_points
-from tiago_nav.rosutil import gridmap_from_msg, pose_from_msg, pose_from_transform
+from tiago_nav.geometry import transform_points
+from tiago_nav.scan import scan_to_points
+from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_msg, pose_from_transform
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.scene import Scene
 

@@ -67,7 +67,8 @@ def test_subtraction_keeps_an_obstacle_next_to_a_wall():
     w = world([(7.425 - 0.1 - 0.2, 0.5, 0.2)])
     r, laser, visible = scan_of(w)
     grid = rasterise_world(w)
-    from tiago_nav.geometry import scan_to_points, transform_points
+    from tiago_nav.geometry import transform_points
+    from tiago_nav.scan import scan_to_points
     pts = transform_points(laser, scan_to_points(r, L.angle_min, L.angle_increment, 0.05, 25)[0])
     keep = subtract(pts, MapDistance(grid), 0.12)
     kept = pts[keep]
@@ -87,7 +88,8 @@ def test_circle_fit_accuracy_at_1_to_5_m():
             cx, cy = dist * math.cos(theta), dist * math.sin(theta)
             w = world([(cx + 0.2, cy, 0.2)], walls=[])        # laser at x = 0.2
             r, laser, _ = scan_of(w, noise=0.01, seed=int(rng.integers(1e6)))
-            from tiago_nav.geometry import scan_to_points, transform_points
+            from tiago_nav.geometry import transform_points
+            from tiago_nav.scan import scan_to_points
             pts = transform_points(laser, scan_to_points(r, L.angle_min, L.angle_increment, 0.05, 25)[0])
             fx, fy, fr, _ = circle_fit(pts)
             errs.append(math.hypot(fx - cx - 0.2, fy - cy))

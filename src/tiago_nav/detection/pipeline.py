@@ -19,7 +19,8 @@ import numpy as np
 from tiago_nav.detection.centres import centroid, circle_fit, radius_std
 from tiago_nav.detection.clustering import centroid_clusters
 from tiago_nav.detection.subtraction import MapDistance, subtract
-from tiago_nav.geometry import scan_to_points, transform_points
+from tiago_nav.geometry import transform_points
+from tiago_nav.scan import scan_to_points
 
 METHODS = ('circle_fit', 'centroid', 'discontinuity')
 

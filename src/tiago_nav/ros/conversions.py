@@ -1,5 +1,4 @@
-"""Conversions between ROS messages and the library's plain types (the only library module that
-imports ROS message classes; it needs no ROS master).
+"""Conversions between ROS messages and the library's plain types (needs no ROS master).
 
 Poses are ``(x, y, yaw)`` [m, m, rad]; grids are :class:`tiago_nav.gridmap.GridMap`.
 """
@@ -8,8 +7,9 @@ import rospy
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped
 from nav_msgs.msg import MapMetaData, OccupancyGrid
 
-from tiago_nav.geometry import quaternion_to_yaw, scan_to_points, yaw_to_quaternion
+from tiago_nav.geometry import quaternion_to_yaw, yaw_to_quaternion
 from tiago_nav.gridmap import GridMap
+from tiago_nav.scan import scan_to_points
 
 
 def pose_msg(pose):
@@ -83,43 +83,6 @@ def gridmap_from_msg(msg):
 
 def scan_points(scan):
     """sensor_msgs/LaserScan → ``(points, index)`` in the scan's frame (invalid beams dropped,
-    see :func:`tiago_nav.geometry.scan_to_points`)."""
+    see :func:`tiago_nav.scan.scan_to_points`)."""
     return scan_to_points(scan.ranges, scan.angle_min, scan.angle_increment,
                           scan.range_min, scan.range_max)
-
-
-class ParamError(ValueError):
-    """A node parameter has a value the node cannot use."""
-
-
-def param(name, default, kind=float, check=None, why=''):
-    """Read the parameter ``name`` (e.g. ``'~rate'``) as ``kind`` (float, int, bool, str).
-
-    Raises :class:`ParamError` naming the parameter when the value has the wrong type or
-    ``check(value)`` is false (``why`` says what is expected).
-    """
-    value = rospy.get_param(name, default)
-    try:
-        if kind is bool:
-            if not isinstance(value, bool):
-                raise TypeError
-        elif kind in (int, float):
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise TypeError
-            if kind is int and float(value) != int(value):
-                raise TypeError
-            value = kind(value)
-            if not np.isfinite(value):
-                raise TypeError
-        elif kind is str:
-            if not isinstance(value, str):
-                raise TypeError
-        else:
-            value = kind(value)
-    except (TypeError, ValueError):
-        raise ParamError('parameter %s: expected %s, got %r' % (rospy.resolve_name(name),
-                                                                  kind.__name__, value)) from None
-    if check is not None and not check(value):
-        raise ParamError('parameter %s: %r is not allowed%s'
-                         % (rospy.resolve_name(name), value, ' (%s)' % why if why else ''))
-    return value

@@ -15,12 +15,12 @@ Units: metres, radians (degrees only where a name says ``_deg``), seconds. Poses
 under /use_sim_time); stage timeouts count in it. ``wall()`` is a monotonic wall clock; waits for
 servers and the "simulated clock stopped" guard count in it, so nothing hangs if /clock stops.
 """
-import collections
 import math
 from dataclasses import dataclass, field
 from typing import Any, List, Optional, Tuple
 
 from tiago_nav.geometry import wrap_angle
+from tiago_nav.motion import MotionMonitor  # noqa: F401  (TRANSITIONAL re-export)
 
 # --- feedback states (the TiagoTask.action constants) ----------------------------------------
 GOAL_RECEIVED, CORRIDOR, NAVIGATING, MOVING, STOPPED, ARRIVED, DETECTING, DETECTION_DONE = range(8)
@@ -71,55 +71,6 @@ def validate_goal(x, y, yaw_deg):
 
 
 # --- motion and progress ---------------------------------------------------------------------
-class MotionMonitor:
-    """MOVING or STOPPED from successive poses.
-
-    The robot counts as moving when, over the last ``window`` seconds (at least half of it
-    covered by samples), its position changed faster than ``speed_threshold`` [m/s] or its
-    heading faster than ``turn_threshold`` [rad/s]. Below both it is stopped. ``None`` until
-    enough samples arrived.
-    """
-
-    def __init__(self, window=0.5, speed_threshold=0.05, turn_threshold=0.1):
-        if not (window > 0 and speed_threshold > 0 and turn_threshold > 0):
-            raise ValueError('window and thresholds must be > 0')
-        self.window = float(window)
-        self.speed_threshold = float(speed_threshold)
-        self.turn_threshold = float(turn_threshold)
-        self.samples = collections.deque()
-
-    def reset(self):
-        self.samples.clear()
-
-    def update(self, t, pose):
-        """Add the pose ``(x, y, yaw)`` seen at time ``t`` [s]; return True (moving), False
-        (stopped) or None (not enough history yet)."""
-        if pose is not None:
-            if self.samples and t < self.samples[-1][0]:
-                self.samples.clear()            # time went backwards (simulator restarted)
-            self.samples.append((t, pose))
-            while len(self.samples) > 2 and t - self.samples[1][0] >= self.window:
-                self.samples.popleft()
-        return self.moving()
-
-    def speeds(self):
-        """``(linear [m/s], angular [rad/s])`` over the window, or None."""
-        if len(self.samples) < 2:
-            return None
-        (t0, p0), (t1, p1) = self.samples[0], self.samples[-1]
-        dt = t1 - t0
-        if dt < self.window / 2.0:
-            return None
-        return (math.hypot(p1[0] - p0[0], p1[1] - p0[1]) / dt,
-                abs(wrap_angle(p1[2] - p0[2])) / dt)
-
-    def moving(self):
-        s = self.speeds()
-        if s is None:
-            return None
-        return s[0] > self.speed_threshold or s[1] > self.turn_threshold
-
-
 def remaining_path_length(path, position):
     """Length [m] of ``path`` (a sequence of ``(x, y)``, map frame) from the point nearest to
     ``position`` to its end, plus the distance from ``position`` to that point. None if the path
