@@ -38,7 +38,7 @@ RESULTS = os.path.join(ROOT, 'bench', 'results')
 
 from tiago_nav.corridor import CorridorParams, corridor_world, run_in_simulator  # noqa: E402
 from tiago_nav.geometry import wrap_angle  # noqa: E402
-from tiago_nav.mission_harness import free_port, stop_process  # noqa: E402
+from tiago_nav.testing.harness import free_port, stop_process  # noqa: E402
 from tiago_nav.sim.simulator import SimConfig, Simulator  # noqa: E402
 from tiago_nav.sim.world import World, load_world  # noqa: E402
 

@@ -30,7 +30,7 @@ if os.path.join(ROOT, 'src') not in sys.path:
     sys.path.append(os.path.join(ROOT, 'src'))   # after the workspace's (which has the messages)
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
-from tiago_nav.mission_harness import free_port, stop_process  # noqa: E402
+from tiago_nav.testing.harness import free_port, stop_process  # noqa: E402
 from tiago_nav.detection import METHODS, DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.detection.subtraction import MapDistance, brute_force_distance  # noqa: E402
 from tiago_nav.geometry import transform_points, wrap_angle  # noqa: E402

@@ -31,8 +31,8 @@ TARGET_WALL = 20.0
 def run_world(world_file, n, seed, rtf):
     """Child process: one launch, the world's missions; prints ``RESULT <json>`` last."""
     import numpy as np
-    from tiago_nav.mission_eval import sample_goals, score, visible_truth
-    from tiago_nav.mission_harness import Harness
+    from tiago_nav.testing.evaluation import sample_goals, score, visible_truth
+    from tiago_nav.testing.harness import Harness
     from tiago_nav.sim.world import load_world
     import rospy
 

@@ -19,8 +19,8 @@ import sys
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 try:            # from the workspace (source .ws/devel/setup.bash): tiago_nav with its messages
-    from tiago_nav.mission_eval import plot_run, truth_table, visible_truth
-    from tiago_nav.mission_harness import Harness, HarnessError
+    from tiago_nav.testing.evaluation import plot_run, truth_table, visible_truth
+    from tiago_nav.testing.harness import Harness, HarnessError
     from tiago_nav.sim.world import load_world
     import tiago_nav.msg  # noqa: F401
 except ImportError as e:

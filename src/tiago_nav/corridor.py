@@ -272,6 +272,26 @@ def find_corridor(points, params):
     return None
 
 
+def corridor_toward(points, target, params, max_angle=math.radians(60.0)):
+    """A corridor ahead of the robot that leads toward ``target``, or ``None``.
+
+    ``points``: robot-frame (base_footprint) scan points [m]; ``target``: ``(x, y)`` [m] in the
+    same frame (pose B). The corridor (:func:`find_corridor`) must run within ``max_angle``
+    [rad] of the bearing to the target, and the target must lie beyond where its walls start.
+    Used by the mission proxy to decide whether the corridor law applies.
+    """
+    walls = find_corridor(points, params)
+    if walls is None:
+        return None
+    tx, ty = float(target[0]), float(target[1])
+    if abs(wrap_angle(math.atan2(ty, tx) - walls.theta)) > max_angle:
+        return None
+    along = tx * math.cos(walls.theta) + ty * math.sin(walls.theta)
+    if along <= min(walls.extent_left[0], walls.extent_right[0]):
+        return None
+    return walls
+
+
 def wall_end(points, walls, params, horizon=None):
     """Distance [m] along the corridor (from the robot) where a wall ends, or ``None``.
 

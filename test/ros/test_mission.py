@@ -22,7 +22,7 @@ from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import Twist
 from std_msgs.msg import UInt32
 
-from tiago_nav.mission_eval import score, visible_truth
+from tiago_nav.testing.evaluation import score, visible_truth
 from tiago_nav.msg import TiagoTaskFeedback as FB, TiagoTaskGoal
 from tiago_nav.ros.actions import TaskClient
 from tiago_nav.ros.conversions import pose_from_msg, pose_from_transform

@@ -237,3 +237,30 @@ def test_laser_points_in_odom():
     pts = laser_points_in_odom([1.0, np.inf, np.nan, 0.01, 2.0], [0.0, 0.1, 0.2, 0.3, math.pi / 2],
                                (1.0, 2.0, math.pi / 2))
     assert pts == pytest.approx(np.array([[1.0, 3.0], [-1.0, 2.0]]))
+
+
+def test_corridor_toward_needs_a_corridor_leading_to_the_target():
+    import os
+    from conftest import WORLDS
+    from tiago_nav.corridor import corridor_toward
+    from tiago_nav.scan import scan_to_points
+    from tiago_nav.sim.scene import Scene
+    from tiago_nav.sim.world import load_world
+    w = load_world(os.path.join(WORLDS, 'ias_lab_room_full.yaml'))
+    p = CorridorParams()
+
+    def points(pose):
+        with Scene(w) as scene:
+            r, _ = scene.cast(pose)
+            L = scene.laser
+            pts, _ = scan_to_points(r, L.angle_min, L.angle_increment, L.range_min, L.range_max)
+        return transform_points((L.offset, 0.0, 0.0), pts)
+
+    start = w.start_pose
+    at_start = points(start)
+    b_in_robot = transform_points(inverse(start), [[11.0, 0.0]])[0]
+    assert corridor_toward(at_start, b_in_robot, p) is not None
+    behind = transform_points(inverse(start), [[-3.0, 0.0]])[0]
+    assert corridor_toward(at_start, behind, p) is None          # the corridor leads elsewhere
+    pose_b = (11.0, 0.0, math.radians(-45.0))                     # the big room: no corridor
+    assert corridor_toward(points(pose_b), transform_points(inverse(pose_b), [[6.5, -3.0]])[0], p) is None

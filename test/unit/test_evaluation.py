@@ -1,11 +1,11 @@
-"""Ground-truth judging of missions (tiago_nav.mission_eval): matching, scores, goal sampling."""
+"""Ground-truth judging of missions (tiago_nav.testing.evaluation): matching, scores, goal sampling."""
 import math
 import os
 
 import numpy as np
 import pytest
 
-from tiago_nav.mission_eval import match_obstacles, sample_goals, score, truth_table, visible_truth
+from tiago_nav.testing.evaluation import match_obstacles, sample_goals, score, truth_table, visible_truth
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.world import load_world
 
