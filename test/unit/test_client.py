@@ -1,4 +1,4 @@
-"""The client's argument parsing and validation (tiago_nav.mission_client): nothing is sent
+"""The client's argument parsing and validation (tiago_nav.mission.client): nothing is sent
 unless every value is a finite number and the yaw is in degrees; missing values are asked for
 only in a terminal."""
 import os
@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from tiago_nav.mission_client import (EXIT_USAGE, UsageError, feedback_line, parse_client_args)
+from tiago_nav.mission.client import (EXIT_USAGE, UsageError, feedback_line, parse_client_args)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 

@@ -1,4 +1,4 @@
-"""The mission state machine (tiago_nav.mission) against a fake backend: a kinematic robot that
+"""The mission state machine (tiago_nav.mission.runner) against a fake backend: a kinematic robot that
 drives toward the goal at a fixed speed in simulated time, fake stages that succeed, abort,
 hang, vanish or never come, and a fake detection service."""
 import math
@@ -7,8 +7,10 @@ import pytest
 
 from tiago_nav import mission
 from tiago_nav.mission import (ABORTED, ACTIVE, PREEMPTED, SUCCEEDED, DetectionError, Goal,
-                               GoalError, MissionConfig, MissionRunner, MotionMonitor, Poll,
-                               obstacle_table, remaining_path_length, validate_goal)
+                               GoalError, MissionConfig, MissionRunner, Poll, validate_goal)
+from tiago_nav.mission.client import obstacle_table
+from tiago_nav.mission.sentences import remaining_path_length
+from tiago_nav.motion import MotionMonitor
 
 
 class FakeBackend:
@@ -62,6 +64,9 @@ class FakeBackend:
                 self.robot[1] += step * (gy - self.robot[1]) / d
         elif self.active == 'corridor':
             self.robot[0] += self.speed * dt * 0.5
+
+    def shutdown(self):
+        return False
 
     def preempt_requested(self):
         return self.preempt_at is not None and self.t >= self.preempt_at

@@ -1,7 +1,8 @@
-"""Judging a mission against the world's ground truth (used by scripts/run_demo.py,
-bench/bench_mission.py and the mission rostests; no ROS needed).
+"""Judging a mission against the world's ground truth: which movable obstacles the robot could
+see, how the found centres match them, random reachable goals, and a picture of a run. Used by
+scripts/run_demo.py, bench/bench_mission.py and the mission rostests; no ROS needed.
 
-Everything is in the map (= world) frame, metres.
+Everything is in the map (= world) frame, metres; yaw in radians unless a name says ``_deg``.
 """
 import math
 
@@ -57,7 +58,15 @@ def score(true_xy, found_xy, gate=MATCH_GATE):
 
 
 def truth_table(truth, found_xy, gate=MATCH_GATE):
-    """Lines comparing the ground truth (``visible_truth`` rows) with found centres."""
+    """A printable comparison of the ground truth with the found centres.
+
+    Args:
+        truth: rows ``(world index, x, y, radius)`` of :func:`visible_truth`.
+        found_xy: found centres ``(x, y)`` [m].
+        gate: matching gate [m] (:func:`match_obstacles`).
+
+    Returns ``(lines, score)``: the table's lines and the :func:`score` dict.
+    """
     s = score([(x, y) for _, x, y, _ in truth], found_xy, gate)
     by_true = {i: (j, e) for i, j, e in s['pairs']}
     lines = ['ground truth (movable obstacles in laser view) vs found:',
@@ -82,12 +91,22 @@ def truth_table(truth, found_xy, gate=MATCH_GATE):
 
 
 def sample_goals(world, n, rng, start=None, clearance=0.65, passage=0.35, min_distance=2.0):
-    """``n`` random poses B ``(x, y, yaw_deg)`` for missions in ``world``: in free space at
-    least ``clearance`` [m] from the static map's occupied cells and from every movable obstacle,
-    reachable from ``start`` (default: the world's start) through space at least ``passage``
-    [m] from anything, each at least ``min_distance`` [m] from the previous one, facing a random
-    movable obstacle (±30 deg) so that something is usually in view. ``rng``: a numpy Generator
-    (seed it)."""
+    """Random reachable poses B for missions in ``world``.
+
+    Args:
+        world: a :class:`tiago_nav.sim.world.World`.
+        n: how many goals.
+        rng: a seeded ``numpy.random.Generator``.
+        start: ``(x, y, ...)`` the missions start from [m] (default: the world's start).
+        clearance: each goal is at least this far [m] from the static map's occupied cells
+            and from every movable obstacle.
+        passage: ... and reachable from ``start`` through space at least this far [m] from
+            anything.
+        min_distance: each goal is at least this far [m] from the previous one.
+
+    Returns up to ``n`` tuples ``(x, y, yaw_deg)``, each facing a random movable obstacle
+    (±30 deg) so that something is usually in view; fewer when the space runs out.
+    """
     from scipy import ndimage
     from tiago_nav.sim.raster import rasterise_world
     grid = rasterise_world(world)
@@ -128,8 +147,19 @@ def sample_goals(world, n, rng, start=None, clearance=0.65, passage=0.35, min_di
 
 
 def plot_run(path_png, grid, world, robot_path, scan_xy, truth, found_xy, goal=None, title=''):
-    """Write a PNG of a run: the static map, the robot's path, the final scan (map-frame
-    points), every movable obstacle (grey), those in view (green) and the found centres (red)."""
+    """Write a PNG of a run.
+
+    Args:
+        path_png: the file to write.
+        grid: the static map (:class:`tiago_nav.gridmap.GridMap`) or None.
+        world: the world (its movable obstacles are drawn grey, dashed).
+        robot_path: the robot's poses ``(x, y, ...)`` [m] in order.
+        scan_xy: the final scan's points ``(x, y)`` [m] in map, or None.
+        truth: :func:`visible_truth` rows, drawn green.
+        found_xy: the found centres, drawn as red crosses.
+        goal: pose B ``(x, y, yaw)`` [m, m, rad], drawn as an arrow, or None.
+        title: the figure's title.
+    """
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt

@@ -1,6 +1,7 @@
 """Running whole missions from a script (scripts/run_demo.py, bench/bench_mission.py): start
 demo.launch on a private master, watch the robot (tf path, last scan, /map, /sim/collisions),
-send TiagoTask goals with the client library, shut everything down.
+send TiagoTask goals through the client node's run loop (:func:`tiago_nav.nodes.client.run`),
+shut everything down.
 
 A process can join one ROS master only: use one :class:`Harness` per process. The benchmarks
 use :func:`free_port` and :func:`stop_process` for their own private launches too.
@@ -24,12 +25,24 @@ def free_port():
 
 
 class HarnessError(RuntimeError):
-    pass
+    """The launch did not come up (no master, no server, roslaunch exited); the message names
+    what is missing and the log file."""
 
 
 class Harness:
-    """demo.launch (without its client) on ``port``; this process becomes a node of it.
-    ``launch``: the roslaunch arguments naming the launch file (package and file, or a path)."""
+    """demo.launch (without its client) on a private master; this process becomes a node of it
+    once :meth:`connect` is called.
+
+    Args:
+        world: path of the world file.
+        real_time_factor, laser_noise: passed to the launch file (0 = as fast as possible;
+            [m] laser noise sigma).
+        port: the master's port (default: a free one).
+        robot_start: ``(x, y, yaw_deg)`` to start from instead of the world's start.
+        log_path: where roscore and roslaunch write (default: a file in the temp directory).
+        extra_args: further ``name:=value`` launch arguments.
+        launch: the roslaunch arguments naming the launch file (package and file, or a path).
+    """
 
     def __init__(self, world, real_time_factor=5.0, laser_noise=0.01, port=None, robot_start=None,
                  log_path=None, extra_args=(), launch=('tiago_nav', 'demo.launch')):
@@ -92,6 +105,8 @@ class Harness:
         threading.Thread(target=self._track, daemon=True).start()
 
     def wait_servers(self, timeout):
+        """Wait (wall ``timeout`` [s]) for every server of the mission, /map and the robot's tf;
+        :class:`HarnessError` naming the missing one otherwise."""
         import actionlib
         import rospy
         from move_base_msgs.msg import MoveBaseAction
@@ -167,9 +182,10 @@ class Harness:
         return transform_points(laser, pts)
 
     def mission(self, x, y, yaw_deg, use_corridor_law, out=print):
-        """Run one TiagoTask with the client library; ``(exit code, GoalStatus, result,
+        """Run one TiagoTask to pose B (``x``, ``y`` [m] in map, ``yaw_deg``) as the client
+        does, printing its lines with ``out``; return ``(exit code, GoalStatus, TiagoTaskResult,
         wall seconds)``."""
-        from tiago_nav.mission_client import run
+        from tiago_nav.nodes.client import run
         box = {}
 
         def on_result(state, result):

@@ -1,0 +1,149 @@
+"""The command-line client's ROS-free parts: its arguments, its feedback lines and the obstacle
+table (the node, with the run loop, is :mod:`tiago_nav.nodes.client`).
+
+``rosrun tiago_nav client X Y YAW_DEG [--corridor | --no-corridor] [--server-timeout S]``
+Exit codes: 0 the task succeeded, 1 it was aborted or preempted (or the server never came),
+2 bad input (nothing was sent).
+"""
+import argparse
+
+from tiago_nav.mission.goals import GoalError, parse_number, validate_goal
+from tiago_nav.mission.runner import STATE_NAMES
+from tiago_nav.mission.sentences import fmt_pose
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+SERVER_TIMEOUT = 15.0        # [s wall] default wait for the tiago_controller server
+PROMPTS = ('x [m]: ', 'y [m]: ', 'yaw [deg]: ')
+_TRUE, _FALSE = ('true', '1', 'yes', 'on'), ('false', '0', 'no', 'off')
+
+
+class UsageError(ValueError):
+    """Bad command-line input; the message says what is wrong."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):        # argparse would print and exit; the caller decides
+        raise UsageError(message)
+
+
+def _server_timeout(text):
+    try:
+        value = parse_number(text, '--server-timeout')
+    except GoalError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError('must be > 0 s, got %g' % value)
+    return value
+
+
+def _parser():
+    p = _Parser(prog='rosrun tiago_nav client', add_help=False, allow_abbrev=False, usage=(
+                '%(prog)s X Y YAW_DEG [--corridor | --no-corridor] [--server-timeout SECONDS]'),
+                description='Send pose B to the tiago_controller proxy, print its feedback and '
+                'the obstacles it found.')
+    p.add_argument('values', nargs='*', metavar='X Y YAW_DEG',
+                   help='pose B: X, Y in the map frame [m]; YAW_DEG the heading at pose B [deg], '
+                   'between -360 and 360 (asked for when missing and stdin is a terminal)')
+    p.add_argument('--corridor', dest='use_corridor_law', action='store_true', default=True,
+                   help='drive a corridor with the laser-only law first when one leads toward '
+                   'pose B (default; --corridor=true|false also works, e.g. from a launch file)')
+    p.add_argument('--no-corridor', dest='use_corridor_law', action='store_false',
+                   help='go straight to move_base')
+    p.add_argument('--server-timeout', type=_server_timeout, default=SERVER_TIMEOUT,
+                   metavar='SECONDS', help='how long to wait for the tiago_controller server [s] '
+                   '(default %g)' % SERVER_TIMEOUT)
+    p.add_argument('-h', '--help', action='store_true', help='show this help and exit')
+    return p
+
+
+USAGE = _parser().format_help().rstrip()
+
+
+def _is_number(arg):
+    try:
+        float(arg)
+        return True
+    except ValueError:
+        return False
+
+
+def _prepare(argv):
+    """argparse takes ``-45`` and ``-inf`` for options and has no ``--flag=value`` for a
+    switch: a leading space keeps a number positional (:func:`parse_number` strips it), and
+    ``--corridor=true|false`` becomes ``--corridor`` or ``--no-corridor``."""
+    out = []
+    for a in argv:
+        if a.startswith('--corridor='):
+            value = a.split('=', 1)[1]
+            if value.strip().lower() in _TRUE:
+                a = '--corridor'
+            elif value.strip().lower() in _FALSE:
+                a = '--no-corridor'
+            else:
+                raise UsageError('--corridor=%s: expected true or false' % value)
+        elif a.startswith('-') and _is_number(a):
+            a = ' ' + a
+        out.append(a)
+    return out
+
+
+def parse_client_args(argv, interactive=False, ask=input):
+    """Parse the client's arguments (``argv`` without the program name and without ROS
+    remappings, see ``rospy.myargv``).
+
+    Missing X/Y/YAW are asked for with ``ask(prompt)`` when ``interactive`` (a terminal);
+    otherwise they are a :class:`UsageError`. Every value is validated
+    (:func:`tiago_nav.mission.goals.validate_goal`). Returns a dict with ``x``, ``y``,
+    ``yaw_deg``, ``use_corridor_law``, ``server_timeout`` or ``{'help': True}``.
+    """
+    args, unknown = _parser().parse_known_intermixed_args(_prepare(argv))
+    if args.help:
+        return {'help': True}
+    if unknown:
+        raise UsageError('unknown option %s' % unknown[0])
+    positional = list(args.values)
+    if len(positional) > 3:
+        raise UsageError('too many values: %s (expected X Y YAW_DEG)'
+                         % ' '.join(v.strip() for v in positional))
+    if len(positional) < 3:
+        if not interactive:
+            raise UsageError('missing %s (expected X Y YAW_DEG)'
+                             % ', '.join(('X', 'Y', 'YAW_DEG')[len(positional):]))
+        for prompt in PROMPTS[len(positional):]:
+            try:
+                positional.append(ask(prompt))
+            except EOFError:
+                raise UsageError('input ended before %s was given' % prompt.split(' ')[0]) from None
+    try:
+        x, y, yaw = validate_goal(*positional)
+    except GoalError as e:
+        raise UsageError(str(e)) from None
+    return {'x': x, 'y': y, 'yaw_deg': yaw, 'use_corridor_law': args.use_corridor_law,
+            'server_timeout': args.server_timeout}
+
+
+def feedback_line(t, state, status, pose=None):
+    """One line per feedback change: sim time ``t`` [s], state name, sentence, pose in map."""
+    name = STATE_NAMES[state] if 0 <= state < len(STATE_NAMES) else 'STATE_%d' % state
+    return '[%7.2f s] %-14s %s%s' % (t, name, status, '   @ %s' % fmt_pose(pose) if pose else '')
+
+
+def obstacle_rows(obstacles):
+    """tiago_nav/Obstacle messages → rows of :func:`obstacle_table`."""
+    return [(o.center.x, o.center.y, o.center_robot.x, o.center_robot.y, o.radius, o.num_points)
+            for o in obstacles]
+
+
+def obstacle_table(rows):
+    """Format obstacles as a text table.
+
+    ``rows``: sequence of ``(x, y, x_robot, y_robot, radius, num_points)`` [m, m, m, m, m, -]
+    (map frame, then base_footprint at scan time). Returns the lines (header first).
+    """
+    lines = [' #   x [m]   y [m]  x_robot  y_robot  radius [m]  points',
+             '--  ------  ------  -------  -------  ----------  ------']
+    for i, (x, y, xr, yr, r, n) in enumerate(rows, 1):
+        lines.append('%2d  %6.2f  %6.2f  %7.2f  %7.2f  %10.3f  %6d' % (i, x, y, xr, yr, r, n))
+    if not rows:
+        lines.append('    (no obstacles)')
+    return lines

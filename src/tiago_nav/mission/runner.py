@@ -1,0 +1,311 @@
+"""The mission as a ROS-free state machine: :class:`MissionRunner` runs one :class:`Goal`
+through a *backend* and returns an :class:`Outcome`.
+
+Units: metres, radians (degrees only where a name says ``_deg``), seconds. Poses are
+``(x, y, yaw)`` of base_footprint in the ``map`` frame. The backend's ``now()`` is ROS time
+(simulated under /use_sim_time); stage timeouts count in it. ``wall()`` is a monotonic wall
+clock; waits for servers and the "simulated clock stopped" guard count in it, so nothing hangs
+if /clock stops.
+"""
+import math
+from dataclasses import dataclass, field
+from typing import Any, List, Optional, Tuple
+
+from tiago_nav.geometry import wrap_angle
+from tiago_nav.mission.goals import GoalError, validate_goal
+from tiago_nav.mission.sentences import (corridor_sentence, fmt_pose, goal_sentence,
+                                         motion_sentence, plural, remaining_path_length)
+from tiago_nav.motion import MotionMonitor, wait_until_still
+from tiago_nav.params import param, validate
+
+# --- feedback states (the TiagoTask.action constants: a contract) ----------------------------
+GOAL_RECEIVED, CORRIDOR, NAVIGATING, MOVING, STOPPED, ARRIVED, DETECTING, DETECTION_DONE = range(8)
+STATE_NAMES = ('GOAL_RECEIVED', 'CORRIDOR', 'NAVIGATING', 'MOVING', 'STOPPED', 'ARRIVED',
+               'DETECTING', 'DETECTION_DONE')
+
+# Outcomes of an action stage as seen by the runner (from actionlib's terminal states).
+ACTIVE, SUCCEEDED, ABORTED, PREEMPTED, REJECTED, LOST = ('active', 'succeeded', 'aborted',
+                                                         'preempted', 'rejected', 'lost')
+
+
+@dataclass
+class MissionConfig:
+    """Timeouts and thresholds of the mission.
+
+    ``*_timeout`` of a stage: ROS (simulated) seconds from its start; ``server_timeout`` and
+    ``detection_timeout``: wall seconds (waiting for a server, one service call);
+    ``clock_timeout``: wall seconds without ROS time advancing before a stage is abandoned.
+    """
+    server_timeout: float = param(10.0, '[s wall] wait this long for each action server / the '
+                                  'service before a stage fails, and abort a stage whose server '
+                                  'has been gone this long', gt=0)
+    corridor_timeout: float = param(120.0, '[s] the corridor_controller stage', gt=0)
+    navigation_timeout: float = param(240.0, '[s] the move_base stage', gt=0)
+    detection_timeout: float = param(10.0, '[s wall] one obstacle_detection call', gt=0)
+    settle_timeout: float = param(3.0, '[s] after arrival, wait at most this for the base to be '
+                                  'still before scanning', gt=0)
+    stop_timeout: float = param(5.0, '[s] on cancel, wait at most this for the base to stop',
+                                gt=0)
+    clock_timeout: float = param(10.0, '[s wall] abandon a stage when ROS time stands still this '
+                                 'long', gt=0)
+    feedback_period: float = param(1.0, '[s] at most one progress feedback per period while a '
+                                   'state lasts', gt=0)
+    poll_period: float = param(0.02, '[s wall] how often stages are polled', gt=0)
+    moving_speed: float = param(0.05, '[m/s] MOVING when faster than this over motion_window '
+                                '(tf map -> base_footprint)', gt=0)
+    moving_turn_rate: float = param(0.1, '[rad/s] ... or turning faster than this', gt=0)
+    motion_window: float = param(0.5, '[s] window of poses judging MOVING vs STOPPED', gt=0)
+    corridor_max_speed: float = param(0.0, '[m/s] goal of corridor_controller, 0: its default',
+                                      ge=0)
+    corridor_max_distance: float = param(0.0, '[m] goal of corridor_controller, 0: no limit',
+                                         ge=0)
+
+    def __post_init__(self):
+        validate(self)
+
+
+@dataclass
+class Goal:
+    """Pose B: ``x``, ``y`` [m] in ``map``, ``yaw_deg`` [deg]; whether to try the corridor law."""
+    x: float
+    y: float
+    yaw_deg: float
+    use_corridor_law: bool = True
+
+    @property
+    def pose(self):
+        """``(x, y, yaw)`` [m, m, rad]."""
+        return (self.x, self.y, math.radians(self.yaw_deg))
+
+
+@dataclass
+class Poll:
+    """What a backend reports about a running action stage."""
+    status: str = ACTIVE             # ACTIVE or a terminal outcome
+    text: str = ''                   # the server's status text (reason)
+    result: Any = None
+    feedback: Any = None
+
+
+@dataclass
+class Outcome:
+    """How a goal ended: ``status`` SUCCEEDED, ABORTED or PREEMPTED and a sentence saying why."""
+    status: str
+    message: str
+    obstacles: List[Any] = field(default_factory=list)
+    final_pose: Optional[Tuple[float, float, float]] = None
+    stage: Optional[str] = None      # the stage that failed or was cancelled
+
+
+class StageError(Exception):
+    """A stage failed; ``str()`` names the stage and the reason."""
+
+    def __init__(self, stage, reason):
+        super().__init__('%s failed: %s' % (stage, reason))
+        self.stage, self.reason = stage, reason
+
+
+class DetectionError(Exception):
+    """Raised by a backend's ``detect`` when the service is absent, errs or times out."""
+
+
+class _Preempted(Exception):
+    def __init__(self, stage):
+        super().__init__(stage)
+        self.stage = stage
+
+
+class MissionRunner:
+    """Runs one goal after another through a backend.
+
+    The backend is a :mod:`tiago_nav.clock` clock (``now()``, ``wall()``, ``sleep(wall
+    seconds)``, ``shutdown()``) and provides ``preempt_requested()``, ``pose()`` (``(x, y,
+    yaw)`` in map or None), ``path()`` (the current plan as ``[(x, y), ...]`` or None),
+    ``server_ready(stage)``, ``send_goal(stage, goal)`` (corridor: ``(max_speed,
+    max_distance)``; navigation: ``(x, y, yaw)``), ``poll(stage) -> Poll``, ``cancel(stage)``,
+    ``detect(timeout) -> (obstacles, message)`` raising :class:`DetectionError`,
+    ``stop_robot()`` and ``publish_feedback(state, status, pose)``.
+    """
+
+    def __init__(self, backend, config=None, log=None):
+        self.b = backend
+        self.cfg = config or MissionConfig()
+        self.log = log or (lambda msg: None)
+        self.motion = MotionMonitor(self.cfg.motion_window, self.cfg.moving_speed,
+                                    self.cfg.moving_turn_rate)
+        self.state = None
+        self.status = ''
+        self._last_feedback = -math.inf
+
+    # --- feedback --------------------------------------------------------------------------
+    def feedback(self, state, status, force=True):
+        """Publish feedback now if the state or sentence changed (or ``force``), else at most
+        once per ``feedback_period``."""
+        t = self.b.now()
+        changed = state != self.state
+        if changed or force or (status != self.status
+                                and t - self._last_feedback >= self.cfg.feedback_period):
+            self.state, self.status, self._last_feedback = state, status, t
+            self.b.publish_feedback(state, status, self.b.pose())
+            if changed:
+                self.log('%s: %s' % (STATE_NAMES[state], status))
+
+    # --- one goal --------------------------------------------------------------------------
+    def run(self, goal):
+        """Run ``goal`` (:class:`Goal`); return an :class:`Outcome`. The robot is told to stop
+        whatever the outcome."""
+        self.state, self.status = None, ''
+        self.motion.reset()
+        stage = None
+        try:
+            try:
+                x, y, yaw = validate_goal(goal.x, goal.y, goal.yaw_deg)
+            except GoalError as e:
+                raise StageError('goal validation', str(e)) from None
+            goal = Goal(x, y, yaw, bool(goal.use_corridor_law))
+            self.feedback(GOAL_RECEIVED, goal_sentence(x, y, yaw, goal.use_corridor_law))
+            if goal.use_corridor_law:
+                stage = 'corridor'
+                self._corridor()
+            stage = 'navigation'
+            self._navigate(goal)
+            stage = 'detection'
+            obstacles, message = self._detect()
+        except _Preempted as e:
+            self.b.stop_robot()
+            stopped = self._wait_stopped(self.cfg.stop_timeout)
+            pose = self.b.pose()
+            msg = 'cancelled during %s; robot %s%s' % (
+                e.stage, 'stopped' if stopped else 'told to stop (still moving after %g s)'
+                % self.cfg.stop_timeout, ' at %s' % fmt_pose(pose) if pose else '')
+            return Outcome(PREEMPTED, msg, final_pose=pose, stage=e.stage)
+        except StageError as e:
+            self.b.stop_robot()
+            return Outcome(ABORTED, str(e), final_pose=self.b.pose(), stage=e.stage)
+        except Exception as e:        # a bug or an unexpected backend error: still abort cleanly
+            self.b.stop_robot()
+            return Outcome(ABORTED, '%s failed: unexpected error: %s: %s'
+                           % (stage or 'mission', type(e).__name__, e),
+                           final_pose=self.b.pose(), stage=stage)
+        self.b.stop_robot()
+        pose = self.b.pose()
+        msg = 'arrived at %s and found %s' % (fmt_pose(pose) if pose else 'pose B',
+                                            plural(len(obstacles), 'obstacle'))
+        if message:
+            msg += ' (%s)' % message
+        return Outcome(SUCCEEDED, msg, obstacles=list(obstacles), final_pose=pose)
+
+    # --- stages ----------------------------------------------------------------------------
+    def _wait_server(self, stage, what):
+        t0 = self.b.wall()
+        while not self.b.server_ready(stage):
+            if self.b.preempt_requested():
+                raise _Preempted(stage)
+            if self.b.wall() - t0 > self.cfg.server_timeout:
+                raise StageError(stage, 'no %s server after %g s (is it running?)'
+                                 % (what, self.cfg.server_timeout))
+            self.b.sleep(self.cfg.poll_period * 5)
+
+    def _run_action(self, stage, what, goal, timeout, on_tick):
+        """Send ``goal`` to the stage's action server and poll it until it ends; return its
+        result. Cancels the goal on preemption, timeout or a stopped clock."""
+        self._wait_server(stage, what)
+        self.b.send_goal(stage, goal)
+        t0 = self.b.now()
+        last_t, last_change = t0, self.b.wall()
+        last_seen = last_change
+        while True:
+            if self.b.preempt_requested():
+                self.b.cancel(stage)
+                raise _Preempted(stage)
+            p = self.b.poll(stage)
+            if p.status == SUCCEEDED:
+                return p
+            if p.status != ACTIVE:
+                reason = p.text or 'no reason given'
+                raise StageError(stage, '%s %s: %s' % (what, p.status, reason))
+            t, w = self.b.now(), self.b.wall()
+            if self.b.server_ready(stage):
+                last_seen = w
+            elif w - last_seen > self.cfg.server_timeout:
+                self.b.cancel(stage)
+                raise StageError(stage, 'the %s server went away' % what)
+            if t != last_t:
+                last_t, last_change = t, w
+            elif w - last_change > self.cfg.clock_timeout:
+                self.b.cancel(stage)
+                raise StageError(stage, 'ROS time stopped advancing for %g s (is the simulator '
+                                 'running?)' % self.cfg.clock_timeout)
+            if t - t0 > timeout:
+                self.b.cancel(stage)
+                raise StageError(stage, 'timed out after %g s' % timeout)
+            on_tick(p)
+            self.b.sleep(self.cfg.poll_period)
+
+    def _corridor(self):
+        self.feedback(CORRIDOR, corridor_sentence())
+
+        def tick(p):
+            f = p.feedback
+            if f is not None:
+                self.feedback(CORRIDOR, corridor_sentence(
+                    getattr(f, 'distance', None), getattr(f, 'lateral_offset', None),
+                    getattr(f, 'left_distance', None), getattr(f, 'right_distance', None)),
+                    force=False)
+        p = self._run_action('corridor', 'corridor_controller',
+                             (self.cfg.corridor_max_speed, self.cfg.corridor_max_distance),
+                             self.cfg.corridor_timeout, tick)
+        r = p.result
+        dist = getattr(r, 'distance', None)
+        self.log('corridor done%s%s' % (' after %.1f m' % dist if dist is not None else '',
+                                         ': %s' % r.reason if getattr(r, 'reason', '') else ''))
+
+    def _to_go(self, goal, pose):
+        if pose is None:
+            return None
+        d = remaining_path_length(self.b.path(), pose)
+        straight = math.hypot(goal.x - pose[0], goal.y - pose[1])
+        return straight if d is None else max(d, straight)
+
+    def _navigate(self, goal):
+        pose = self.b.pose()
+        to_go = self._to_go(goal, pose)
+        self.feedback(NAVIGATING, 'navigating to (%.2f, %.2f, %.0f deg)%s'
+                      % (goal.x, goal.y, goal.yaw_deg,
+                         ', %.1f m away' % to_go if to_go is not None else ''))
+
+        def tick(_p):
+            t, pose = self.b.now(), self.b.pose()
+            moving = self.motion.update(t, pose)
+            if moving is None:
+                return
+            self.feedback(MOVING if moving else STOPPED,
+                          motion_sentence(moving, self._to_go(goal, pose)), force=False)
+        self._run_action('navigation', 'move_base', goal.pose, self.cfg.navigation_timeout, tick)
+        # move_base stops the base at the goal; let it come to rest before scanning
+        stopped = self._wait_stopped(self.cfg.settle_timeout)
+        pose = self.b.pose()
+        if pose is None:
+            self.feedback(ARRIVED, 'arrived')
+        else:
+            err = math.hypot(goal.x - pose[0], goal.y - pose[1])
+            yaw_err = math.degrees(abs(wrap_angle(goal.pose[2] - pose[2])))
+            self.feedback(ARRIVED, 'arrived at %s, %.2f m and %.0f deg from the goal%s'
+                          % (fmt_pose(pose), err, yaw_err, '' if stopped else ' (still settling)'))
+
+    def _wait_stopped(self, timeout):
+        """Tell the robot to stop and wait until it is still (``timeout`` [s] of ROS time, with
+        ``clock_timeout`` as the wall-clock guard); True when it stopped."""
+        return wait_until_still(self.b, self.b.pose, self.b.stop_robot, self.motion, timeout,
+                                period=self.cfg.poll_period * 2, stall=self.cfg.clock_timeout)
+
+    def _detect(self):
+        self.feedback(DETECTING, 'looking for obstacles in one laser scan')
+        if self.b.preempt_requested():
+            raise _Preempted('detection')
+        try:
+            obstacles, message = self.b.detect(self.cfg.detection_timeout)
+        except DetectionError as e:
+            raise StageError('detection', str(e)) from None
+        self.feedback(DETECTION_DONE, 'found %s' % plural(len(obstacles), 'obstacle'))
+        return obstacles, message

@@ -1,0 +1,113 @@
+"""The ``client`` node: sends pose B to the tiago_controller proxy and follows the task.
+
+``rosrun tiago_nav client X Y YAW_DEG [--corridor | --no-corridor] [--server-timeout S]``
+validates pose B before anything is sent (exit 2 on bad input), prints each feedback change on
+one line and then the obstacles found; Ctrl-C cancels the task and waits for the robot to stop.
+Exit 0 when the task succeeded, 1 when it was aborted or preempted. The ROS-free parts
+(arguments, lines, table) are :mod:`tiago_nav.mission.client`.
+"""
+import sys
+import time
+
+import rospy
+from actionlib_msgs.msg import GoalStatus
+
+from tiago_nav.mission.client import (EXIT_FAILED, EXIT_OK, EXIT_USAGE, SERVER_TIMEOUT, USAGE,
+                                      UsageError, feedback_line, obstacle_rows, obstacle_table,
+                                      parse_client_args)
+from tiago_nav.mission.sentences import fmt_pose
+from tiago_nav.ros.actions import TaskClient, wait_server
+from tiago_nav.ros.conversions import pose_from_msg
+
+CANCEL_TIMEOUT = 15.0     # [s wall] after Ctrl-C, wait this long for the server to confirm
+_ACTIVE = (GoalStatus.PENDING, GoalStatus.ACTIVE, GoalStatus.PREEMPTING, GoalStatus.RECALLING)
+_NAMES = {GoalStatus.ABORTED: 'ABORTED', GoalStatus.PREEMPTED: 'PREEMPTED',
+          GoalStatus.REJECTED: 'REJECTED', GoalStatus.RECALLED: 'RECALLED',
+          GoalStatus.LOST: 'LOST'}
+
+
+def run(goal, out=print, server_timeout=SERVER_TIMEOUT, action='tiago_controller', on_result=None):
+    """Send ``goal`` (dict from :func:`tiago_nav.mission.client.parse_client_args`) to the
+    TiagoTask server ``action`` and follow it, printing with ``out``; return the exit code.
+
+    Needs an initialised rospy node (started with ``disable_signals=True`` so that Ctrl-C
+    arrives here as KeyboardInterrupt: the goal is then cancelled and the client waits, up to
+    ``CANCEL_TIMEOUT``, for the server to confirm the robot stopped). ``on_result(state,
+    result)``, when given, receives the final GoalStatus and TiagoTaskResult.
+    """
+    from tiago_nav.msg import TiagoTaskGoal    # generated: only in a built workspace, and
+    # bad input is refused (exit 2) before this is needed
+    client = TaskClient(action)
+    out('waiting for the %s action server (up to %g s)...' % (rospy.resolve_name(action),
+                                                              server_timeout))
+    if not wait_server(client, server_timeout):
+        out('error: no %s action server after %g s; is demo.launch running?'
+            % (rospy.resolve_name(action), server_timeout))
+        return EXIT_FAILED
+    last = [None]
+
+    def on_feedback(fb):
+        key = (fb.state, fb.status)
+        if key != last[0]:
+            last[0] = key
+            pose = pose_from_msg(fb.pose.pose) if fb.pose.header.frame_id else None
+            out(feedback_line(rospy.get_time(), fb.state, fb.status, pose))
+
+    g = TiagoTaskGoal(x=goal['x'], y=goal['y'], yaw_deg=goal['yaw_deg'],
+                      use_corridor_law=goal['use_corridor_law'])
+    out('sending pose B (%.2f, %.2f, %.1f deg), corridor law %s'
+        % (g.x, g.y, g.yaw_deg, 'on' if g.use_corridor_law else 'off'))
+    client.send_goal(g, feedback_cb=on_feedback)
+    try:
+        while not client.wait_for_result(0.2):
+            if rospy.is_shutdown():
+                raise KeyboardInterrupt
+    except KeyboardInterrupt:
+        out('interrupted: cancelling the task and waiting for the robot to stop...')
+        client.cancel_goal()
+        t0 = time.monotonic()
+        while client.get_state() in _ACTIVE and time.monotonic() - t0 < CANCEL_TIMEOUT:
+            time.sleep(0.1)
+    state = client.get_state()
+    result = client.get_result()
+    text = client.get_goal_status_text()
+    if on_result is not None:
+        on_result(state, result)
+    if state == GoalStatus.SUCCEEDED and result is not None:
+        out('SUCCEEDED: %s' % (result.message or text))
+        out('final pose: %s' % fmt_pose(pose_from_msg(result.final_pose.pose)))
+        out('obstacles (map frame, and robot frame base_footprint at scan time):')
+        for line in obstacle_table(obstacle_rows(result.obstacles)):
+            out(line)
+        return EXIT_OK
+    name = _NAMES.get(state, 'not finished (state %d)' % state)
+    out('%s: %s' % (name, (result.message if result is not None and result.message else text)
+                    or 'no reason given'))
+    return EXIT_FAILED
+
+
+def main():
+    """The executable: parse (exit 2 on bad input, before ROS is touched), run, exit."""
+    argv = rospy.myargv(sys.argv)[1:]
+    try:
+        goal = parse_client_args(argv, interactive=sys.stdin.isatty())
+    except UsageError as e:
+        sys.stderr.write('client: error: %s\n%s\n' % (e, USAGE))
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        sys.stderr.write('\nclient: interrupted, nothing sent\n')
+        return EXIT_USAGE
+    if goal.get('help'):
+        print(USAGE)
+        return EXIT_OK
+    rospy.init_node('client', anonymous=True, disable_signals=True)
+
+    def out(line):
+        print(line, flush=True)
+    try:
+        return run(goal, out=out, server_timeout=goal['server_timeout'])
+    except KeyboardInterrupt:
+        out('interrupted before the goal was sent')
+        return EXIT_FAILED
+    finally:
+        rospy.signal_shutdown('client done')
