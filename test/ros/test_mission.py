@@ -2,10 +2,12 @@
 """Rostest of the whole mission over the real chain (demo.launch: simulator, move_base,
 corridor_controller, obstacle_detection, tiago_controller), judged against the world file.
 
-Private params: ``world`` (path), ``x``, ``y``, ``yaw`` (pose B, deg), ``use_corridor_law``.
-With the argument ``failures`` (``<test args="failures">``) the failure paths run after the
-mission, from pose B: pose B inside a wall, outside the map, cancel mid-way, detection server
-killed (last: it kills /obstacle_detection).
+Private params: ``world`` (path), ``x``, ``y``, ``yaw`` (pose B, deg), ``use_corridor_law``,
+``corridor_ahead`` (with the law on: whether a corridor leads from the start toward pose B, so
+that the law runs; default true). With the argument ``failures`` (``<test args="failures">``)
+the failure paths run after the mission, from pose B: a second run with the corridor law on
+(no corridor ahead: it must navigate directly and succeed), pose B inside a wall, outside the
+map, cancel mid-way, detection server killed (last: it kills /obstacle_detection).
 """
 import math
 import subprocess
@@ -43,6 +45,7 @@ class MissionTest(unittest.TestCase):
         cls.world = load_world(rospy.get_param('~world'))
         cls.goal = (rospy.get_param('~x'), rospy.get_param('~y'), rospy.get_param('~yaw'))
         cls.corridor = rospy.get_param('~use_corridor_law', True)
+        cls.corridor_ahead = rospy.get_param('~corridor_ahead', True)
         cls.tf = tf2_ros.Buffer()
         cls.listener = tf2_ros.TransformListener(cls.tf)
         cls.cmds = []
@@ -81,6 +84,14 @@ class MissionTest(unittest.TestCase):
         return (self.client.get_state(), self.client.get_result(),
                 self.client.get_goal_status_text(), fbs)
 
+    def assert_corridor_decision(self, fbs, ahead):
+        """With the law on: it drove the corridor (corridor feedback) when one was ahead, else
+        the feedback said so and nothing of the law's."""
+        lines = [f.status for f in fbs if f.state == FB.CORRIDOR]
+        said_no = 'no corridor ahead, navigating directly' in lines
+        drove = any(line.startswith('in the corridor') for line in lines)
+        self.assertEqual((said_no, drove), (not ahead, ahead), lines)
+
     def collisions(self):
         return rospy.wait_for_message('/sim/collisions', UInt32, timeout=10).data
 
@@ -117,6 +128,8 @@ class MissionTest(unittest.TestCase):
         self.assertIn(FB.MOVING, st)
         self.assertEqual(st[-3:], [FB.ARRIVED, FB.DETECTING, FB.DETECTION_DONE], st)
         self.assertTrue(set(st[len(expected):-3]) <= {FB.MOVING, FB.STOPPED}, st)
+        if self.corridor:
+            self.assert_corridor_decision(fbs, self.corridor_ahead)
         # the robot is at pose B (ground truth: the simulator's tf)
         px, py, pyaw = self.pose()
         self.assertLess(math.hypot(px - x, py - y), 0.3)
@@ -143,7 +156,16 @@ class MissionTest(unittest.TestCase):
 
 
 class MissionFailuresTest(MissionTest):
-    """The mission, then the failure paths from pose B."""
+    """The mission, then a second run and the failure paths from pose B."""
+
+    def test_1b_second_run_from_pose_b_with_the_corridor_law_navigates_directly(self):
+        start = self.pose()
+        gx, gy = self.free_goal_near(start, 1.5)
+        state, result, text, fbs = self.send(gx, gy, math.degrees(start[2]), True, limit=120)
+        self.assertEqual(state, GoalStatus.SUCCEEDED, text)
+        self.assert_corridor_decision(fbs, False)
+        self.assertEqual(distinct_states(fbs)[:3], [FB.GOAL_RECEIVED, FB.CORRIDOR, FB.NAVIGATING])
+        self.assertEqual(self.collisions(), 0)
 
     def test_2_pose_b_inside_a_wall_aborts_naming_navigation(self):
         w = max(self.world.walls, key=lambda w: w.width * w.length)     # the thickest wall's centre

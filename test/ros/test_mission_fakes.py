@@ -1,8 +1,10 @@
 #!/usr/bin/python3
 """Rostest of nodes/tiago_controller and nodes/client against fake servers hosted here: a fake
 move_base that moves the robot's tf (map -> base_footprint) toward the goal, a fake corridor
-controller and a fake detection service, each switchable to abort, hang or fail. No simulator:
-this checks the proxy's state machine, failure paths and cancel over real ROS plumbing."""
+controller, a fake /scan (a corridor ahead, open space, or silence) and a fake detection service
+that fails as the real one does (answers ``success: false`` with a reason) or crashes (its
+handler raises), each switchable to abort, hang or fail. No simulator: this checks the proxy's
+state machine, failure paths, cancel and shutdown over real ROS plumbing."""
 import math
 import os
 import signal
@@ -11,12 +13,14 @@ import threading
 import unittest
 
 import actionlib
+import numpy as np
 import rospy
 import rostest
 import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import Point, Twist
 from move_base_msgs.msg import MoveBaseAction, MoveBaseResult
+from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
 from tiago_nav.msg import (CorridorAction, CorridorFeedback, CorridorResult, Obstacle,
@@ -29,13 +33,15 @@ from tiago_nav.srv import DetectObstacles, DetectObstaclesResponse
 from simtest import distinct_states
 
 T = 30.0            # generous bound on every wait [s]
+KILL_BOUND = 5.0    # [s] a killed proxy has cancelled move_base and stopped the base by then
 FOUND = [(3.1, 0.4, 0.2), (4.0, -1.2, 0.15)]     # the fake detection's obstacles (x, y, r)
 
 
 class Fakes:
     """The fake servers. ``mode`` of each: see the class attributes."""
     nav_mode = 'succeed'      # succeed | abort | hang
-    detect_mode = 'ok'        # ok | error | slow
+    detect_mode = 'ok'        # ok | fail (answers success: false) | crash (raises) | slow
+    scan_mode = 'corridor'    # corridor (walls 1.1 m apart along +x) | open (no returns) | none
 
     def __init__(self):
         self.pose = [0.0, 0.0, 0.0]
@@ -52,6 +58,34 @@ class Fakes:
         self.corridor.start()
         rospy.Service('fake_detection', DetectObstacles, self.on_detect)
         threading.Thread(target=self.tf_loop, daemon=True).start()
+        self.scan_pub = rospy.Publisher('/scan', LaserScan, queue_size=1)
+        threading.Thread(target=self.scan_loop, daemon=True).start()
+
+    def scan_loop(self):
+        """A TIAGo-like scan in base_footprint: two walls at y = +-0.55 m from x = -0.3 to 4 m
+        (a corridor leading along +x), or nothing within range."""
+        n, amin, amax = 666, -1.92, 1.92
+        a = np.linspace(amin, amax, n)
+        s = np.sin(a)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            r = np.where(np.abs(s) > 1e-6, 0.55 / np.abs(s), np.inf)
+        r = np.where((r * np.cos(a) >= -0.3) & (r * np.cos(a) <= 4.0), r, np.inf)
+        rate = rospy.Rate(15)
+        while not rospy.is_shutdown():
+            if self.scan_mode != 'none':
+                msg = LaserScan(angle_min=amin, angle_max=amax, angle_increment=(amax - amin) / (n - 1),
+                                range_min=0.05, range_max=25.0,
+                                ranges=list(r) if self.scan_mode == 'corridor' else [np.inf] * n)
+                msg.header.frame_id = 'base_footprint'
+                msg.header.stamp = rospy.Time.now()
+                try:
+                    self.scan_pub.publish(msg)
+                except rospy.ROSException:
+                    break
+            try:
+                rate.sleep()
+            except rospy.ROSInterruptException:
+                break
 
     def tf_loop(self):
         r = rospy.Rate(30)
@@ -105,8 +139,11 @@ class Fakes:
 
     def on_detect(self, req):
         self.detect_calls += 1
-        if self.detect_mode == 'error':
-            raise rospy.ServiceException('no scan received (fake)')
+        if self.detect_mode == 'fail':         # how the real node reports a failure
+            return DetectObstaclesResponse(success=False, obstacles=[],
+                                           message='no /scan received within 2 s (fake)')
+        if self.detect_mode == 'crash':        # a handler that raised: the call itself errs
+            raise rospy.ServiceException('handler crashed (fake)')
         if self.detect_mode == 'slow':
             rospy.sleep(6.0)
         obs = [Obstacle(center=Point(x, y, 0), center_robot=Point(x - self.pose[0], y - self.pose[1], 0),
@@ -130,7 +167,7 @@ class MissionFakesTest(unittest.TestCase):
         assert cls.client.wait_for_server(rospy.Duration(T)), 'no tiago_controller'
 
     def setUp(self):
-        Fakes.nav_mode, Fakes.detect_mode = 'succeed', 'ok'
+        Fakes.nav_mode, Fakes.detect_mode, Fakes.scan_mode = 'succeed', 'ok', 'corridor'
         with self.fakes.lock:
             self.fakes.pose[:] = [0.0, 0.0, 0.0]
         rospy.sleep(0.3)
@@ -148,6 +185,14 @@ class MissionFakesTest(unittest.TestCase):
         self.assertTrue(client.wait_for_result(rospy.Duration(T)), 'no result')
         return client.get_state(), client.get_result(), client.get_goal_status_text(), fbs
 
+    def assert_robot_left_alone(self):
+        """Nothing moves the fake robot any more (its move_base goal ended)."""
+        with self.fakes.lock:
+            x = self.fakes.pose[0]
+        rospy.sleep(0.5)
+        with self.fakes.lock:
+            self.assertEqual(self.fakes.pose[0], x)
+
     def assert_stop_commanded_after(self, t):
         self.assertTrue(any(c[0] >= t and c[1] == 0 and c[2] == 0 for c in self.cmds),
                         'no zero cmd_vel after the goal ended')
@@ -158,6 +203,7 @@ class MissionFakesTest(unittest.TestCase):
         self.assertEqual(state, GoalStatus.SUCCEEDED, text)
         st = distinct_states(fbs)
         self.assertEqual(st[:3], [FB.GOAL_RECEIVED, FB.CORRIDOR, FB.NAVIGATING])
+        self.assertEqual(self.fakes.corridor_goals, 1)          # a corridor was ahead: the law ran
         self.assertIn(FB.MOVING, st)
         self.assertEqual(st[-3:], [FB.ARRIVED, FB.DETECTING, FB.DETECTION_DONE])
         self.assertTrue(any('m to go' in f.status for f in fbs if f.state == FB.MOVING))
@@ -190,12 +236,37 @@ class MissionFakesTest(unittest.TestCase):
         rospy.sleep(0.5)
         self.assertEqual(self.fakes.nav_preempted, n + 1)    # the move_base goal was cancelled
 
-    def test_4_detection_error_aborts_naming_detection(self):
-        Fakes.detect_mode = 'error'
+    def test_1b_no_corridor_ahead_navigates_directly(self):
+        Fakes.scan_mode = 'open'
+        n = self.fakes.corridor_goals
+        state, result, text, fbs = self.send(2.0, 1.0, 90.0, True)
+        self.assertEqual(state, GoalStatus.SUCCEEDED, text)
+        self.assertEqual(self.fakes.corridor_goals, n)          # the law was not asked
+        self.assertIn('no corridor ahead, navigating directly',
+                      [f.status for f in fbs if f.state == FB.CORRIDOR])
+        self.assertEqual(distinct_states(fbs)[:3], [FB.GOAL_RECEIVED, FB.CORRIDOR, FB.NAVIGATING])
+
+    def test_1c_no_scan_to_judge_the_corridor_aborts(self):
+        Fakes.scan_mode = 'none'
+        rospy.sleep(0.5)
+        state, result, text, _ = self.send(2.0, 1.0, 90.0, True)
+        self.assertEqual(state, GoalStatus.ABORTED)
+        self.assertTrue(result.message.startswith('corridor failed: no laser scan on /scan'),
+                        result.message)
+
+    def test_4_detection_answering_failure_aborts_naming_detection(self):
+        Fakes.detect_mode = 'fail'
+        state, result, text, _ = self.send(0.5, 0.0, 0.0, False)
+        self.assertEqual(state, GoalStatus.ABORTED)
+        self.assertEqual(result.message, 'detection failed: no /scan received within 2 s (fake)')
+        self.assertEqual(list(result.obstacles), [])
+
+    def test_4b_detection_crashing_aborts_naming_detection(self):
+        Fakes.detect_mode = 'crash'
         state, result, text, _ = self.send(0.5, 0.0, 0.0, False)
         self.assertEqual(state, GoalStatus.ABORTED)
         self.assertTrue(result.message.startswith('detection failed'), result.message)
-        self.assertIn('no scan received (fake)', result.message)
+        self.assertIn('handler crashed (fake)', result.message)
 
     def test_5_detection_that_never_answers_times_out(self):
         Fakes.detect_mode = 'slow'
@@ -225,11 +296,7 @@ class MissionFakesTest(unittest.TestCase):
         rospy.sleep(0.3)
         self.assertEqual(self.fakes.nav_preempted, n + 1)
         self.assert_stop_commanded_after(t0)
-        with self.fakes.lock:
-            x = self.fakes.pose[0]
-        rospy.sleep(0.5)
-        with self.fakes.lock:
-            self.assertEqual(self.fakes.pose[0], x)          # nothing moves it any more
+        self.assert_robot_left_alone()
 
     def run_client(self, *args):
         return subprocess.run(['rosrun', 'tiago_nav', 'client'] + list(args),
@@ -279,6 +346,28 @@ class MissionFakesTest(unittest.TestCase):
         self.assertEqual(p.returncode, 1, out)
         self.assertIn('PREEMPTED: cancelled during navigation', out)
         self.assertEqual(self.fakes.nav_preempted, n + 1)
+
+    def test_z_killing_the_proxy_cancels_move_base_and_stops_the_base(self):
+        """Last: it kills /tiago_controller_killed (a third proxy on the same fakes)."""
+        Fakes.nav_mode = 'hang'
+        n = self.fakes.nav_preempted
+        client = TaskClient('tiago_controller_killed')
+        self.assertTrue(client.wait_for_server(rospy.Duration(T)))
+        fbs = []
+        client.send_goal(TiagoTaskGoal(x=100.0, y=0.0, yaw_deg=0.0, use_corridor_law=False),
+                         feedback_cb=fbs.append)
+        end = rospy.get_time() + T
+        while not any(f.state == FB.MOVING for f in list(fbs)) and rospy.get_time() < end:
+            rospy.sleep(0.05)
+        self.assertTrue(any(f.state == FB.MOVING for f in fbs), 'never moving')
+        t_kill = rospy.get_time()
+        subprocess.run(['rosnode', 'kill', '/tiago_controller_killed'], stdout=subprocess.DEVNULL,
+                       stderr=subprocess.DEVNULL, timeout=30)
+        while self.fakes.nav_preempted == n and rospy.get_time() < t_kill + KILL_BOUND:
+            rospy.sleep(0.05)
+        self.assertEqual(self.fakes.nav_preempted, n + 1, 'move_base goal not cancelled')
+        self.assert_stop_commanded_after(t_kill)
+        self.assert_robot_left_alone()
 
 
 if __name__ == '__main__':

@@ -1,13 +1,16 @@
 """The mission state machine (tiago_nav.mission.runner) against a fake backend: a kinematic robot that
 drives toward the goal at a fixed speed in simulated time, fake stages that succeed, abort,
-hang, vanish or never come, and a fake detection service."""
+hang, vanish or never come, a corridor check that says yes, no or cannot tell, and a fake
+detection service that answers like the real one (``success: false`` with a reason) or cannot
+be asked (absent, crashed handler)."""
 import math
 
 import pytest
 
 from tiago_nav import mission
-from tiago_nav.mission import (ABORTED, ACTIVE, PREEMPTED, SUCCEEDED, DetectionError, Goal,
-                               GoalError, MissionConfig, MissionRunner, Poll, validate_goal)
+from tiago_nav.mission import (ABORTED, ACTIVE, NO_CORRIDOR, PREEMPTED, SUCCEEDED, DetectionError,
+                               Goal, GoalError, MissionConfig, MissionRunner, Poll, StageError,
+                               validate_goal)
 from tiago_nav.mission.client import obstacle_table
 from tiago_nav.mission.sentences import remaining_path_length
 from tiago_nav.motion import MotionMonitor
@@ -19,13 +22,15 @@ class FakeBackend:
 
     def __init__(self, corridor='succeed', navigation='succeed', detection='ok', speed=1.0,
                  servers=('corridor', 'navigation', 'detection'), preempt_at=None,
-                 clock_stalls=False, vanish_at=None):
+                 clock_stalls=False, vanish_at=None, corridor_ahead=True):
         self.t = 0.0
         self.w = 0.0
         self.robot = [0.0, 0.0, 0.0]
         self.v = 0.0
         self.modes = {'corridor': corridor, 'navigation': navigation}
         self.detection = detection
+        self.ahead = corridor_ahead          # True, False or 'no scan'
+        self.asked_corridor = []
         self.speed = speed
         self.servers = set(servers)
         self.preempt_at = preempt_at
@@ -111,12 +116,28 @@ class FakeBackend:
         self.cancelled.append(stage)
         self.active = None
 
+    def corridor_ahead(self, goal):
+        self.asked_corridor.append((goal.x, goal.y))
+        if self.ahead == 'no scan':
+            raise StageError('corridor', 'no laser scan on /scan within 10 s: cannot tell '
+                             'whether a corridor leads toward pose B')
+        return self.ahead
+
     def detect(self, timeout):
+        """The real backend's contract: the service's answer ``(success, obstacles, message)``;
+        DetectionError only when it cannot be asked."""
         if 'detection' not in self.servers:
             raise DetectionError('no obstacle_detection service after 10 s')
-        if self.detection == 'error':
-            raise DetectionError('the obstacle_detection service failed: no scan')
-        return ['o1', 'o2'], ''
+        if self.detection == 'crash':          # the handler raised: the call itself fails
+            raise DetectionError('the obstacle_detection service failed: service cannot '
+                                 'process request: handler returned an error')
+        if self.detection == 'fail':           # what the node answers when it cannot look
+            return False, [], 'no /scan received within 2 s'
+        if self.detection == 'fail_silently':
+            return False, [], ''
+        if self.detection == 'none':
+            return True, [], ''
+        return True, ['o1', 'o2'], ''
 
     def stop_robot(self):
         self.stops += 1
@@ -132,6 +153,7 @@ class FakeBackend:
         return out
 
 
+ALL = ('corridor', 'navigation', 'detection')
 CFG = MissionConfig(server_timeout=2.0, corridor_timeout=20.0, navigation_timeout=30.0,
                     poll_period=0.05, clock_timeout=3.0)
 
@@ -212,21 +234,84 @@ def test_stopped_clock_does_not_hang():
     assert b.w < 10.0
 
 
-def test_server_that_goes_away_mid_stage_aborts():
+def test_server_that_goes_away_mid_stage_aborts_within_the_lost_timeout():
     b = FakeBackend(navigation='hang', vanish_at=1.0)
     out = run(b, Goal(30, 0, 0, False))
-    assert out.status == ABORTED and 'went away' in out.message
+    assert out.status == ABORTED and out.stage == 'navigation'
+    assert out.message.startswith('navigation failed: the move_base server went away')
     assert b.cancelled == ['navigation']
+    assert b.w - 1.0 == pytest.approx(CFG.server_lost_timeout, abs=2 * CFG.poll_period)
 
 
-@pytest.mark.parametrize('servers, mode, words', [
-    (('corridor', 'navigation'), 'ok', 'no obstacle_detection service'),
-    (('corridor', 'navigation', 'detection'), 'error', 'failed: no scan')])
-def test_detection_failure_aborts_naming_detection(servers, mode, words):
+@pytest.mark.parametrize('servers, mode, message', [
+    (('corridor', 'navigation'), 'ok',
+     'detection failed: no obstacle_detection service after 10 s'),
+    (ALL, 'fail', 'detection failed: no /scan received within 2 s'),
+    (ALL, 'fail_silently', 'detection failed: the service failed without a reason'),
+    (ALL, 'crash', 'detection failed: the obstacle_detection service failed: service cannot '
+                   'process request: handler returned an error')])
+def test_detection_failure_aborts_naming_detection(servers, mode, message):
     b = FakeBackend(servers=servers, detection=mode)
     out = run(b)
-    assert out.status == ABORTED and out.message.startswith('detection failed') and words in out.message
+    assert out.status == ABORTED and out.stage == 'detection'
+    assert out.message == message
+    assert out.obstacles == []
     assert mission.DETECTING in b.states() and mission.DETECTION_DONE not in b.states()
+    assert b.stops >= 1
+
+
+def test_detection_that_looked_and_found_nothing_succeeds():
+    b = FakeBackend(detection='none')
+    out = run(b)
+    assert out.status == SUCCEEDED and 'found 0 obstacles' in out.message
+
+
+# --- the corridor stage only where a corridor leads toward pose B ----------------------------
+def test_no_corridor_ahead_says_so_and_navigates_directly():
+    b = FakeBackend(corridor_ahead=False)
+    out = run(b, Goal(5.0, 0.0, -45.0, True))
+    assert out.status == SUCCEEDED, out.message
+    assert b.asked_corridor == [(5.0, 0.0)]
+    assert b.sent == ['navigation']                      # the law never ran
+    st = b.states()
+    assert st[:3] == [mission.GOAL_RECEIVED, mission.CORRIDOR, mission.NAVIGATING]
+    corridor_lines = [s for _, st_, s, _ in b.feedbacks if st_ == mission.CORRIDOR]
+    assert corridor_lines[-1] == NO_CORRIDOR == 'no corridor ahead, navigating directly'
+
+
+def test_corridor_ahead_runs_the_law():
+    b = FakeBackend(corridor_ahead=True)
+    run(b)
+    assert b.sent == ['corridor', 'navigation']
+    assert NO_CORRIDOR not in [s for _, _, s, _ in b.feedbacks]
+    assert any('in the corridor' in s for _, _, s, _ in b.feedbacks)
+
+
+def test_corridor_not_asked_without_the_law():
+    b = FakeBackend(corridor_ahead='no scan')
+    assert run(b, Goal(2.0, 1.0, 0.0, False)).status == SUCCEEDED
+    assert b.asked_corridor == []
+
+
+def test_no_scan_to_judge_the_corridor_aborts_naming_the_corridor():
+    b = FakeBackend(corridor_ahead='no scan')
+    out = run(b)
+    assert out.status == ABORTED and out.stage == 'corridor'
+    assert out.message.startswith('corridor failed: no laser scan')
+    assert b.sent == []
+
+
+# --- unexpected errors -----------------------------------------------------------------------
+def test_unexpected_exception_aborts_with_its_text_and_stops():
+    b = FakeBackend()
+
+    def boom(stage):
+        raise RuntimeError('boom in poll')
+    b.poll = boom
+    out = run(b, Goal(2.0, 0.0, 0.0, False))
+    assert out.status == ABORTED and out.stage == 'navigation'
+    assert out.message == 'navigation failed: unexpected error: RuntimeError: boom in poll'
+    assert b.stops >= 1
 
 
 def test_cancel_preempts_the_running_stage_and_stops_the_robot():
@@ -296,3 +381,41 @@ def test_obstacle_table():
     assert len(lines) == 3
     assert '10.74' in lines[2] and '-1.67' in lines[2] and '0.183' in lines[2] and '42' in lines[2]
     assert 'no obstacles' in obstacle_table([])[-1]
+
+
+# --- the corridor decision on simulated scans ------------------------------------------------
+def _scan_from(world_file, base_pose):
+    """Laser-frame points of a noise-free scan from ``base_pose`` and the laser's pose in
+    base_footprint, as the node gets them from /scan and tf."""
+    import os
+    from conftest import WORLDS
+    from tiago_nav.scan import scan_to_points
+    from tiago_nav.sim.scene import Scene
+    from tiago_nav.sim.world import load_world
+    with Scene(load_world(os.path.join(WORLDS, world_file))) as scene:
+        r, _ = scene.cast(base_pose)
+        L = scene.laser
+        pts, _ = scan_to_points(r, L.angle_min, L.angle_increment, L.range_min, L.range_max)
+    return pts, (L.offset, 0.0, 0.0)
+
+
+@pytest.mark.parametrize('world, pose, target, ahead', [
+    ('ias_lab_room_full.yaml', (0.0, 0.0, 0.0), (11.0, 0.0), True),      # the course mission
+    ('ias_lab_room_full.yaml', (0.0, 0.0, 0.0), (-3.0, 0.0), False),     # the corridor leads away
+    ('ias_lab_room_full.yaml', (11.0, 0.0, -0.785), (9.0, -2.0), False),  # 2nd run from pose B
+    ('ias_lab_room_full.yaml', (11.0, 0.0, -0.785), (0.0, 0.0), False),  # back: corridor behind
+    ('open_hall.yaml', (1.0, 1.0, 0.0), (6.0, 2.6), False),             # no corridor at all
+])
+def test_corridor_ahead_only_at_an_entrance_leading_to_pose_b(world, pose, target, ahead):
+    from tiago_nav.mission.entrance import corridor_ahead
+    points, laser = _scan_from(world, pose)
+    assert corridor_ahead(points, laser, pose, target) is ahead
+
+
+def test_corridor_ahead_uses_the_robot_pose():
+    """The same scan judged as if the robot stood elsewhere in map: pose B is then off the
+    corridor's direction and the answer changes (pose B is transformed into the robot frame)."""
+    from tiago_nav.mission.entrance import corridor_ahead
+    points, laser = _scan_from('ias_lab_room_full.yaml', (0.0, 0.0, 0.0))
+    assert corridor_ahead(points, laser, (0.0, 0.0, 0.0), (11.0, 0.0, 0.0))
+    assert not corridor_ahead(points, laser, (0.0, 0.0, math.pi / 2), (11.0, 0.0, 0.0))

@@ -37,8 +37,10 @@ class MissionConfig:
     ``clock_timeout``: wall seconds without ROS time advancing before a stage is abandoned.
     """
     server_timeout: float = param(10.0, '[s wall] wait this long for each action server / the '
-                                  'service before a stage fails, and abort a stage whose server '
-                                  'has been gone this long', gt=0)
+                                  'service, and for a fresh scan to judge the corridor, before a '
+                                  'stage fails', gt=0)
+    server_lost_timeout: float = param(3.0, '[s wall] a stage whose server has been gone (node '
+                                       'died) this long aborts', gt=0)
     corridor_timeout: float = param(120.0, '[s] the corridor_controller stage', gt=0)
     navigation_timeout: float = param(240.0, '[s] the move_base stage', gt=0)
     detection_timeout: float = param(10.0, '[s wall] one obstacle_detection call', gt=0)
@@ -106,7 +108,12 @@ class StageError(Exception):
 
 
 class DetectionError(Exception):
-    """Raised by a backend's ``detect`` when the service is absent, errs or times out."""
+    """Raised by a backend's ``detect`` when the service cannot be asked: absent, its handler
+    raised (a crashed node), or no answer within the timeout. A service that answers
+    ``success: false`` is not an error of the call: ``detect`` returns that answer."""
+
+
+NO_CORRIDOR = 'no corridor ahead, navigating directly'
 
 
 class _Preempted(Exception):
@@ -123,8 +130,15 @@ class MissionRunner:
     yaw)`` in map or None), ``path()`` (the current plan as ``[(x, y), ...]`` or None),
     ``server_ready(stage)``, ``send_goal(stage, goal)`` (corridor: ``(max_speed,
     max_distance)``; navigation: ``(x, y, yaw)``), ``poll(stage) -> Poll``, ``cancel(stage)``,
-    ``detect(timeout) -> (obstacles, message)`` raising :class:`DetectionError`,
-    ``stop_robot()`` and ``publish_feedback(state, status, pose)``.
+    ``corridor_ahead(goal) -> bool`` (does a corridor lead from here toward the
+    :class:`Goal`? may raise :class:`StageError` when it cannot tell, e.g. no scan),
+    ``detect(timeout) -> (success, obstacles, message)`` (the obstacle_detection service's
+    answer; :class:`DetectionError` when it could not be asked), ``stop_robot()`` and
+    ``publish_feedback(state, status, pose)``.
+
+    Every failure ends the goal ABORTED with ``'<stage> failed: <reason>'``; an unexpected
+    exception too, with its type and text. Cancelling ends it PREEMPTED. The robot is told to
+    stop in every case.
     """
 
     def __init__(self, backend, config=None, log=None):
@@ -166,7 +180,7 @@ class MissionRunner:
             self.feedback(GOAL_RECEIVED, goal_sentence(x, y, yaw, goal.use_corridor_law))
             if goal.use_corridor_law:
                 stage = 'corridor'
-                self._corridor()
+                self._corridor(goal)
             stage = 'navigation'
             self._navigate(goal)
             stage = 'detection'
@@ -227,9 +241,10 @@ class MissionRunner:
             t, w = self.b.now(), self.b.wall()
             if self.b.server_ready(stage):
                 last_seen = w
-            elif w - last_seen > self.cfg.server_timeout:
+            elif w - last_seen > self.cfg.server_lost_timeout:
                 self.b.cancel(stage)
-                raise StageError(stage, 'the %s server went away' % what)
+                raise StageError(stage, 'the %s server went away (gone for %g s)'
+                                 % (what, self.cfg.server_lost_timeout))
             if t != last_t:
                 last_t, last_change = t, w
             elif w - last_change > self.cfg.clock_timeout:
@@ -242,7 +257,16 @@ class MissionRunner:
             on_tick(p)
             self.b.sleep(self.cfg.poll_period)
 
-    def _corridor(self):
+    def _corridor(self, goal):
+        """The corridor stage: the law runs only where a corridor leads toward pose B; otherwise
+        the stage ends at once with the CORRIDOR feedback :data:`NO_CORRIDOR` (the state stays
+        CORRIDOR: the stage decided, and NAVIGATING follows as always)."""
+        self.feedback(CORRIDOR, 'looking for a corridor toward pose B')
+        if self.b.preempt_requested():
+            raise _Preempted('corridor')
+        if not self.b.corridor_ahead(goal):
+            self.feedback(CORRIDOR, NO_CORRIDOR)
+            return
         self.feedback(CORRIDOR, corridor_sentence())
 
         def tick(p):
@@ -304,8 +328,10 @@ class MissionRunner:
         if self.b.preempt_requested():
             raise _Preempted('detection')
         try:
-            obstacles, message = self.b.detect(self.cfg.detection_timeout)
+            success, obstacles, message = self.b.detect(self.cfg.detection_timeout)
         except DetectionError as e:
             raise StageError('detection', str(e)) from None
+        if not success:
+            raise StageError('detection', message or 'the service failed without a reason')
         self.feedback(DETECTION_DONE, 'found %s' % plural(len(obstacles), 'obstacle'))
         return obstacles, message

@@ -11,7 +11,7 @@ def fmt_pose(pose):
 def goal_sentence(x, y, yaw_deg, use_corridor_law):
     """The GOAL_RECEIVED sentence for pose B (``x``, ``y`` [m], ``yaw_deg`` [deg])."""
     return 'goal received: go to (%.2f, %.2f, %.0f deg)%s' % (
-        x, y, yaw_deg, ', through the corridor with the laser-only law first'
+        x, y, yaw_deg, ', through a corridor with the laser-only law first if one leads there'
         if use_corridor_law else '')
 
 

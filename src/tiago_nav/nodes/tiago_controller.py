@@ -2,9 +2,11 @@
 chaining the corridor_controller action (optional), move_base and the obstacle_detection service.
 
 The decisions are :class:`tiago_nav.mission.MissionRunner`'s; this module only wires it to ROS
-(:class:`RosBackend`). Publishes ``~obstacle_markers`` (visualization_msgs/MarkerArray,
+(:class:`RosBackend`). Subscribes ``scan_topic`` (to judge whether a corridor leads toward pose
+B) and ``plan_topic``. Publishes ``~obstacle_markers`` (visualization_msgs/MarkerArray,
 latched) and ``~goal_pose`` (geometry_msgs/PoseStamped, latched: the current pose B), and
-commands a stop on ``cmd_vel_topic`` whenever a goal ends.
+commands a stop on ``cmd_vel_topic`` whenever a goal ends. On shutdown (Ctrl-C, rosnode kill)
+it cancels its corridor and move_base goals and stops the base.
 """
 import math
 import sys
@@ -19,21 +21,27 @@ from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, Twist
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from nav_msgs.msg import Path
+from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
 from tiago_nav import mission
-from tiago_nav.mission import DetectionError, Goal, MissionConfig, MissionRunner, Poll
+from tiago_nav.mission import DetectionError, Goal, MissionConfig, MissionRunner, Poll, StageError
+from tiago_nav.mission.entrance import corridor_ahead
 from tiago_nav.msg import (CorridorAction, CorridorGoal, TiagoTaskAction, TiagoTaskFeedback,
                            TiagoTaskResult)
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as ros_params
 from tiago_nav.ros.actions import server_connected
-from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
+from tiago_nav.ros.conversions import pose_from_transform, pose_stamped, scan_points
 from tiago_nav.ros.markers import obstacle_markers
 from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
 
 FEEDBACK_HEAD_START = 0.1    # [s wall] between the last feedback and the result
+SHUTDOWN_FLUSH = 0.3         # [s wall] on shutdown, time for the cancels and the stop to go out
+_TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException,
+              tf2_ros.ExtrapolationException)
 
+_ACTIVE = (GoalStatus.PENDING, GoalStatus.ACTIVE)     # SimpleActionClient.get_state() values
 _POLL = {GoalStatus.PENDING: mission.ACTIVE, GoalStatus.ACTIVE: mission.ACTIVE,
          GoalStatus.PREEMPTING: mission.ACTIVE, GoalStatus.RECALLING: mission.ACTIVE,
          GoalStatus.SUCCEEDED: mission.SUCCEEDED, GoalStatus.ABORTED: mission.ABORTED,
@@ -58,6 +66,8 @@ class Params:
                                nonempty=True)
     plan_topic: str = param('/move_base/plan', "move_base's plan (nav_msgs/Path), for the "
                             'distance to go', nonempty=True)
+    scan_topic: str = param('/scan', 'the laser (sensor_msgs/LaserScan): does a corridor lead '
+                            'toward pose B?', nonempty=True)
     global_frame: str = param('map', 'frame of pose B and of the reported poses', nonempty=True)
     robot_frame: str = param('base_footprint', 'the robot base frame', nonempty=True)
 
@@ -81,6 +91,8 @@ class RosBackend:
         self.cmd = rospy.Publisher(params.cmd_vel_topic, Twist, queue_size=1)
         self._path = None
         rospy.Subscriber(params.plan_topic, Path, self._on_path, queue_size=1)
+        self._scan = (None, -math.inf)    # the newest scan and its arrival [s wall]
+        rospy.Subscriber(params.scan_topic, LaserScan, self._on_scan, queue_size=1)
         self.server = None            # the SimpleActionServer, set by the node
 
     # --- clock (tiago_nav.clock protocol) ------------------------------------------------------
@@ -108,6 +120,9 @@ class RosBackend:
             return None
         return pose_from_transform(t.transform)
 
+    def _on_scan(self, msg):
+        self._scan = (msg, time.monotonic())
+
     def _on_path(self, msg):
         if msg.header.frame_id in ('', self.global_frame, '/' + self.global_frame):
             self._path = [(p.pose.position.x, p.pose.position.y) for p in msg.poses]
@@ -121,6 +136,52 @@ class RosBackend:
                 self.cmd.publish(Twist())
             except rospy.ROSException:
                 pass
+
+    def halt(self):
+        """On shutdown: cancel the corridor and move_base goals and command a stop (publishing
+        still works inside rospy's shutdown hooks), then give the messages time to go out."""
+        for stage, client in self.clients.items():
+            if client.gh is not None and client.get_state() in _ACTIVE:
+                self.cancel(stage)
+        try:
+            self.cmd.publish(Twist())
+        except Exception as e:       # the publisher may already be closed
+            rospy.logwarn('stopping the base on shutdown: %s', e)
+        time.sleep(SHUTDOWN_FLUSH)
+
+    # --- is there a corridor toward pose B? ------------------------------------------------
+    def corridor_ahead(self, goal):
+        """Whether a corridor ahead leads toward pose B, judged on a scan that arrived after
+        this call (within ``server_timeout`` wall seconds); :class:`StageError` of the corridor
+        stage when there is no scan or no tf to judge it."""
+        t0 = time.monotonic()
+        while self._scan[1] < t0:
+            if rospy.is_shutdown() or time.monotonic() - t0 > self.cfg.server_timeout:
+                raise StageError('corridor', 'no laser scan on %s within %g s: cannot tell '
+                                 'whether a corridor leads toward pose B'
+                                 % (rospy.resolve_name(self.p.scan_topic), self.cfg.server_timeout))
+            time.sleep(self.cfg.poll_period)
+        scan = self._scan[0]
+        laser = self._lookup(self.robot_frame, scan.header.frame_id, rospy.Time(0))
+        robot = self._lookup(self.global_frame, self.robot_frame, scan.header.stamp)
+        points, _ = scan_points(scan)
+        ahead = corridor_ahead(points, laser, robot, goal.pose)
+        rospy.loginfo('corridor toward (%.2f, %.2f): %s', goal.x, goal.y,
+                      'yes' if ahead else 'no')
+        return ahead
+
+    def _lookup(self, target, source, stamp):
+        """The pose of ``source`` in ``target`` at ``stamp`` from tf, waiting (wall clock, so
+        a stopped /clock cannot hang it) up to ``server_timeout``."""
+        t0 = time.monotonic()
+        while True:
+            try:
+                return pose_from_transform(self.tf.lookup_transform(target, source, stamp).transform)
+            except _TF_ERRORS as e:
+                if rospy.is_shutdown() or time.monotonic() - t0 > self.cfg.server_timeout:
+                    raise StageError('corridor', 'no transform %s -> %s to judge the corridor: %s'
+                                     % (target, source, e)) from None
+            time.sleep(self.cfg.poll_period)
 
     # --- actions -----------------------------------------------------------------------------
     def server_ready(self, stage):
@@ -172,9 +233,7 @@ class RosBackend:
         if 'error' in box:
             raise DetectionError('the %s service failed: %s' % (name, box['error']))
         resp = box['response']
-        if not resp.success:
-            raise DetectionError(resp.message or 'the %s service failed without a reason' % name)
-        return list(resp.obstacles), resp.message
+        return resp.success, list(resp.obstacles), resp.message
 
     # --- feedback ----------------------------------------------------------------------------
     def publish_feedback(self, state, status, pose):
@@ -206,6 +265,18 @@ class TiagoController:
                       rospy.resolve_name(params.detection_service))
 
     def execute(self, goal):
+        """The action's execute callback: run the mission; any unexpected exception here still
+        stops the base and aborts the task with the exception's text."""
+        try:
+            self._execute(goal)
+        except Exception as e:
+            message = 'tiago_controller failed: unexpected error: %s: %s' % (type(e).__name__, e)
+            rospy.logerr('task aborted: %s', message)
+            self.backend.stop_robot()
+            if self.server.is_active():
+                self.server.set_aborted(TiagoTaskResult(message=message), message)
+
+    def _execute(self, goal):
         self.publish_markers([])
         if all(math.isfinite(v) for v in (goal.x, goal.y, goal.yaw_deg)):
             self.goal_pose.publish(pose_stamped((goal.x, goal.y, math.radians(goal.yaw_deg)),
@@ -233,11 +304,9 @@ class TiagoController:
             rospy.logwarn('could not report the result: %s', e)
 
     def on_shutdown(self):
-        """Ctrl-C: the running goal is cancelled by the runner; tell the base to stop too."""
-        try:
-            self.backend.cmd.publish(Twist())
-        except Exception:        # publishers may already be closed
-            pass
+        """Ctrl-C or rosnode kill: the process may end before the runner's own cancel path
+        runs, so cancel the child goals and stop the base here."""
+        self.backend.halt()
 
     def publish_markers(self, obstacles):
         self.markers.publish(obstacle_markers(obstacles, self.p.global_frame, labels=True))
