@@ -70,3 +70,24 @@ def test_the_node_exits_2_without_a_master(argv):
                        text=True, env=env, timeout=60)
     assert p.returncode == EXIT_USAGE, p.stderr
     assert 'client: error:' in p.stderr and 'usage:' in p.stderr
+
+
+def test_numbers_that_look_like_options_stay_values():
+    """argparse takes a leading '-' for an option: negative numbers, -inf and -nan must still
+    be read (and judged) as values, and a bare --corridor must not swallow X."""
+    g = parse_client_args(['-1.5', '-2', '-45'])
+    assert (g['x'], g['y'], g['yaw_deg']) == (-1.5, -2.0, -45.0)
+    g = parse_client_args(['--corridor', '1', '2', '3'])
+    assert (g['x'], g['y'], g['yaw_deg'], g['use_corridor_law']) == (1.0, 2.0, 3.0, True)
+    g = parse_client_args(['1', '--no-corridor', '2', '3'])            # options between values
+    assert (g['x'], g['y'], g['yaw_deg'], g['use_corridor_law']) == (1.0, 2.0, 3.0, False)
+    for bad in (['1', '-inf', '0'], ['-nan', '0', '0']):
+        with pytest.raises(UsageError) as e:
+            parse_client_args(bad)
+        assert 'not a finite number' in str(e.value)
+
+
+def test_argparse_wording_for_a_missing_option_value():
+    with pytest.raises(UsageError) as e:
+        parse_client_args(['1', '2', '3', '--server-timeout'])
+    assert str(e.value) == 'argument --server-timeout: expected one argument'
