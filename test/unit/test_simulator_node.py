@@ -1,7 +1,8 @@
 """The simulator node's decisions without a ROS master: driven step by step with fake
-publishers, it publishes /clock every step, odometry/tf at 30 Hz and /scan at 15 Hz of simulated
-time with the right stamps and frames, collisions once per change, ignores bad commands, paces
-itself against real_time_factor and refuses bad parameters naming them."""
+publishers, it publishes /clock every step, odometry/tf/ground truth at 30 Hz and /scan at 15 Hz
+of simulated time with the right stamps and frames, everything before the first /clock,
+collisions once per change, REP 117 ranges and injected laser faults; it ignores bad commands,
+paces itself against real_time_factor and refuses bad parameters naming them."""
 import math
 import os
 from dataclasses import fields
@@ -10,9 +11,12 @@ import numpy as np
 import pytest
 import rospy
 from geometry_msgs.msg import Twist
+from std_msgs.msg import String
 
 from conftest import ROOT
+from tiago_nav.geometry import compose
 from tiago_nav.params import ParamError, read_params
+from tiago_nav import scan as rep117
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_msg, pose_from_transform
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.testing.fakes import FakeClock, FakePublisher
@@ -70,19 +74,21 @@ def ns(stamp):
     return stamp.to_nsec()
 
 
-def test_clock_every_step_odom_at_30hz_and_scan_at_15hz(node):
+def test_clock_every_step_odom_and_ground_truth_at_30hz_and_scan_at_15hz(node):
     node.start()
     run(node, 60)                                   # one second of simulated time
     out = node.out
     assert [ns(m.clock) for m in out.clock.messages] == [k * 10**9 // 60 for k in range(61)]
     assert [ns(m.header.stamp) for m in out.odom.messages] == [k * 10**9 // 30 for k in range(31)]
     assert [ns(m.header.stamp) for m in out.scan.messages] == [k * 10**9 // 15 for k in range(16)]
-    assert len(out.tf.messages) == 31
-    for odom, tf in zip(out.odom.messages, out.tf.messages):
+    assert len(out.tf.messages) == len(out.ground_truth.messages) == 31
+    for odom, tf, truth in zip(out.odom.messages, out.tf.messages, out.ground_truth.messages):
         assert (odom.header.frame_id, odom.child_frame_id) == ('odom', 'base_footprint')
+        assert (truth.header.frame_id, truth.child_frame_id) == ('map', 'base_footprint')
         assert [(t.header.frame_id, t.child_frame_id) for t in tf.transforms] == \
             [('map', 'odom'), ('odom', 'base_footprint')]
         assert all(t.header.stamp == odom.header.stamp for t in tf.transforms)
+        assert truth.header.stamp == odom.header.stamp
     scan = out.scan.last
     assert scan.header.frame_id == 'base_laser_link' and len(scan.ranges) == 666
     assert (scan.range_min, scan.range_max) == (0.05, 25.0)
@@ -103,7 +109,7 @@ def test_start_publishes_the_latched_map_and_the_laser_transform(node):
     assert len(out.map.messages) == len(out.tf_static.messages) == 1     # latched: sent once
 
 
-def test_odometry_follows_cmd_vel_in_the_odom_frame(node):
+def test_odometry_and_ground_truth_follow_cmd_vel(node):
     node.start()
     run(node, 120, cmd=twist(0.5))                  # 0.5 s ramp then 1.5 s at 0.5 m/s
     odom = node.out.odom.last
@@ -112,6 +118,79 @@ def test_odometry_follows_cmd_vel_in_the_odom_frame(node):
     assert odom.twist.twist.linear.x == pytest.approx(0.5)
     map_odom = pose_from_transform(node.out.tf.last.transforms[0].transform)
     assert map_odom == pytest.approx((1.0, 1.5, 0.0))                 # the world's start pose
+    truth = node.out.ground_truth.last
+    assert pose_from_msg(truth.pose.pose) == pytest.approx((1.0 + 0.875, 1.5, 0.0), abs=1e-3)
+    assert truth.twist.twist.linear.x == pytest.approx(0.5)
+
+
+def test_ground_truth_is_the_map_pose_when_map_and_odom_differ():
+    node = make_node(robot_start=[1.5, 1.0, 90], laser_noise=0.0)
+    try:
+        node.start()
+        run(node, 120, cmd=twist(0.3, 0.4))
+        odom = pose_from_msg(node.out.odom.last.pose.pose)
+        map_odom = pose_from_transform(node.out.tf.last.transforms[0].transform)
+        truth = pose_from_msg(node.out.ground_truth.last.pose.pose)
+        assert truth == pytest.approx(compose(map_odom, odom), abs=1e-9)   # odometry is exact
+        assert math.hypot(truth[0] - 1.5, truth[1] - 1.0) > 0.3              # and it moved
+        assert truth[2] > math.pi / 2 + 0.3
+    finally:
+        node.close()
+
+
+def test_static_frames_base_link_and_laser(node):
+    node.start()
+    (body, laser), = [m.transforms for m in node.out.tf_static.messages]
+    assert (body.header.frame_id, body.child_frame_id) == ('base_footprint', 'base_link')
+    t = body.transform.translation
+    assert (t.x, t.y, t.z, body.transform.rotation.w) == (0, 0, 0, 1)
+    assert (laser.header.frame_id, laser.child_frame_id) == ('base_link', 'base_laser_link')
+    t = laser.transform.translation
+    assert (t.x, t.y, t.z) == pytest.approx((0.2, 0.0, 0.3))
+
+
+class Recorder(FakePublisher):
+    """A fake publisher that also writes ``(topic, msg)`` into one log shared by all."""
+
+    def __init__(self, name, log):
+        super().__init__()
+        self.name, self.log = name, log
+
+    def publish(self, msg):
+        super().publish(msg)
+        self.log.append(self.name)
+
+
+def test_everything_is_published_before_the_first_clock():
+    log = []
+    outputs = Outputs(**{f.name: Recorder(f.name, log) for f in fields(Outputs)})
+    node = SimulatorNode(Params(world=BOX), outputs, log=Log())
+    try:
+        node.start()
+        first_clock = log.index('clock')
+        needed = {'map', 'map_metadata', 'tf_static', 'tf', 'odom', 'scan', 'collisions',
+                  'ground_truth'}
+        assert needed <= set(log[:first_clock])
+        run(node, 4)                                # and each step's data goes out before /clock
+        assert log[first_clock + 1:] == ['clock', 'odom', 'tf', 'ground_truth', 'clock',
+                                         'clock', 'odom', 'tf', 'ground_truth', 'scan', 'clock']
+    finally:
+        node.close()
+
+
+def test_ranges_are_rep117_values():
+    # the east wall is 1.3 m ahead of the laser: nearer than range_min, the others beyond range_max
+    node = make_node(laser_range_min=1.5, laser_range_max=1.6, laser_noise=0.05)
+    try:
+        node.start()
+        run(node, 60)
+        r = np.array([m.ranges for m in node.out.scan.messages])
+        kinds = rep117.classify(r, 1.5, 1.6)
+        assert not np.any(kinds == rep117.INVALID)
+        assert np.all(r[:, 300:366] == -np.inf)             # the wall ahead: too close
+        assert np.any(kinds == rep117.NO_RETURN) and np.any(kinds == rep117.HIT)
+    finally:
+        node.close()
 
 
 def test_a_non_finite_command_is_ignored_with_one_warning(node):
@@ -228,3 +307,51 @@ class TestPacer:
         assert clock.wall() == pytest.approx(2.1)
         pacer.pace(3)                                   # then one step per 0.1 s again
         assert clock.wall() == pytest.approx(2.2)
+
+
+def fault(node, text):
+    node.on_laser_fault(String(text))
+
+
+def scans_between(node, t0, t1):
+    return [m for m in node.out.scan.messages if t0 <= m.header.stamp.to_sec() < t1 - 1e-9]
+
+
+def test_injected_laser_faults(node):
+    node.start()
+    run(node, 30)                                   # t = 0.5 s
+    fault(node, 'nan 0.5')
+    run(node, 60, cmd=twist(0.3))                   # t = 1.5 s
+    nan = scans_between(node, 0.51, 1.0)
+    assert len(nan) == 7 and all(np.isnan(m.ranges).all() for m in nan)
+    healthy = scans_between(node, 1.0, 1.51)
+    assert len(healthy) == 8 and all(np.isfinite(m.ranges).all() for m in healthy)
+
+    fault(node, 'zero')                             # until cleared
+    run(node, 60)
+    assert all(np.array_equal(m.ranges, np.zeros(666)) for m in scans_between(node, 1.51, 2.51))
+    fault(node, 'dead 1')
+    run(node, 64)                                   # t = 3.567 s
+    assert scans_between(node, 2.51, 3.5) == []
+    assert len(scans_between(node, 3.5, 3.57)) == 1  # the laser is back after 1 s (scan at 3.533)
+
+    last = node.out.scan.last
+    fault(node, 'freeze')
+    run(node, 60, cmd=twist(0.3))                   # the robot moves; the laser is stuck
+    frozen = scans_between(node, 3.57, 4.57)
+    assert len(frozen) == 15 and all(m.ranges == last.ranges for m in frozen)
+    assert len({m.header.stamp for m in frozen}) == 15
+    fault(node, 'none')
+    run(node, 4)
+    assert node.out.scan.last.ranges != last.ranges
+    assert not node.log.warnings
+
+
+@pytest.mark.parametrize('text', ['', 'explode', 'nan -1', 'nan soon', 'dead 1 2', 'none 3'])
+def test_a_bad_fault_command_is_logged_and_changes_nothing(node, text):
+    node.start()
+    fault(node, 'dead 2')
+    fault(node, text)
+    assert len(node.log.warnings) == 1 and 'ignoring laser fault command' in node.log.warnings[0]
+    run(node, 60)
+    assert node.out.scan.messages[1:] == []         # still dead

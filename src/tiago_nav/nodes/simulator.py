@@ -1,9 +1,14 @@
 """The simulator node: the pybullet mock TIAGo (library :mod:`tiago_nav.sim`) wired to ROS.
 
-Publishes /scan, odometry, tf, the latched /map, /clock and /sim/collisions; obeys
-/mobile_base_controller/cmd_vel. :class:`SimulatorNode` holds the decisions (what is due at each
+Publishes /scan, odometry, tf, the latched /map, /clock, /sim/collisions and /sim/ground_truth;
+obeys /mobile_base_controller/cmd_vel; takes injected laser faults on /sim/laser_fault
+(:mod:`tiago_nav.sim.faults`). :class:`SimulatorNode` holds the decisions (what is due at each
 step, the stamps and frames, pacing against ``real_time_factor``) and publishes through the
 publishers it is given, so a unit test drives it with fakes; :func:`main` does the ROS wiring.
+
+Frames: ``map`` → ``odom`` → ``base_footprint`` → ``base_link`` → ``base_laser_link`` (the last
+two fixed, on /tf_static). Everything a consumer needs (the latched map, /tf_static, the first
+odometry, tf and scan) is published before the first /clock.
 """
 import math
 import sys
@@ -16,12 +21,13 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import MapMetaData, OccupancyGrid, Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
-from std_msgs.msg import UInt32
+from std_msgs.msg import String, UInt32
 from tf2_msgs.msg import TFMessage
 
 from tiago_nav.params import ParamError, nested, param, read_params, validate
 from tiago_nav.ros import conversions
 from tiago_nav.ros.clock import RosClock
+from tiago_nav.sim.faults import FaultError, LaserFaults
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.world import WorldError, load_world
@@ -47,6 +53,8 @@ class Params:
     odom_frame: str = param('odom', 'the odometry frame', nonempty=True)
     base_frame: str = param('base_footprint', "the base's frame, on the floor at its centre",
                             nonempty=True)
+    base_link_frame: str = param('base_link', "the base body's frame, fixed at base_footprint",
+                                 nonempty=True)
     laser_frame: str = param('base_laser_link', "the laser's frame (of /scan)", nonempty=True)
     scan_topic: str = param('/scan', 'sensor_msgs/LaserScan out', nonempty=True)
     odom_topic: str = param('/mobile_base_controller/odom', 'nav_msgs/Odometry out', nonempty=True)
@@ -57,6 +65,10 @@ class Params:
                                     nonempty=True)
     collisions_topic: str = param('/sim/collisions', 'latched std_msgs/UInt32 out: contact events',
                                   nonempty=True)
+    ground_truth_topic: str = param('/sim/ground_truth', 'nav_msgs/Odometry out: the true pose in '
+                                    'map_frame, for tests and benchmarks', nonempty=True)
+    laser_fault_topic: str = param('/sim/laser_fault', 'std_msgs/String in: laser fault injection '
+                                   'for tests', nonempty=True)
 
     def __post_init__(self):
         validate(self)
@@ -90,6 +102,7 @@ class Outputs:
     clock: Any
     scan: Any
     odom: Any
+    ground_truth: Any
     tf: Any
     tf_static: Any
     collisions: Any
@@ -104,6 +117,7 @@ def ros_outputs(params, use_sim_time):
         clock=rospy.Publisher('/clock', Clock, queue_size=10) if use_sim_time else None,
         scan=rospy.Publisher(params.scan_topic, LaserScan, queue_size=5),
         odom=rospy.Publisher(params.odom_topic, Odometry, queue_size=10),
+        ground_truth=rospy.Publisher(params.ground_truth_topic, Odometry, queue_size=10),
         tf=rospy.Publisher('/tf', TFMessage, queue_size=20),
         tf_static=rospy.Publisher('/tf_static', TFMessage, **latched),
         collisions=rospy.Publisher(params.collisions_topic, UInt32, **latched),
@@ -137,8 +151,21 @@ class Pacer:
             self.clock.sleep(0)                 # let the subscriber threads in
 
 
+def odometry_msg(pose, velocity, frame, child, stamp):
+    """nav_msgs/Odometry of ``child`` at ``pose`` ``(x, y, yaw)`` in ``frame``, moving at
+    ``velocity`` ``(v, w)`` [m/s, rad/s] in ``child``."""
+    msg = Odometry()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame
+    msg.child_frame_id = child
+    msg.pose.pose = conversions.pose_msg(pose)
+    msg.twist.twist.linear.x, msg.twist.twist.angular.z = velocity
+    return msg
+
+
 class SimulatorNode:
-    """The simulator between its inputs (:meth:`on_cmd_vel`) and its :class:`Outputs`.
+    """The simulator between its inputs (:meth:`on_cmd_vel`, :meth:`on_laser_fault`) and its
+    :class:`Outputs`.
 
     Args:
         params: :class:`Params`.
@@ -157,6 +184,7 @@ class SimulatorNode:
         self.world = load_world(params.world)
         self.sim = Simulator(self.world, params.sim, start_pose=params.start_pose, gui=params.gui)
         self.lock = threading.Lock()
+        self.faults = LaserFaults(params.sim.laser.num_beams)
         self.published_collisions = None
         self._warned_at = -math.inf
 
@@ -167,6 +195,16 @@ class SimulatorNode:
             if not self.sim.command(msg.linear.x, msg.angular.z):
                 self._warn_throttled('ignoring a non-finite velocity command (%g, %g)'
                                      % (msg.linear.x, msg.angular.z))
+
+    def on_laser_fault(self, msg):
+        """A std_msgs/String fault command (:mod:`tiago_nav.sim.faults`), applied at the
+        current simulated time; a bad one is logged and changes nothing."""
+        with self.lock:
+            try:
+                text = self.faults.command(msg.data, self.sim.time)
+                self.log.loginfo('t = %.3f s: %s' % (self.sim.time, text))
+            except FaultError as e:
+                self.log.logwarn('ignoring laser fault command %r: %s' % (msg.data, e))
 
     def _warn_throttled(self, text):
         if self.sim.time - self._warned_at >= WARN_EVERY:
@@ -192,15 +230,16 @@ class SimulatorNode:
         return s
 
     def publish_static(self, stamp):
-        """The latched map and the laser's fixed transform."""
+        """The latched map and the fixed transforms base → base_link → laser."""
         p = self.params
         msg = conversions.gridmap_to_msg(rasterise_world(self.world), p.map_frame, stamp)
         self.out.map.publish(msg)
         self.out.map_metadata.publish(msg.info)
-        laser = conversions.transform_stamped((p.sim.laser.offset, 0.0, 0.0), p.base_frame,
+        body = conversions.transform_stamped((0.0, 0.0, 0.0), p.base_frame, p.base_link_frame, stamp)
+        laser = conversions.transform_stamped((p.sim.laser.offset, 0.0, 0.0), p.base_link_frame,
                                               p.laser_frame, stamp)
         laser.transform.translation.z = p.sim.laser.height
-        self.out.tf_static.publish(TFMessage([laser]))
+        self.out.tf_static.publish(TFMessage([body, laser]))
 
     def publish_collisions(self):
         """/sim/collisions once per change of the count (and a warning per new contact)."""
@@ -214,24 +253,25 @@ class SimulatorNode:
                                  % (n, x, y))
 
     def publish_odom(self, stamp):
-        """Odometry (odom → base) and its tf, with map → odom."""
+        """Odometry (odom → base) and its tf with map → odom, and the ground truth (map → base)."""
         p = self.params
         odom_pose = self.sim.odom_pose
-        v, w = self.sim.velocity
-        msg = Odometry()
-        msg.header.stamp = stamp
-        msg.header.frame_id = p.odom_frame
-        msg.child_frame_id = p.base_frame
-        msg.pose.pose = conversions.pose_msg(odom_pose)
-        msg.twist.twist.linear.x = v
-        msg.twist.twist.angular.z = w
-        self.out.odom.publish(msg)
+        velocity = self.sim.velocity
+        self.out.odom.publish(odometry_msg(odom_pose, velocity, p.odom_frame, p.base_frame, stamp))
         self.out.tf.publish(TFMessage([
             conversions.transform_stamped(self.sim.map_to_odom, p.map_frame, p.odom_frame, stamp),
             conversions.transform_stamped(odom_pose, p.odom_frame, p.base_frame, stamp)]))
+        self.out.ground_truth.publish(odometry_msg(self.sim.pose, velocity, p.map_frame,
+                                                   p.base_frame, stamp))
 
     def publish_scan(self, stamp):
-        self.out.scan.publish(self.scan_msg(stamp, self.sim.scan().tolist()))
+        """/scan, unless an injected fault keeps the laser silent."""
+        active = self.faults.fault
+        ranges = self.faults.scan(self.sim.time, self.sim.scan)
+        if active is not None and self.faults.fault is None:
+            self.log.loginfo('t = %.3f s: laser fault %s ended' % (self.sim.time, active.kind))
+        if ranges is not None:
+            self.out.scan.publish(self.scan_msg(stamp, ranges.tolist()))
 
     def publish_clock(self, stamp):
         if self.use_sim_time:
@@ -239,27 +279,29 @@ class SimulatorNode:
 
     # --- running --------------------------------------------------------------------------
     def start(self):
-        """Publish the state at time 0: the clock, the map, tf and the first odometry and scan."""
-        stamp = self.stamp()
-        self.publish_clock(stamp)
-        self.publish_static(stamp)
-        self.publish_collisions()
+        """Publish the state at time 0: the map, /tf_static, the collision count, the first
+        odometry, tf and scan, and only then the first /clock, which nodes wait for."""
         with self.lock:
+            stamp = self.stamp()
+            self.publish_static(stamp)
+            self.publish_collisions()
             self.publish_odom(stamp)
             self.publish_scan(stamp)
+            self.publish_clock(stamp)
 
     def step(self):
-        """One physics step, then what is due at the new time: /clock every step, odometry
-        and tf at ``odom_rate``, /scan at ``scan_rate``, /sim/collisions when it changed."""
+        """One physics step, then what is due at the new time: odometry, tf and ground truth at
+        ``odom_rate``, /scan at ``scan_rate``, /sim/collisions when it changed, and last /clock
+        (every step), so that data stamped t goes out before the clock reaches t."""
         with self.lock:
             scan_due, odom_due = self.sim.step()
             stamp = self.stamp()
-            self.publish_clock(stamp)
             if odom_due:
                 self.publish_odom(stamp)
             if scan_due:
                 self.publish_scan(stamp)
             self.publish_collisions()
+            self.publish_clock(stamp)
 
     def run(self, clock):
         """:meth:`start`, then step paced by ``real_time_factor`` until ``clock.shutdown()``."""
@@ -304,6 +346,7 @@ def main():
         rospy.logfatal('simulator: %s', e)
         sys.exit(2)
     rospy.Subscriber(params.cmd_vel_topic, Twist, node.on_cmd_vel, queue_size=5)
+    rospy.Subscriber(params.laser_fault_topic, String, node.on_laser_fault, queue_size=10)
     try:
         node.run(RosClock())
     except rospy.ROSInterruptException:

@@ -17,6 +17,7 @@ import numpy as np
 from tiago_nav.geometry import compose
 from tiago_nav.params import ParamError, param, validate
 from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
+from tiago_nav.scan import hits
 
 
 @contextlib.contextmanager
@@ -230,13 +231,19 @@ def _exit_distance(bounds, x, y, c, s):
 
 
 def noisy(ranges, std, rng, range_min, range_max):
-    """Add Gaussian range noise of ``std`` [m] to finite ``ranges``; readings that leave
-    ``[range_min, range_max]`` become ``inf`` (out of range), as a real laser reports them."""
+    """What the laser reports for the true ``ranges`` [m] (``inf``: nothing hit), in REP 117
+    values (:mod:`tiago_nav.scan`): Gaussian noise of ``std`` [m] on every true range within
+    ``[range_min, range_max]``; a true or noisy range below ``range_min`` reads ``-inf`` (too
+    close), nothing within ``range_max`` (true or after the noise) reads ``+inf`` (no return)."""
     r = np.array(ranges, dtype=float)
-    finite = np.isfinite(r)
+    with np.errstate(invalid='ignore'):
+        r[r < range_min] = -np.inf
+        r[r > range_max] = np.inf
+    hit = hits(r, range_min, range_max)
     if std > 0:
-        r[finite] += rng.normal(0.0, std, int(finite.sum()))
-    r[finite & ((r < range_min) | (r > range_max))] = np.inf
+        r[hit] += rng.normal(0.0, std, int(hit.sum()))
+        r[hit & (r < range_min)] = -np.inf
+        r[hit & (r > range_max)] = np.inf
     return r
 
 

@@ -138,8 +138,9 @@ class Simulator:
         return (self.base.v, self.base.w)
 
     def scan(self):
-        """One laser scan from the current pose: ranges [m] with Gaussian noise, inf for no
-        return; beam angles are ``config.laser.angles()``."""
+        """One laser scan from the current pose: ranges [m] with Gaussian noise in REP 117
+        values (``+inf`` no return, ``-inf`` too close, see :func:`noisy`); beam angles are
+        ``config.laser.angles()``."""
         ranges, _ = self.scene.cast()
         c = self.config
         return noisy(ranges, c.laser_noise, self.rng, c.laser.range_min, c.laser.range_max)
