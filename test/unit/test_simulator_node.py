@@ -171,9 +171,9 @@ def test_everything_is_published_before_the_first_clock():
         needed = {'map', 'map_metadata', 'tf_static', 'tf', 'odom', 'scan', 'collisions',
                   'ground_truth'}
         assert needed <= set(log[:first_clock])
-        run(node, 4)                                # and each step's data goes out before /clock
-        assert log[first_clock + 1:] == ['clock', 'odom', 'tf', 'ground_truth', 'clock',
-                                         'clock', 'odom', 'tf', 'ground_truth', 'scan', 'clock']
+        run(node, 4)                                # then /clock leads each step
+        assert log[first_clock + 1:] == ['clock', 'clock', 'odom', 'tf', 'ground_truth',
+                                         'clock', 'clock', 'odom', 'tf', 'ground_truth', 'scan']
     finally:
         node.close()
 

@@ -8,7 +8,7 @@ publishers it is given, so a unit test drives it with fakes; :func:`main` does t
 
 Frames: ``map`` → ``odom`` → ``base_footprint`` → ``base_link`` → ``base_laser_link`` (the last
 two fixed, on /tf_static). Everything a consumer needs (the latched map, /tf_static, the first
-odometry, tf and scan) is published before the first /clock.
+odometry, tf and scan) is published before the first /clock; after that /clock leads each step.
 """
 import math
 import sys
@@ -290,18 +290,19 @@ class SimulatorNode:
             self.publish_clock(stamp)
 
     def step(self):
-        """One physics step, then what is due at the new time: odometry, tf and ground truth at
-        ``odom_rate``, /scan at ``scan_rate``, /sim/collisions when it changed, and last /clock
-        (every step), so that data stamped t goes out before the clock reaches t."""
+        """One physics step, then what is due at the new time: /clock (every step), odometry,
+        tf and ground truth at ``odom_rate``, /scan at ``scan_rate``, /sim/collisions when it
+        changed. (/clock goes first: a controller woken by it uses the data of the step before,
+        whose tf has surely arrived, rather than a scan whose tf may still be on its way.)"""
         with self.lock:
             scan_due, odom_due = self.sim.step()
             stamp = self.stamp()
+            self.publish_clock(stamp)
             if odom_due:
                 self.publish_odom(stamp)
             if scan_due:
                 self.publish_scan(stamp)
             self.publish_collisions()
-            self.publish_clock(stamp)
 
     def run(self, clock):
         """:meth:`start`, then step paced by ``real_time_factor`` until ``clock.shutdown()``."""
