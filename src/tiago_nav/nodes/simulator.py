@@ -97,8 +97,8 @@ def check_time_source(params, use_sim_time):
 
 @dataclass
 class Outputs:
-    """The node's publishers (anything with ``publish(msg)``); ``clock`` is None without
-    /use_sim_time."""
+    """The node's publishers (anything with ``publish(msg)``); ``clock`` is not used (and may
+    be None) without /use_sim_time."""
     clock: Any
     scan: Any
     odom: Any
@@ -131,9 +131,9 @@ class Pacer:
     seconds behind (a slow machine) goes on from where it is instead of catching up;
     ``real_time_factor`` 0 runs as fast as possible, yielding the processor now and then."""
 
-    def __init__(self, clock, dt, real_time_factor):
+    def __init__(self, clock, dt, real_time_factor, steps=0):
         self.clock, self.dt, self.rtf = clock, float(dt), float(real_time_factor)
-        self.restart(0)
+        self.restart(steps)
 
     def restart(self, steps):
         """Pace from now on, ``steps`` steps having been taken."""
@@ -313,7 +313,7 @@ class SimulatorNode:
                          % (self.world.name, self.world.source,
                             'full speed' if p.real_time_factor == 0 else '%gx real time' % p.real_time_factor,
                             x, y, math.degrees(yaw)))
-        pacer = Pacer(clock, p.sim.dt, p.real_time_factor)
+        pacer = Pacer(clock, p.sim.dt, p.real_time_factor, self.sim.steps)
         t0, steps0 = clock.wall(), self.sim.steps
         while not clock.shutdown():
             self.step()
