@@ -15,12 +15,12 @@ import subprocess
 import sys
 import time
 
-import numpy as np
-
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
+from tiago_nav.geometry import transform_points  # noqa: E402
+from tiago_nav.scan import scan_to_points  # noqa: E402
 from tiago_nav.testing.harness import free_port, stop_process  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.simulator import SimConfig, Simulator  # noqa: E402
@@ -95,14 +95,14 @@ def plot(world, path):
     import matplotlib.pyplot as plt
     grid = rasterise_world(world)
     sim = Simulator(world, SimConfig())
-    ranges = sim.scan()
-    lx, ly, lyaw = sim.scene.laser_pose()
-    ang = lyaw + sim.config.laser.angles()
-    ok = np.isfinite(ranges)
+    laser = sim.config.laser
+    points, _ = scan_to_points(sim.scan(), laser.angle_min, laser.angle_increment, laser.range_min,
+                               laser.range_max)
+    points = transform_points(sim.scene.laser_pose(), points)
     fig, ax = plt.subplots(figsize=(10, 5.5))
     x0, y0, x1, y1 = grid.bounds
     ax.imshow(grid.data, origin='lower', extent=(x0, x1, y0, y1), cmap='gray_r', vmin=0, vmax=100)
-    ax.plot(lx + ranges[ok] * np.cos(ang[ok]), ly + ranges[ok] * np.sin(ang[ok]), '.', ms=2,
+    ax.plot(points[:, 0], points[:, 1], '.', ms=2,
             color='tab:green', label='scan (666 beams, 0.01 m noise)')
     for i, c in enumerate(world.movable_obstacles):
         ax.add_patch(plt.Circle((c.x, c.y), c.radius, fill=False, color='tab:red',

@@ -1,6 +1,8 @@
 #!/usr/bin/python3
 """Rostest of nodes/simulator in test/worlds/sim_box.yaml (checked against the world file)."""
 import math
+import threading
+import time
 
 import numpy as np
 import rospy
@@ -8,7 +10,7 @@ import rostest
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import OccupancyGrid, Odometry
 from sensor_msgs.msg import LaserScan
-from std_msgs.msg import UInt32
+from std_msgs.msg import String, UInt32
 
 from tiago_nav.geometry import transform_points
 from tiago_nav.scan import scan_to_points
@@ -71,6 +73,12 @@ class SimulatorNodeTest(SimTestCase):
                                          rospy.Duration(TIMEOUT))
         self.assertAlmostEqual(laser.transform.translation.x, 0.2, places=6)
         self.tf.lookup_transform('odom', 'base_footprint', rospy.Time(), rospy.Duration(TIMEOUT))
+        body = self.tf.lookup_transform('base_footprint', 'base_link', rospy.Time(),
+                                        rospy.Duration(TIMEOUT))
+        self.assertEqual(pose_from_transform(body.transform), (0.0, 0.0, 0.0))
+        laser = self.tf.lookup_transform('base_link', 'base_laser_link', rospy.Time(),
+                                         rospy.Duration(TIMEOUT))
+        self.assertAlmostEqual(laser.transform.translation.x, 0.2, places=6)
 
         scan = rospy.wait_for_message('/scan', LaserScan, timeout=TIMEOUT)
         self.assertEqual(scan.header.frame_id, 'base_laser_link')
@@ -135,6 +143,56 @@ class SimulatorNodeTest(SimTestCase):
         self.assertLess(pose[0], 2.5 - 0.27 + 0.01)         # stopped at the wall, not through it
         collisions = rospy.wait_for_message('/sim/collisions', UInt32, timeout=TIMEOUT)
         self.assertEqual(collisions.data, 1)
+
+    def test_6_ground_truth_is_the_map_pose(self):
+        truth = rospy.wait_for_message('/sim/ground_truth', Odometry, timeout=TIMEOUT)
+        self.assertEqual(truth.header.frame_id, 'map')
+        self.assertEqual(truth.child_frame_id, 'base_footprint')
+        t = self.tf.lookup_transform('map', 'base_footprint', truth.header.stamp,
+                                     rospy.Duration(5))
+        np.testing.assert_allclose(pose_from_msg(truth.pose.pose), pose_from_transform(t.transform),
+                                   atol=1e-6)
+
+    def test_7_injected_laser_faults(self):
+        scans, lock = [], threading.Lock()
+
+        def on_scan(m):
+            with lock:
+                scans.append((m.header.stamp.to_sec(), np.asarray(m.ranges)))
+
+        def wait_for(what, cond):
+            end = time.monotonic() + TIMEOUT
+            while time.monotonic() < end and not rospy.is_shutdown():
+                with lock:
+                    if cond(scans):
+                        return
+                time.sleep(0.01)
+            self.fail('timed out waiting for ' + what)
+
+        sub = rospy.Subscriber('/scan', LaserScan, on_scan)
+        faults = rospy.Publisher('/sim/laser_fault', String, queue_size=5)
+        wait_for('the fault subscriber', lambda _: faults.get_num_connections() > 0)
+        try:
+            faults.publish(String('nan 1'))
+            wait_for('a NaN scan and then a healthy one again',
+                     lambda ss: any(np.isnan(r).all() for _, r in ss)
+                     and not np.isnan(ss[-1][1]).any())
+            with lock:
+                nan = [t for t, r in scans if np.isnan(r).all()]
+                first_nan = nan[0]
+            self.assertAlmostEqual(nan[-1] - nan[0], 1.0 - 1 / 15.0, delta=1 / 15.0 + 1e-6)
+
+            faults.publish(String('dead'))
+            # no scan for 1 s of simulated time (one already on its way may still come)
+            wait_for('1 s of sim time', lambda ss: rospy.get_time() > ss[-1][0] + 1.0)
+            faults.publish(String('none'))
+            wait_for('scans again', lambda ss: ss[-1][0] > rospy.get_time() - 0.5)
+            with lock:
+                stamps = np.array([t for t, _ in scans if t > first_nan])
+            self.assertGreater(np.diff(stamps).max(), 1.0)          # the laser was silent
+        finally:
+            faults.publish(String('none'))
+            sub.unregister()
 
 
 if __name__ == '__main__':

@@ -92,5 +92,21 @@ def test_noise_statistics_and_limits():
     r = noisy(clean, 0.01, rng, 0.05, 25.0)
     assert np.std(r - 3.0) == pytest.approx(0.01, rel=0.05)
     assert abs(np.mean(r - 3.0)) < 1e-3
-    edge = noisy(np.array([0.04, 24.999, np.inf]), 0.0, rng, 0.05, 25.0)
-    assert np.isinf(edge[0]) and edge[1] == pytest.approx(24.999) and np.isinf(edge[2])
+    edge = noisy(np.array([0.04, 24.999, np.inf, 25.5]), 0.0, rng, 0.05, 25.0)
+    assert edge[0] == -np.inf                            # too close to measure
+    assert edge[1] == pytest.approx(24.999)
+    assert edge[2] == np.inf and edge[3] == np.inf       # nothing within range_max
+
+
+def test_noise_out_of_the_limits_follows_rep117():
+    rng = np.random.default_rng(2)
+    near = noisy(np.full(20000, 0.06), 0.05, rng, 0.05, 25.0)      # 0.2 sigma above range_min
+    far = noisy(np.full(20000, 24.99), 0.05, rng, 0.05, 25.0)      # 0.2 sigma below range_max
+    too_close = near == -np.inf
+    assert np.mean(too_close) == pytest.approx(0.42, abs=0.02)     # P(z < -0.2)
+    assert np.all((near[~too_close] >= 0.05) & np.isfinite(near[~too_close]))
+    no_return = far == np.inf
+    assert np.mean(no_return) == pytest.approx(0.42, abs=0.02)
+    assert np.all(far[~no_return] <= 25.0)
+    # a true range below range_min reads -inf even when the noise would lift it above
+    assert np.all(noisy(np.full(1000, 0.049), 0.5, rng, 0.05, 25.0) == -np.inf)

@@ -7,20 +7,19 @@ import math
 from dataclasses import dataclass
 
 from tiago_nav.geometry import wrap_angle
+from tiago_nav.params import param, validate
 
 
 @dataclass(frozen=True)
 class BaseLimits:
     """TIAGo-like limits: speeds [m/s, rad/s] and accelerations [m/s², rad/s²]."""
-    max_linear_velocity: float = 1.0
-    max_angular_velocity: float = 1.5
-    max_linear_acceleration: float = 1.0
-    max_angular_acceleration: float = 2.0
+    max_linear_velocity: float = param(1.0, '[m/s] base speed limit', gt=0)
+    max_angular_velocity: float = param(1.5, '[rad/s] base turn rate limit', gt=0)
+    max_linear_acceleration: float = param(1.0, '[m/s^2] base acceleration limit', gt=0)
+    max_angular_acceleration: float = param(2.0, '[rad/s^2] base angular acceleration limit', gt=0)
 
     def __post_init__(self):
-        for k, v in vars(self).items():
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError('%s must be a positive number, got %r' % (k, v))
+        validate(self)
 
 
 def clamp(value, limit):

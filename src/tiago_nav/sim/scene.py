@@ -5,33 +5,48 @@ Frames: the world frame is the map frame; the base pose ``(x, y, yaw)`` is base_
 the laser (base_laser_link) sits ``laser_offset`` [m] ahead of the base centre, at
 ``laser_height`` above the floor (above the base's collision body, so beams never hit it).
 """
+import contextlib
+import ctypes
 import math
 import os
+import sys
 from dataclasses import dataclass
 
 import numpy as np
 
 from tiago_nav.geometry import compose
+from tiago_nav.params import ParamError, param, validate
+from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
+from tiago_nav.scan import hits
 
 
-def _import_pybullet():
-    """Import pybullet without the build-time banner it writes on stderr at import."""
+@contextlib.contextmanager
+def _silenced(fd):
+    """Send what is written to file descriptor ``fd`` inside the block to /dev/null: pybullet's
+    C code prints a build banner on stderr at import and its argv on stdout at connect."""
     try:
-        saved = os.dup(2)
-    except OSError:
-        import pybullet
-        return pybullet
+        saved = os.dup(fd)
+    except OSError:          # no such descriptor: nothing to silence
+        yield
+        return
+    sys.stdout.flush()
+    sys.stderr.flush()
     try:
         with open(os.devnull, 'w') as null:
-            os.dup2(null.fileno(), 2)
-            import pybullet
+            os.dup2(null.fileno(), fd)
+            try:
+                yield
+            finally:
+                _LIBC.fflush(None)           # C stdio buffers go to /dev/null too
     finally:
-        os.dup2(saved, 2)
+        os.dup2(saved, fd)
         os.close(saved)
-    return pybullet
 
 
-pybullet = _import_pybullet()
+_LIBC = ctypes.CDLL(None)
+with _silenced(2):
+    import pybullet
+    from pybullet_utils.bullet_client import BulletClient
 
 WALL_HEIGHT = 1.0          # [m] every static and movable body spans the floor to this height
 ROBOT_HEIGHT = 0.25        # [m] the base's collision body, floor to this height
@@ -40,13 +55,28 @@ ROBOT_HEIGHT = 0.25        # [m] the base's collision body, floor to this height
 @dataclass(frozen=True)
 class LaserConfig:
     """A TIAGo-like planar laser: 666 beams over ±110°, 0.05–25 m (angles [rad], ranges [m])."""
-    num_beams: int = 666
-    angle_min: float = -math.radians(110.0)
-    angle_max: float = math.radians(110.0)
-    range_min: float = 0.05
-    range_max: float = 25.0
-    offset: float = 0.2          # [m] ahead of the base centre (base_footprint → base_laser_link)
-    height: float = 0.3          # [m] above the floor
+    num_beams: int = param(666, 'laser beams per scan', ge=2, name='laser_beams')
+    angle_min: float = param(-math.radians(110.0), '[rad] first beam, in base_laser_link',
+                             name='laser_angle_min')
+    angle_max: float = param(math.radians(110.0), '[rad] last beam, in base_laser_link; > laser_angle_min',
+                             name='laser_angle_max')
+    range_min: float = param(0.05, '[m] nearer is too close to measure (-inf)', ge=0,
+                             name='laser_range_min')
+    range_max: float = param(25.0, '[m] nothing within it is no return (+inf); > laser_range_min',
+                             name='laser_range_max')
+    offset: float = param(LASER_OFFSET, '[m] base_laser_link ahead of the base centre',
+                          name='laser_offset')
+    height: float = param(0.3, '[m] base_laser_link above the floor, above the base body',
+                          gt=ROBOT_HEIGHT, lt=WALL_HEIGHT, name='laser_height')
+
+    def __post_init__(self):
+        validate(self)
+        if not self.angle_min < self.angle_max:
+            raise ParamError('must be > laser_angle_min (%g rad), got %g' % (self.angle_min, self.angle_max),
+                             'laser_angle_max')
+        if not self.range_min < self.range_max:
+            raise ParamError('must be > laser_range_min (%g m), got %g' % (self.range_min, self.range_max),
+                             'laser_range_max')
 
     @property
     def angle_increment(self):
@@ -63,14 +93,16 @@ class Scene:
     Use as a context manager or call :meth:`close`. Several scenes may coexist.
     """
 
-    def __init__(self, world, robot_radius=0.27, laser=LaserConfig(), gui=False):
+    def __init__(self, world, robot_radius=ROBOT_RADIUS, laser=LaserConfig(), gui=False):
         self.world = world
         self.laser = laser
         self.robot_radius = float(robot_radius)
-        self.client = pybullet.connect(pybullet.GUI if gui else pybullet.DIRECT)
-        if self.client < 0:
+        # one client per scene: every call is bound to it, so scenes never talk to each other's worlds
+        with _silenced(1):
+            p = self._p = BulletClient(pybullet.GUI if gui else pybullet.DIRECT)
+        if not p.isConnected():
+            self._p = None
             raise RuntimeError('pybullet could not connect (%s mode)' % ('GUI' if gui else 'DIRECT'))
-        p = self._p = _Client(self.client)
         if gui:
             p.configureDebugVisualizer(pybullet.COV_ENABLE_GUI, 0)
         # Static geometry is one triangle mesh and each movable cylinder one more: pybullet ray
@@ -110,11 +142,6 @@ class Scene:
         return p.createMultiBody(0, col, vis)
 
     # --- robot ----------------------------------------------------------------------------
-    @property
-    def robot_pose(self):
-        """The base's ground-truth pose ``(x, y, yaw)`` in the world (map) frame."""
-        return self._pose
-
     def set_robot_pose(self, pose):
         """Place the base at ``pose`` ``(x, y, yaw)`` (no collision check)."""
         x, y, yaw = (float(v) for v in pose)
@@ -139,7 +166,7 @@ class Scene:
         current one)."""
         return compose(base_pose or self._pose, (self.laser.offset, 0.0, 0.0))
 
-    def cast(self, base_pose=None, include_robot=False):
+    def cast(self, base_pose=None):
         """Noise-free ray cast of the laser from ``base_pose`` (default: the current pose).
 
         Returns ``(ranges, body_ids)``: ranges [m] measured from base_laser_link (``inf`` where
@@ -176,12 +203,12 @@ class Scene:
 
     # --- life cycle -----------------------------------------------------------------------
     def close(self):
-        if self.client is not None and self.client >= 0:
+        p, self._p = getattr(self, '_p', None), None
+        if p is not None:
             try:
-                pybullet.disconnect(self.client)
+                p.disconnect()
             except pybullet.error:
                 pass
-            self.client = None
 
     def __enter__(self):
         return self
@@ -204,13 +231,19 @@ def _exit_distance(bounds, x, y, c, s):
 
 
 def noisy(ranges, std, rng, range_min, range_max):
-    """Add Gaussian range noise of ``std`` [m] to finite ``ranges``; readings that leave
-    ``[range_min, range_max]`` become ``inf`` (out of range), as a real laser reports them."""
+    """What the laser reports for the true ``ranges`` [m] (``inf``: nothing hit), in REP 117
+    values (:mod:`tiago_nav.scan`): Gaussian noise of ``std`` [m] on every true range within
+    ``[range_min, range_max]``; a true or noisy range below ``range_min`` reads ``-inf`` (too
+    close), nothing within ``range_max`` (true or after the noise) reads ``+inf`` (no return)."""
     r = np.array(ranges, dtype=float)
-    finite = np.isfinite(r)
+    with np.errstate(invalid='ignore'):
+        r[r < range_min] = -np.inf
+        r[r > range_max] = np.inf
+    hit = hits(r, range_min, range_max)
     if std > 0:
-        r[finite] += rng.normal(0.0, std, int(finite.sum()))
-    r[finite & ((r < range_min) | (r > range_max))] = np.inf
+        r[hit] += rng.normal(0.0, std, int(hit.sum()))
+        r[hit & (r < range_min)] = -np.inf
+        r[hit & (r > range_max)] = np.inf
     return r
 
 
@@ -245,17 +278,3 @@ class _Mesh:
         big = radius / math.cos(math.pi / n)
         self.prism(np.column_stack((x + big * np.cos(t), y + big * np.sin(t))))
 
-
-class _Client:
-    """Binds a pybullet client id to every call, so scenes never talk to each other's worlds."""
-
-    def __init__(self, cid):
-        self._cid = cid
-
-    def __getattr__(self, name):
-        fn = getattr(pybullet, name)
-
-        def call(*args, **kwargs):
-            kwargs['physicsClientId'] = self._cid
-            return fn(*args, **kwargs)
-        return call

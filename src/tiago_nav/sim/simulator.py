@@ -1,15 +1,17 @@
 """The mock TIAGo without ROS: a :class:`Scene`, a :class:`DiffDrive` base and a noisy laser,
-stepped at a fixed rate of simulated time. ``nodes/simulator`` wires it to ROS.
+stepped at a fixed rate of simulated time. :mod:`tiago_nav.nodes.simulator` wires it to ROS.
 
 Ground truth lives in the world (map) frame. Odometry is exact and expressed in the odom
 frame, which is the robot's start pose (so ``map → odom`` is the start pose, REP 105).
 """
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from tiago_nav.geometry import compose, inverse
+from tiago_nav.params import ParamError, nested, param, validate
+from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.sim.diffdrive import BaseLimits, DiffDrive
 from tiago_nav.sim.scene import LaserConfig, Scene, noisy
 
@@ -22,27 +24,24 @@ class SimConfig:
     """Simulator settings. Rates are in Hz of simulated time; ``scan_rate`` and ``odom_rate``
     must divide ``rate``. ``laser_noise`` is the range noise's std [m]; ``cmd_timeout`` [s]
     stops the base when no command arrives for that long."""
-    rate: float = 60.0
-    scan_rate: float = 15.0
-    odom_rate: float = 30.0
-    laser_noise: float = 0.01
-    cmd_timeout: float = 0.5
-    robot_radius: float = 0.27
-    seed: int = 0
-    limits: BaseLimits = field(default_factory=BaseLimits)
-    laser: LaserConfig = field(default_factory=LaserConfig)
+    rate: float = param(60.0, '[Hz] physics steps per simulated second; scan_rate and odom_rate divide it',
+                        gt=0)
+    scan_rate: float = param(15.0, '[Hz] /scan', gt=0)
+    odom_rate: float = param(30.0, '[Hz] odometry, tf and ground truth', gt=0)
+    laser_noise: float = param(0.01, '[m] Gaussian range noise std', ge=0, lt=1)
+    cmd_timeout: float = param(0.5, '[s] the base brakes to a stop when no cmd_vel arrives for this long',
+                               gt=0)
+    robot_radius: float = param(ROBOT_RADIUS, "[m] the base's footprint", gt=0)
+    seed: int = param(0, 'laser noise seed', ge=0)
+    limits: BaseLimits = nested(BaseLimits)
+    laser: LaserConfig = nested(LaserConfig)
 
     def __post_init__(self):
-        for k in ('rate', 'scan_rate', 'odom_rate', 'cmd_timeout', 'robot_radius'):
-            v = getattr(self, k)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError('%s must be a positive number, got %r' % (k, v))
-        if not (isinstance(self.laser_noise, (int, float)) and 0 <= self.laser_noise < 1):
-            raise ValueError('laser_noise must be a number in [0, 1) m, got %r' % (self.laser_noise,))
+        validate(self)
         for k in ('scan_rate', 'odom_rate'):
             n = self.rate / getattr(self, k)
             if abs(n - round(n)) > 1e-6 or round(n) < 1:
-                raise ValueError('%s (%g Hz) must divide rate (%g Hz)' % (k, getattr(self, k), self.rate))
+                raise ParamError('%g Hz must divide rate (%g Hz)' % (getattr(self, k), self.rate), k)
 
     @property
     def dt(self):
@@ -139,8 +138,9 @@ class Simulator:
         return (self.base.v, self.base.w)
 
     def scan(self):
-        """One laser scan from the current pose: ranges [m] with Gaussian noise, inf for no
-        return; beam angles are ``config.laser.angles()``."""
+        """One laser scan from the current pose: ranges [m] with Gaussian noise in REP 117
+        values (``+inf`` no return, ``-inf`` too close, see :func:`noisy`); beam angles are
+        ``config.laser.angles()``."""
         ranges, _ = self.scene.cast()
         c = self.config
         return noisy(ranges, c.laser_noise, self.rng, c.laser.range_min, c.laser.range_max)

@@ -1,0 +1,357 @@
+"""The simulator node: the pybullet mock TIAGo (library :mod:`tiago_nav.sim`) wired to ROS.
+
+Publishes /scan, odometry, tf, the latched /map, /clock, /sim/collisions and /sim/ground_truth;
+obeys /mobile_base_controller/cmd_vel; takes injected laser faults on /sim/laser_fault
+(:mod:`tiago_nav.sim.faults`). :class:`SimulatorNode` holds the decisions (what is due at each
+step, the stamps and frames, pacing against ``real_time_factor``) and publishes through the
+publishers it is given, so a unit test drives it with fakes; :func:`main` does the ROS wiring.
+
+Frames: ``map`` → ``odom`` → ``base_footprint`` → ``base_link`` → ``base_laser_link`` (the last
+two fixed, on /tf_static). Everything a consumer needs (the latched map, /tf_static, the first
+odometry, tf and scan) is published before the first /clock; after that /clock leads each step.
+"""
+import math
+import sys
+import threading
+from dataclasses import dataclass
+from typing import Any
+
+import rospy
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import MapMetaData, OccupancyGrid, Odometry
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import LaserScan
+from std_msgs.msg import String, UInt32
+from tf2_msgs.msg import TFMessage
+
+from tiago_nav.params import ParamError, nested, param, read_params, validate
+from tiago_nav.ros import conversions
+from tiago_nav.ros.clock import RosClock
+from tiago_nav.sim.faults import FaultError, LaserFaults
+from tiago_nav.sim.raster import rasterise_world
+from tiago_nav.sim.simulator import SimConfig, Simulator
+from tiago_nav.sim.world import WorldError, load_world
+
+BEHIND = 0.5            # [s wall] a run this far behind its real_time_factor restarts its pacing
+WARN_EVERY = 5.0        # [s sim] at most one warning about bad commands per this long
+
+
+@dataclass(frozen=True)
+class Params:
+    """Parameters of nodes/simulator, the pybullet mock TIAGo. Units: m, rad, s, Hz of simulated time.
+
+    ``world`` is required; ``sim`` holds the library's settings (rates, noise, base limits, laser).
+    """
+    world: str = param('', 'path to a world file (required)', nonempty=True)
+    gui: bool = param(False, "open pybullet's window")
+    real_time_factor: float = param(1.0, 'simulated s per wall s; 0 = as fast as possible; '
+                                    '!= 1 needs /use_sim_time', ge=0)
+    robot_start: list = param([], "[x m, y m, yaw deg] in map overriding the world's robot_start; "
+                              "[] = the world's")
+    sim: SimConfig = nested(SimConfig)
+    map_frame: str = param('map', 'the world frame (of /map and ground truth)', nonempty=True)
+    odom_frame: str = param('odom', 'the odometry frame', nonempty=True)
+    base_frame: str = param('base_footprint', "the base's frame, on the floor at its centre",
+                            nonempty=True)
+    base_link_frame: str = param('base_link', "the base body's frame, fixed at base_footprint",
+                                 nonempty=True)
+    laser_frame: str = param('base_laser_link', "the laser's frame (of /scan)", nonempty=True)
+    scan_topic: str = param('/scan', 'sensor_msgs/LaserScan out', nonempty=True)
+    odom_topic: str = param('/mobile_base_controller/odom', 'nav_msgs/Odometry out', nonempty=True)
+    cmd_vel_topic: str = param('/mobile_base_controller/cmd_vel', 'geometry_msgs/Twist in',
+                               nonempty=True)
+    map_topic: str = param('/map', 'latched nav_msgs/OccupancyGrid out', nonempty=True)
+    map_metadata_topic: str = param('/map_metadata', 'latched nav_msgs/MapMetaData out',
+                                    nonempty=True)
+    collisions_topic: str = param('/sim/collisions', 'latched std_msgs/UInt32 out: contact events',
+                                  nonempty=True)
+    ground_truth_topic: str = param('/sim/ground_truth', 'nav_msgs/Odometry out: the true pose in '
+                                    'map_frame, for tests and benchmarks', nonempty=True)
+    laser_fault_topic: str = param('/sim/laser_fault', 'std_msgs/String in: laser fault injection '
+                                   'for tests', nonempty=True)
+
+    def __post_init__(self):
+        validate(self)
+        s = self.robot_start
+        if s and (len(s) != 3 or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                         and math.isfinite(v) for v in s)):
+            raise ParamError('expected [x, y, yaw_deg], got %r' % (s,), 'robot_start')
+
+    @property
+    def start_pose(self):
+        """``robot_start`` as a pose ``(x, y, yaw)`` [m, m, rad] in map, or None (the world's)."""
+        if not self.robot_start:
+            return None
+        x, y, yaw_deg = (float(v) for v in self.robot_start)
+        return (x, y, math.radians(yaw_deg))
+
+
+def check_time_source(params, use_sim_time):
+    """Raise :class:`ParamError` unless ``real_time_factor`` can be kept: without simulated
+    time the simulator runs at wall-clock pace."""
+    if not use_sim_time and params.real_time_factor != 1.0:
+        raise ParamError('needs /use_sim_time true', 'real_time_factor',
+                         'parameter ~real_time_factor: %g needs /use_sim_time true (without '
+                         'simulated time the simulator runs at wall-clock pace)' % params.real_time_factor)
+
+
+@dataclass
+class Outputs:
+    """The node's publishers (anything with ``publish(msg)``); ``clock`` is not used (and may
+    be None) without /use_sim_time."""
+    clock: Any
+    scan: Any
+    odom: Any
+    ground_truth: Any
+    tf: Any
+    tf_static: Any
+    collisions: Any
+    map: Any
+    map_metadata: Any
+
+
+def ros_outputs(params, use_sim_time):
+    """The ROS publishers of :class:`Outputs` on the topics ``params`` names."""
+    latched = dict(queue_size=1, latch=True)
+    return Outputs(
+        clock=rospy.Publisher('/clock', Clock, queue_size=10) if use_sim_time else None,
+        scan=rospy.Publisher(params.scan_topic, LaserScan, queue_size=5),
+        odom=rospy.Publisher(params.odom_topic, Odometry, queue_size=10),
+        ground_truth=rospy.Publisher(params.ground_truth_topic, Odometry, queue_size=10),
+        tf=rospy.Publisher('/tf', TFMessage, queue_size=20),
+        tf_static=rospy.Publisher('/tf_static', TFMessage, **latched),
+        collisions=rospy.Publisher(params.collisions_topic, UInt32, **latched),
+        map=rospy.Publisher(params.map_topic, OccupancyGrid, **latched),
+        map_metadata=rospy.Publisher(params.map_metadata_topic, MapMetaData, **latched))
+
+
+class Pacer:
+    """Holds simulated time at ``real_time_factor`` × wall time on a :mod:`tiago_nav.clock`
+    clock (its ``wall()`` and ``sleep()``). A run that falls more than :data:`BEHIND` wall
+    seconds behind (a slow machine) goes on from where it is instead of catching up;
+    ``real_time_factor`` 0 runs as fast as possible, yielding the processor now and then."""
+
+    def __init__(self, clock, dt, real_time_factor, steps=0):
+        self.clock, self.dt, self.rtf = clock, float(dt), float(real_time_factor)
+        self.restart(steps)
+
+    def restart(self, steps):
+        """Pace from now on, ``steps`` steps having been taken."""
+        self.t0, self.steps0 = self.clock.wall(), steps
+
+    def pace(self, steps):
+        """Wait until ``steps`` steps of ``dt`` [s sim] are due in wall time."""
+        if self.rtf > 0:
+            ahead = self.t0 + (steps - self.steps0) * self.dt / self.rtf - self.clock.wall()
+            if ahead > 0:
+                self.clock.sleep(ahead)
+            elif ahead < -BEHIND:
+                self.restart(steps)
+        elif steps % 64 == 0:
+            self.clock.sleep(0)                 # let the subscriber threads in
+
+
+def odometry_msg(pose, velocity, frame, child, stamp):
+    """nav_msgs/Odometry of ``child`` at ``pose`` ``(x, y, yaw)`` in ``frame``, moving at
+    ``velocity`` ``(v, w)`` [m/s, rad/s] in ``child``."""
+    msg = Odometry()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame
+    msg.child_frame_id = child
+    msg.pose.pose = conversions.pose_msg(pose)
+    msg.twist.twist.linear.x, msg.twist.twist.angular.z = velocity
+    return msg
+
+
+class SimulatorNode:
+    """The simulator between its inputs (:meth:`on_cmd_vel`, :meth:`on_laser_fault`) and its
+    :class:`Outputs`.
+
+    Args:
+        params: :class:`Params`.
+        outputs: :class:`Outputs`.
+        use_sim_time: stamp with simulated time (and publish /clock); otherwise with ``now()``.
+        now: the wall-clock ROS time (``rospy.Time.now``), used without ``use_sim_time``.
+        log: where warnings and notes go (``rospy`` or anything with ``logwarn``/``loginfo``).
+
+    Raises :class:`WorldError`, :class:`ParamError` or ValueError (a start pose in an obstacle).
+    """
+
+    def __init__(self, params, outputs, use_sim_time=True, now=None, log=rospy):
+        check_time_source(params, use_sim_time)
+        self.params, self.out, self.log = params, outputs, log
+        self.use_sim_time, self._now = use_sim_time, now or rospy.Time.now
+        self.world = load_world(params.world)
+        self.sim = Simulator(self.world, params.sim, start_pose=params.start_pose, gui=params.gui)
+        self.lock = threading.Lock()
+        self.faults = LaserFaults(params.sim.laser.num_beams)
+        self.published_collisions = None
+        self._warned_at = -math.inf
+
+    # --- inputs ---------------------------------------------------------------------------
+    def on_cmd_vel(self, msg):
+        """A geometry_msgs/Twist in the base frame; a non-finite one is ignored (with a warning)."""
+        with self.lock:
+            if not self.sim.command(msg.linear.x, msg.angular.z):
+                self._warn_throttled('ignoring a non-finite velocity command (%g, %g)'
+                                     % (msg.linear.x, msg.angular.z))
+
+    def on_laser_fault(self, msg):
+        """A std_msgs/String fault command (:mod:`tiago_nav.sim.faults`), applied at the
+        current simulated time; a bad one is logged and changes nothing."""
+        with self.lock:
+            try:
+                text = self.faults.command(msg.data, self.sim.time)
+                self.log.loginfo('t = %.3f s: %s' % (self.sim.time, text))
+            except FaultError as e:
+                self.log.logwarn('ignoring laser fault command %r: %s' % (msg.data, e))
+
+    def _warn_throttled(self, text):
+        if self.sim.time - self._warned_at >= WARN_EVERY:
+            self._warned_at = self.sim.time
+            self.log.logwarn(text)
+
+    # --- outputs --------------------------------------------------------------------------
+    def stamp(self):
+        """The stamp of everything published now: simulated time under /use_sim_time."""
+        return rospy.Time(nsecs=self.sim.time_ns) if self.use_sim_time else self._now()
+
+    def scan_msg(self, stamp, ranges):
+        """A sensor_msgs/LaserScan of ``ranges`` [m] in the laser frame."""
+        cfg = self.params.sim.laser
+        s = LaserScan(ranges=ranges)
+        s.header.stamp = stamp
+        s.header.frame_id = self.params.laser_frame
+        s.angle_min, s.angle_max = cfg.angle_min, cfg.angle_max
+        s.angle_increment = cfg.angle_increment
+        s.scan_time = 1.0 / self.params.sim.scan_rate
+        s.time_increment = 0.0
+        s.range_min, s.range_max = cfg.range_min, cfg.range_max
+        return s
+
+    def publish_static(self, stamp):
+        """The latched map and the fixed transforms base → base_link → laser."""
+        p = self.params
+        msg = conversions.gridmap_to_msg(rasterise_world(self.world), p.map_frame, stamp)
+        self.out.map.publish(msg)
+        self.out.map_metadata.publish(msg.info)
+        body = conversions.transform_stamped((0.0, 0.0, 0.0), p.base_frame, p.base_link_frame, stamp)
+        laser = conversions.transform_stamped((p.sim.laser.offset, 0.0, 0.0), p.base_link_frame,
+                                              p.laser_frame, stamp)
+        laser.transform.translation.z = p.sim.laser.height
+        self.out.tf_static.publish(TFMessage([body, laser]))
+
+    def publish_collisions(self):
+        """/sim/collisions once per change of the count (and a warning per new contact)."""
+        n = self.sim.collisions
+        if n != self.published_collisions:
+            self.published_collisions = n
+            self.out.collisions.publish(UInt32(n))
+            if n:
+                x, y, _ = self.sim.pose
+                self.log.logwarn('collision #%d: the robot bumped into something at (%.2f, %.2f)'
+                                 % (n, x, y))
+
+    def publish_odom(self, stamp):
+        """Odometry (odom → base) and its tf with map → odom, and the ground truth (map → base)."""
+        p = self.params
+        odom_pose = self.sim.odom_pose
+        velocity = self.sim.velocity
+        self.out.odom.publish(odometry_msg(odom_pose, velocity, p.odom_frame, p.base_frame, stamp))
+        self.out.tf.publish(TFMessage([
+            conversions.transform_stamped(self.sim.map_to_odom, p.map_frame, p.odom_frame, stamp),
+            conversions.transform_stamped(odom_pose, p.odom_frame, p.base_frame, stamp)]))
+        self.out.ground_truth.publish(odometry_msg(self.sim.pose, velocity, p.map_frame,
+                                                   p.base_frame, stamp))
+
+    def publish_scan(self, stamp):
+        """/scan, unless an injected fault keeps the laser silent."""
+        active = self.faults.fault
+        ranges = self.faults.scan(self.sim.time, self.sim.scan)
+        if active is not None and self.faults.fault is None:
+            self.log.loginfo('t = %.3f s: laser fault %s ended' % (self.sim.time, active.kind))
+        if ranges is not None:
+            self.out.scan.publish(self.scan_msg(stamp, ranges.tolist()))
+
+    def publish_clock(self, stamp):
+        if self.use_sim_time:
+            self.out.clock.publish(Clock(stamp))
+
+    # --- running --------------------------------------------------------------------------
+    def start(self):
+        """Publish the state at time 0: the map, /tf_static, the collision count, the first
+        odometry, tf and scan, and only then the first /clock, which nodes wait for."""
+        with self.lock:
+            stamp = self.stamp()
+            self.publish_static(stamp)
+            self.publish_collisions()
+            self.publish_odom(stamp)
+            self.publish_scan(stamp)
+            self.publish_clock(stamp)
+
+    def step(self):
+        """One physics step, then what is due at the new time: /clock (every step), odometry,
+        tf and ground truth at ``odom_rate``, /scan at ``scan_rate``, /sim/collisions when it
+        changed. (/clock goes first: a controller woken by it uses the data of the step before,
+        whose tf has surely arrived, rather than a scan whose tf may still be on its way.)"""
+        with self.lock:
+            scan_due, odom_due = self.sim.step()
+            stamp = self.stamp()
+            self.publish_clock(stamp)
+            if odom_due:
+                self.publish_odom(stamp)
+            if scan_due:
+                self.publish_scan(stamp)
+            self.publish_collisions()
+
+    def run(self, clock):
+        """:meth:`start`, then step paced by ``real_time_factor`` until ``clock.shutdown()``."""
+        self.start()
+        p = self.params
+        x, y, yaw = self.sim.pose
+        self.log.loginfo('simulating %s (%s) at %s; robot at (%.2f, %.2f, %.0f deg)'
+                         % (self.world.name, self.world.source,
+                            'full speed' if p.real_time_factor == 0 else '%gx real time' % p.real_time_factor,
+                            x, y, math.degrees(yaw)))
+        pacer = Pacer(clock, p.sim.dt, p.real_time_factor, self.sim.steps)
+        t0, steps0 = clock.wall(), self.sim.steps
+        while not clock.shutdown():
+            self.step()
+            pacer.pace(self.sim.steps)
+        elapsed = clock.wall() - t0
+        if elapsed > 0 and self.sim.steps > steps0:
+            self.log.loginfo('simulated %.1f s in %.1f s of wall time' % (self.sim.time, elapsed))
+
+    def close(self):
+        self.sim.close()
+
+
+def read_config(get=rospy.get_param, resolve=rospy.resolve_name):
+    """``(Params, use_sim_time)`` from the parameter server (``get(name, default)``);
+    :class:`ParamError` naming the parameter otherwise."""
+    params = read_params(Params, get, resolve)
+    use_sim_time = get('/use_sim_time', False)
+    if not isinstance(use_sim_time, bool):
+        raise ParamError('expected true or false, got %r' % (use_sim_time,), '/use_sim_time',
+                         'parameter /use_sim_time: expected true or false, got %r' % (use_sim_time,))
+    check_time_source(params, use_sim_time)
+    return params, use_sim_time
+
+
+def main():
+    rospy.init_node('simulator')
+    try:
+        params, use_sim_time = read_config()
+        node = SimulatorNode(params, ros_outputs(params, use_sim_time), use_sim_time)
+    except (WorldError, ParamError, ValueError) as e:
+        rospy.logfatal('simulator: %s', e)
+        sys.exit(2)
+    rospy.Subscriber(params.cmd_vel_topic, Twist, node.on_cmd_vel, queue_size=5)
+    rospy.Subscriber(params.laser_fault_topic, String, node.on_laser_fault, queue_size=10)
+    try:
+        node.run(RosClock())
+    except rospy.ROSInterruptException:
+        pass
+    finally:
+        node.close()
+
