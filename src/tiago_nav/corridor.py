@@ -45,6 +45,11 @@ point within ``end_band`` of the line; the end is where, after the wall was seen
 wall for ``end_gap`` metres (a wall turning away at an angle leaves the band within a few
 centimetres; a slight bend does not). The end point is kept in the odom frame; the robot stops
 ``exit_margin`` past it, facing along the corridor.
+
+Scans are read by REP 117 (:mod:`tiago_nav.scan`, :meth:`CorridorFollower.update_laser`): walls
+are fitted from hits only; a too-close beam (-inf) is an obstacle at ``range_min`` along it for
+the front safety check (blocked); NaN and out-of-limits beams say nothing. A scan with too few
+informative beams (:func:`scan_usability`) is "blocked", never "free space".
 """
 import math
 from dataclasses import dataclass
@@ -55,7 +60,7 @@ import numpy as np
 from tiago_nav.geometry import inverse, transform_points, wrap_angle
 from tiago_nav.params import param, validate
 from tiago_nav.robot import ROBOT_RADIUS
-from tiago_nav.scan import scan_to_points
+from tiago_nav.scan import TOO_CLOSE, classify, informative_fraction, scan_to_points
 
 
 @dataclass(frozen=True)
@@ -102,6 +107,10 @@ class CorridorParams:
     max_turn: float = param(0.35, '[rad] ... or turned this much from it', gt=0)
     search_half_angle: float = param(math.radians(60.0), '[rad] the corridor is searched within '
                                                          '+- this of straight ahead', gt=0)
+    min_informative: float = param(0.5, '[fraction] a scan whose informative beams (REP 117 hit, '
+                                        'no return, too close) are fewer, over the whole fan or '
+                                        'within search_half_angle ahead, is unusable: blocked',
+                                   ge=0, le=1)
 
     def __post_init__(self):
         validate(self)
@@ -381,6 +390,24 @@ class Scan:
     range_max: float              # [m]
 
 
+def scan_usability(scan, params):
+    """Why the :class:`Scan` is too broken to judge the scene from, or ``''`` when it is usable.
+
+    Informative beams (:func:`tiago_nav.scan.informative_fraction`: a hit, no return or too
+    close; NaN and out-of-limits readings are not) must be at least ``min_informative`` of the
+    whole fan and of the beams within ``search_half_angle`` of straight ahead; an empty scan
+    has none."""
+    r = np.asarray(scan.ranges, float)
+    ahead = np.abs(scan.angle_min + scan.angle_increment * np.arange(r.size)) \
+        <= params.search_half_angle
+    worst = min(informative_fraction(r, scan.range_min, scan.range_max),
+                informative_fraction(r[ahead], scan.range_min, scan.range_max))
+    if worst >= params.min_informative and r.size:
+        return ''
+    return ('blocked: the laser scan is unusable (%.0f%% of its beams informative, need %.0f%%)'
+            % (100 * worst, 100 * params.min_informative))
+
+
 @dataclass
 class Command:
     """What :meth:`CorridorFollower.command` decides."""
@@ -410,7 +437,9 @@ class CorridorFollower:
         self.line = None            # (x, y, theta) of the centre line in odom: point + direction
         self.width = None
         self.end = None             # (x, y) odom point on the centre line where a wall ends
-        self.points = np.zeros((0, 2))     # last scan, odom frame
+        self.points = np.zeros((0, 2))     # last scan's hits, odom frame
+        self.too_close = np.zeros((0, 2))  # its too-close beams at range_min, odom frame
+        self.unusable = ''                 # why the last scan said nothing, if it did not
         self.scans = 0
         self.misses = 0
         self.failure = ''
@@ -421,16 +450,31 @@ class CorridorFollower:
     # --- perception -----------------------------------------------------------------------
     def update_laser(self, scan, laser_pose, pose_odom):
         """One :class:`Scan`, taken with the laser at ``laser_pose`` and the base at
-        ``pose_odom`` (both in odom): its hits become the points of :meth:`update_scan`."""
+        ``pose_odom`` (both in odom), read by REP 117 (:mod:`tiago_nav.scan`): the walls are
+        fitted from its hits only; a too-close beam (-inf) is an obstacle at ``range_min`` along
+        it for the front safety check; no-return and invalid beams give no point.
+
+        A scan with too few informative beams (:func:`scan_usability`) says nothing: the walls
+        are not updated and :meth:`command` answers ``blocked`` until a usable scan arrives.
+        Returns the fitted :class:`Walls` (robot frame) or ``None``."""
+        self.unusable = scan_usability(scan, self.p)
+        if self.unusable:
+            return None
         pts, _ = scan_to_points(scan.ranges, scan.angle_min, scan.angle_increment,
                                 scan.range_min, scan.range_max)
-        return self.update_scan(transform_points(laser_pose, pts), pose_odom)
+        close = np.flatnonzero(classify(scan.ranges, scan.range_min, scan.range_max) == TOO_CLOSE)
+        a = scan.angle_min + scan.angle_increment * close
+        too_close = scan.range_min * np.column_stack((np.cos(a), np.sin(a)))
+        return self.update_scan(transform_points(laser_pose, pts), pose_odom,
+                                transform_points(laser_pose, too_close))
 
-    def update_scan(self, points_odom, pose_odom):
-        """One scan: ``points_odom`` (N, 2) in odom [m], ``pose_odom`` the base pose at scan time.
+    def update_scan(self, points_odom, pose_odom, too_close_odom=()):
+        """One scan: ``points_odom`` (N, 2) in odom [m] (its hits), ``pose_odom`` the base pose
+        at scan time, ``too_close_odom`` (K, 2) obstacles that only the front safety check uses.
         Returns the fitted :class:`Walls` (robot frame) or ``None``."""
         p = self.p
         self.points = np.asarray(points_odom, float).reshape(-1, 2)
+        self.too_close = np.asarray(too_close_odom, float).reshape(-1, 2)
         self.scans += 1
         local = transform_points(inverse(pose_odom), self.points)
         if self.line is None:
@@ -503,6 +547,8 @@ class CorridorFollower:
         self._last_pose = pose_odom
         if self.failure:
             return Command(state='failed', reason=self.failure)
+        if self.unusable:
+            return Command(state='blocked', reason=self.unusable)
         if self.line is None:
             return Command(state='searching', reason='looking for a corridor ahead')
         e_y, e_th = self.errors(pose_odom)
@@ -517,7 +563,7 @@ class CorridorFollower:
             cmd.state = 'done'
             cmd.reason = 'travelled max_distance %.2f m before the corridor end' % self.max_distance
             return cmd
-        local = transform_points(inverse(pose_odom), self.points)
+        local = transform_points(inverse(pose_odom), np.vstack((self.points, self.too_close)))
         free = front_free_distance(local, p.robot_radius)
         cmd.front_free = free
         if free < p.stop_margin:

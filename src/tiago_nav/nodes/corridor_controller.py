@@ -45,7 +45,12 @@ class Params:
     control_rate: float = param(20.0, '[Hz, ROS time] commands and feedback', ge=5)
     timeout: float = param(60.0, '[s] abort a goal after this long', gt=0)
     blocked_timeout: float = param(2.0, '[s] abort when blocked ahead for this long', gt=0)
-    scan_timeout: float = param(1.0, '[s] abort when no usable scan arrives for this long', gt=0)
+    sensor_timeout: float = param(0.5, '[s] stop the base while the newest usable scan is older '
+                                       'than this', gt=0)
+    scan_timeout: float = param(1.0, '[s] abort when the newest usable scan is older than this '
+                                     '(> sensor_timeout)', gt=0)
+    startup_timeout: float = param(30.0, '[s wall] at start-up, wait this long for the first scan '
+                                         'and the tf, else exit 1', gt=0)
     scan_topic: str = param('/scan', 'sensor_msgs/LaserScan input', nonempty=True)
     cmd_vel_topic: str = param('/mobile_base_controller/cmd_vel', 'geometry_msgs/Twist output',
                                nonempty=True)
@@ -56,6 +61,30 @@ class Params:
 
     def __post_init__(self):
         validate(self)
+        if self.scan_timeout <= self.sensor_timeout:
+            raise ParamError('must be > sensor_timeout (%g s): the base stops first, then the goal '
+                             'aborts' % self.sensor_timeout, 'scan_timeout')
+
+
+def wait_ready(params, clock, io, timeout):
+    """Wait (at most ``timeout`` wall seconds) until a first scan and the tf from
+    ``~odom_frame`` to ``~base_frame`` and to the scan's frame exist.
+
+    Returns ``''`` when ready, else a sentence naming what is missing."""
+    end = clock.wall() + timeout
+    while True:
+        scan = io.latest_scan()
+        missing = 'no laser scan on %s' % params.scan_topic if scan is None else ''
+        for frame in (params.base_frame,) + ((scan.frame,) if scan is not None else ()):
+            try:
+                io.lookup(params.odom_frame, frame)
+            except LookupError as e:
+                missing = missing or 'no tf %s -> %s (%s)' % (params.odom_frame, frame, e)
+        if not missing:
+            return ''
+        if clock.wall() >= end or clock.shutdown():
+            return '%s within %g s' % (missing, timeout)
+        clock.sleep(0.05)
 
 
 class CorridorServer:
@@ -124,7 +153,8 @@ class CorridorServer:
          PREEMPTED: self.server.set_preempted}[state](result, reason)
 
     def execute(self, goal):
-        """The execute callback: runs ``goal`` (a CorridorGoal) to its end."""
+        """The execute callback: runs ``goal`` (a CorridorGoal) to its end. An unexpected error
+        stops the base and aborts the goal with the error's type and text."""
         follower = None
         try:
             if not (math.isfinite(goal.max_speed) and goal.max_speed >= 0
@@ -133,21 +163,37 @@ class CorridorServer:
                 return
             follower = CorridorFollower(self.p.law, goal.max_speed or None,
                                         goal.max_distance or None)
-            end = self.run(follower)
-            self.finish(follower, *end)
+            self.finish(follower, *self.run(follower))
+        except Exception as e:           # noqa: BLE001  (any error ends the goal, loudly)
+            self.crashed(follower, '%s: %s' % (type(e).__name__, e))
         finally:
             self.stop()
+
+    def crashed(self, follower, reason):
+        """End the goal after an unexpected error: ABORTED with ``reason``, even when reporting
+        where the robot stands fails too."""
+        self.stop()
+        if not self.server.is_active():
+            return
+        try:
+            self.finish(follower, ABORTED, reason)
+        except Exception:                # noqa: BLE001
             if self.server.is_active():
-                self.server.set_aborted(self.result(follower, 'node shutting down'),
-                                        'node shutting down')
+                self.server.set_aborted(CorridorResult(reason=reason), reason)
 
     def run(self, follower):
-        """Drive until the goal ends; returns ``(state, reason)``."""
+        """Drive until the goal ends; returns ``(state, reason)``.
+
+        Each tick: the newest scan (once, when it is new and tf places it) updates the law; the
+        base's latest odom pose gives the command. The base is held still while the newest usable
+        scan is older than ``sensor_timeout``; the goal aborts when it is older than
+        ``scan_timeout``, when the base's pose is unknown that long, on ``timeout``, when the
+        law fails or stays blocked longer than ``blocked_timeout``, and when ROS time stops."""
         p = self.p
         judge = GoalJudge(p.blocked_timeout)
         ticker = rclock.Ticker(self.clock, 1.0 / p.control_rate)
         start = self.clock.now()
-        last_stamp, last_used, tf_error = None, start, ''
+        used, tf_error, no_pose_since = None, '', None
         while True:
             if self.server.is_preempt_requested():
                 return PREEMPTED, 'cancelled'
@@ -155,29 +201,35 @@ class CorridorServer:
             if now - start > p.timeout:
                 return ABORTED, 'timeout after %.0f s' % p.timeout
             scan = self.io.latest_scan()
-            if scan is not None and scan.stamp != last_stamp:
+            if scan is not None and (used is None or scan.stamp != used):
                 try:
                     laser = self.io.lookup(p.odom_frame, scan.frame, scan.stamp)
                     base = self.io.lookup(p.odom_frame, p.base_frame, scan.stamp)
                     follower.update_laser(scan, laser, base)
-                    last_stamp, last_used, tf_error = scan.stamp, now, ''
+                    used, tf_error = scan.stamp, ''
                 except LookupError as e:
-                    tf_error = ' (tf: %s)' % e          # retried at the next tick
-            if now - last_used > p.scan_timeout:
-                return ABORTED, 'no usable laser scan for %.1f s%s' % (p.scan_timeout, tf_error)
+                    tf_error = ' (the newest scan has no tf: %s)' % e   # retried at the next tick
+            age = now - (start if used is None else min(used, now))
+            if age > p.scan_timeout:
+                return ABORTED, 'no laser data for %.1f s%s' % (age, tf_error)
             try:
-                pose = self.io.lookup(p.odom_frame, p.base_frame)
+                pose, no_pose_since = self.io.lookup(p.odom_frame, p.base_frame), None
             except LookupError as e:
+                pose, no_pose_since = None, now if no_pose_since is None else no_pose_since
+                if now - no_pose_since > p.scan_timeout:
+                    return ABORTED, 'no tf %s -> %s for %.1f s: %s' % (
+                        p.odom_frame, p.base_frame, now - no_pose_since, e)
+            if pose is None:
                 self.stop()
-                if now - start > p.scan_timeout:
-                    return ABORTED, 'no tf %s -> %s: %s' % (p.odom_frame, p.base_frame, e)
-                pose = None
-            if pose is not None:
+            else:
                 cmd = follower.command(pose)
                 end = judge.judge(cmd, now)
                 if end is not None:
                     return end
-                self.publish(cmd.v, cmd.omega)
+                if age > p.sensor_timeout:
+                    self.stop()                 # blind: hold still until a fresh scan
+                else:
+                    self.publish(cmd.v, cmd.omega)
                 self.feedback(follower, cmd)
             if not ticker.tick():
                 return ABORTED, ('node shutting down' if self.clock.shutdown()
@@ -199,7 +251,10 @@ class RosIO:
         scan = Scan(msg.header.stamp.to_sec(), msg.header.frame_id, np.asarray(msg.ranges, float),
                     msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max)
         with self.lock:
-            self.scan = scan
+            # the newest by stamp; an older stamp only after ROS time went back (a restart)
+            if self.scan is None or scan.stamp >= self.scan.stamp \
+                    or rospy.get_time() < self.scan.stamp:
+                self.scan = scan
 
     def latest_scan(self):
         with self.lock:
@@ -221,9 +276,13 @@ def main():
     except ParamError as e:
         rospy.logfatal('%s: %s', NODE, e)
         sys.exit(2)
-    io = RosIO(params)
+    io, clock = RosIO(params), RosClock()
+    missing = wait_ready(params, clock, io, params.startup_timeout)
+    if missing:
+        rospy.logfatal('%s: %s; not starting the action server', NODE, missing)
+        sys.exit(1)
     cmd_pub = rospy.Publisher(params.cmd_vel_topic, Twist, queue_size=1)
-    node = CorridorServer(params, RosClock(), None, cmd_pub, io)
+    node = CorridorServer(params, clock, None, cmd_pub, io)
     node.server = actionlib.SimpleActionServer(NODE, CorridorAction, execute_cb=node.execute,
                                                auto_start=False)
     node.server.start()

@@ -93,7 +93,8 @@ class FakeCorridorRobot:
     """
     FRAMES = ('map', 'odom')
 
-    def __init__(self, world, clock, cmd_pub, pose=None, scan_period=1.0 / 15.0, accel=1.0):
+    def __init__(self, world, clock, cmd_pub, pose=None, scan_period=1.0 / 15.0, accel=1.0,
+                 corrupt=None):
         self.world = world if isinstance(world, World) else World.from_dict(world)
         self.segments = world_segments(self.world)
         self.clock, self.cmd_pub = clock, cmd_pub
@@ -101,7 +102,7 @@ class FakeCorridorRobot:
         self.v = self.w = 0.0
         self.scan_period, self.accel = scan_period, accel
         self.angles = np.linspace(-math.radians(110.0), math.radians(110.0), 666)
-        self.laser_on, self.tf_ok, self.corrupt = True, True, None
+        self.laser_on, self.tf_ok, self.corrupt = True, True, corrupt
         self.scan = None
         self.history = [(clock.now(), self.pose)]
         self.track = []
