@@ -291,17 +291,21 @@ def corridor_toward(points, target, params, max_angle=math.radians(60.0)):
 
     ``points``: robot-frame (base_footprint) scan points [m]; ``target``: ``(x, y)`` [m] in the
     same frame (pose B). The corridor (:func:`find_corridor`) must run within ``max_angle``
-    [rad] of the bearing to the target, and the target must lie beyond where its walls start.
-    Used by the mission proxy to decide whether the corridor law applies.
+    [rad] of the bearing to the target, and the target must lie beyond the walls the robot sees
+    (farther along the corridor than their far end): a target beside the entrance, or inside
+    the visible stretch of the corridor, is reached without the law. Used by the mission proxy
+    to decide whether the corridor law applies. A non-finite target raises ``ValueError``.
     """
+    tx, ty = float(target[0]), float(target[1])
+    if not (math.isfinite(tx) and math.isfinite(ty)):
+        raise ValueError('corridor_toward: target (%r, %r) is not a finite point' % (tx, ty))
     walls = find_corridor(points, params)
     if walls is None:
         return None
-    tx, ty = float(target[0]), float(target[1])
     if abs(wrap_angle(math.atan2(ty, tx) - walls.theta)) > max_angle:
         return None
     along = tx * math.cos(walls.theta) + ty * math.sin(walls.theta)
-    if along <= min(walls.extent_left[0], walls.extent_right[0]):
+    if along <= max(walls.extent_left[1], walls.extent_right[1]):
         return None
     return walls
 

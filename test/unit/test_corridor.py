@@ -269,3 +269,9 @@ def test_corridor_toward_needs_a_corridor_leading_to_the_target():
     assert corridor_toward(at_start, behind, p) is None          # the corridor leads elsewhere
     pose_b = (11.0, 0.0, math.radians(-45.0))                     # the big room: no corridor
     assert corridor_toward(points(pose_b), transform_points(inverse(pose_b), [[6.5, -3.0]])[0], p) is None
+    # pose B beside the corridor (behind its right wall) or inside the stretch of it in view:
+    # reached without the law
+    for b in ((1.0, -1.2), (1.5, 0.0)):
+        assert corridor_toward(at_start, transform_points(inverse(start), [b])[0], p) is None, b
+    with pytest.raises(ValueError, match='finite'):
+        corridor_toward(at_start, (float('nan'), 0.0), p)
