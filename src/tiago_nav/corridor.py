@@ -542,13 +542,17 @@ class CorridorFollower:
         return self.p.exit_margin - along
 
     # --- control --------------------------------------------------------------------------
-    def command(self, pose_odom):
-        """Velocities for the robot at ``pose_odom`` (its current odom pose)."""
-        p = self.p
+    def moved_to(self, pose_odom):
+        """The base is now at ``pose_odom``: adds the way from its last pose to ``travelled``."""
         if self._last_pose is not None:
             self.travelled += math.hypot(pose_odom[0] - self._last_pose[0],
                                          pose_odom[1] - self._last_pose[1])
         self._last_pose = pose_odom
+
+    def command(self, pose_odom):
+        """Velocities for the robot at ``pose_odom`` (its current odom pose)."""
+        p = self.p
+        self.moved_to(pose_odom)
         if self.failure:
             return Command(state='failed', reason=self.failure)
         if self.unusable:

@@ -148,6 +148,9 @@ class CorridorServer:
         wait_until_still(self.clock, self.base_pose, self.stop,
                          MotionMonitor(window=0.2, speed_threshold=0.02, turn_threshold=0.02),
                          STOP_TIMEOUT, stall=rclock.STALL)
+        pose = self.base_pose()
+        if follower is not None and pose is not None:
+            follower.moved_to(pose)             # the braking distance counts too
         result = self.result(follower, reason)
         {SUCCEEDED: self.server.set_succeeded, ABORTED: self.server.set_aborted,
          PREEMPTED: self.server.set_preempted}[state](result, reason)
