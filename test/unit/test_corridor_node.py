@@ -186,6 +186,7 @@ def test_an_unusable_scan_is_blocked_never_free(corrupt):
     assert server.state == 'aborted', server.text
     assert server.text.startswith('blocked: the laser scan is unusable'), server.text
     t0, x0 = since[0]
+    assert all(math.isfinite(f.left_distance) for f in server.feedback)     # no NaN sent out
     # it stopped instead of driving on: braking from <= 1 m/s at 1 m/s^2 within one scan period
     assert rig.robot.pose[0] - x0 < 0.5 + 1.0 / 15
     assert rig.clock.now() - t0 > Params().blocked_timeout

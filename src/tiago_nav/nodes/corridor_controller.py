@@ -115,7 +115,7 @@ class CorridorServer:
 
     def feedback(self, follower, cmd):
         fb = CorridorFeedback(distance=follower.travelled)
-        if cmd.state != 'searching':
+        if math.isfinite(cmd.lateral_offset):   # walls known (not searching, scan usable)
             fb.left_distance, fb.right_distance = cmd.left_distance, cmd.right_distance
             fb.lateral_offset, fb.heading_error = cmd.lateral_offset, cmd.heading_error
         self.server.publish_feedback(fb)
