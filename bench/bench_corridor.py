@@ -3,13 +3,13 @@
 
 Trials: seeded start offsets (+-0.15 m from the centre line) and headings (+-15 deg), 1 m in
 front of straight corridors 0.8, 1.07 and 1.5 m wide (5 m long, test worlds built by
-tiago_nav.corridor.corridor_world) and, in the shipped world, around its robot_start.
+tiago_nav.sim.worlds.corridor_world) and, in the shipped world, around its robot_start.
 Figures per trial, all from ground truth: success (stopped with the base out of the corridor,
 no contact), time to exit (goal sent -> the base centre passes the first wall end, sim time),
 time to stop (goal sent -> standstill), RMS lateral offset from the centre line after the
 corridor's first metre, minimum wall clearance of the base's disc.
 
-1. the law in process (tiago_nav.corridor.run_in_simulator with the simulator library's laser);
+1. the law in process (tiago_nav.testing.corridor.run_in_simulator with the simulator library's laser);
 2. through ROS (navigation.launch): the corridor_controller action, then move_base with a goal
    at the pose where the law stopped (same start, same end), when nodes/navigation is a real
    node (not the placeholder).
@@ -36,13 +36,16 @@ except ImportError:        # not sourced: the library from the source tree (in-p
     sys.path.insert(0, os.path.join(ROOT, 'src'))
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
-from tiago_nav.corridor import CorridorParams, corridor_world, run_in_simulator  # noqa: E402
+from tiago_nav.corridor import CorridorParams  # noqa: E402
 from tiago_nav.geometry import wrap_angle  # noqa: E402
+from tiago_nav.robot import ROBOT_RADIUS  # noqa: E402
+from tiago_nav.sim.worlds import corridor_world  # noqa: E402
+from tiago_nav.testing.corridor import run_in_simulator  # noqa: E402
 from tiago_nav.testing.harness import free_port, stop_process  # noqa: E402
 from tiago_nav.sim.simulator import SimConfig, Simulator  # noqa: E402
 from tiago_nav.sim.world import World, load_world  # noqa: E402
 
-ROBOT_R = 0.27
+ROBOT_R = ROBOT_RADIUS
 SHIPPED = os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml')
 
 
@@ -304,7 +307,7 @@ def main():
         'time_to_stop': 'goal sent -> standstill [s, sim time]',
         'move_base_goal': 'the pose where corridor_controller stopped in the same trial, facing along '
                           'the corridor (same start, same end)',
-        'min_clearance': 'min distance from the base disc (r 0.27) to any wall over the run [m]',
+        'min_clearance': 'min distance from the base disc (r %g) to any wall over the run [m]' % ROBOT_R,
         'lateral_rms_after_1m': 'RMS of the offset from the ground-truth centre line, from 1 m into '
                                 'the corridor to its first wall end [m]'}, 'targets': {
         'faster_than_move_base': True, 'lateral_rms_after_1m_max': 0.03, 'min_clearance_min': 0.05},

@@ -45,6 +45,11 @@ point within ``end_band`` of the line; the end is where, after the wall was seen
 wall for ``end_gap`` metres (a wall turning away at an angle leaves the band within a few
 centimetres; a slight bend does not). The end point is kept in the odom frame; the robot stops
 ``exit_margin`` past it, facing along the corridor.
+
+Scans are read by REP 117 (:mod:`tiago_nav.scan`, :meth:`CorridorFollower.update_laser`): walls
+are fitted from hits only; a too-close beam (-inf) is an obstacle at ``range_min`` along it for
+the front safety check (blocked); NaN and out-of-limits beams say nothing. A scan with too few
+informative beams (:func:`scan_usability`) is "blocked", never "free space".
 """
 import math
 from dataclasses import dataclass
@@ -52,54 +57,63 @@ from typing import Tuple
 
 import numpy as np
 
-from tiago_nav.geometry import compose, inverse, transform_points, wrap_angle
+from tiago_nav.geometry import inverse, transform_points, wrap_angle
+from tiago_nav.params import param, validate
+from tiago_nav.robot import ROBOT_RADIUS
+from tiago_nav.scan import TOO_CLOSE, classify, informative_fraction, scan_to_points
 
 
 @dataclass(frozen=True)
 class CorridorParams:
-    """Settings of the law (defaults: config/corridor.yaml). Lengths [m], angles [rad],
-    speeds [m/s, rad/s], accelerations [m/s^2]."""
-    robot_radius: float = 0.27
-    max_speed: float = 1.0            # default forward speed (goal max_speed 0 -> this)
-    speed_limit: float = 1.0          # the base's limit: goal speeds are clamped to it
-    min_speed: float = 0.1            # slowest cruise (errors large)
-    max_angular: float = 1.5
-    decel: float = 0.95               # braking used for stop points (just below the base's 1.0)
-    k_lateral: float = 9.0            # k_y [1/m^2]
-    k_heading: float = 5.0            # k_theta [1/m]
-    max_approach: float = 0.5         # theta_max: steepest approach to the centre line [rad]
-    v_turn: float = 0.25              # steering acts as if at least this fast [m/s]
-    slow_heading: float = 0.5         # heading error at which v reaches its floor [rad]
-    wall_time: float = 0.5            # heading for a wall: at least this long to reach it [s]
-    look_ahead: float = 3.0           # a corridor must start within this distance
-    fit_behind: float = 0.3           # wall fit window along the corridor, behind the robot
-    fit_ahead: float = 2.0            # ... and ahead of it
-    max_width: float = 2.0            # wider passages are not corridors
-    min_width_margin: float = 0.03    # a corridor must be >= 2 (radius + margin) wide
-    slice_length: float = 0.1
-    tukey_scale: float = 0.06         # residual beyond which a point has no weight
-    face_band: float = 0.04           # a slice's wall face: points this close to its innermost
-    min_wall_points: int = 8          # per side
-    min_wall_length: float = 0.4      # inlier extent along the corridor, per side
-    end_band: float = 0.25            # a slice "has a wall" with a point this close to the line
-    end_gap: float = 0.5              # no wall on one side for this long: the corridor ends
-    exit_margin: float = 0.35         # stop the base centre this far past the end
-    stop_margin: float = 0.08         # front safety: stop this far before a contact
-    max_jump: float = 0.2             # a fit this far (m) from the track is rejected
-    max_turn: float = 0.35            # ... or turned this much (rad)
-    search_half_angle: float = math.radians(60.0)
+    """Settings of the law (parameters of ``corridor_controller``; defaults: config/corridor.yaml).
+    Lengths [m], angles [rad], speeds [m/s, rad/s], accelerations [m/s^2]."""
+    # the robot and the law
+    robot_radius: float = param(ROBOT_RADIUS, '[m] base footprint radius', gt=0)
+    max_speed: float = param(1.0, '[m/s] forward speed when the goal\'s max_speed is 0', gt=0)
+    speed_limit: float = param(1.0, '[m/s] the base\'s limit: goal speeds are clamped to it', gt=0)
+    min_speed: float = param(0.1, '[m/s] slowest cruise while correcting large errors', ge=0)
+    max_angular: float = param(1.5, '[rad/s] turn rate limit', gt=0)
+    decel: float = param(0.95, '[m/s^2] braking for the stop point and the front safety check', gt=0)
+    k_lateral: float = param(9.0, '[1/m^2] k_y, lateral gain per metre travelled', gt=0)
+    k_heading: float = param(5.0, '[1/m] k_theta, heading gain per metre travelled', gt=0)
+    max_approach: float = param(0.5, '[rad] theta_max: steepest angle to rejoin the centre line', gt=0)
+    v_turn: float = param(0.25, '[m/s] steering acts as if at least this fast', ge=0)
+    slow_heading: float = param(0.5, '[rad] v = 0 at this heading error (quadratic), floored at '
+                                     'min_speed', gt=0)
+    wall_time: float = param(0.5, '[s] heading for a wall: slow so that it is at least this far away',
+                             gt=0)
+    # finding and fitting the walls
+    look_ahead: float = param(3.0, '[m] the corridor must start within this distance, else the goal '
+                                   'aborts', gt=0)
+    fit_behind: float = param(0.3, '[m] wall fit window along the corridor, behind the robot', ge=0)
+    fit_ahead: float = param(2.0, '[m] ... and ahead of it', gt=0)
+    max_width: float = param(2.0, '[m] wider passages are not corridors', gt=0)
+    min_width_margin: float = param(0.03, '[m] a corridor is at least 2 (robot_radius + this) wide',
+                                    ge=0)
+    slice_length: float = param(0.1, '[m] slices along the corridor (wall faces, end detection)', gt=0)
+    tukey_scale: float = param(0.06, '[m] wall fit: a residual beyond this has no weight', gt=0)
+    face_band: float = param(0.04, '[m] a slice\'s wall face: points this close to its innermost',
+                             ge=0)
+    min_wall_points: int = param(8, '[points] per side, for a wall fit', ge=2)
+    min_wall_length: float = param(0.4, '[m] inliers\' extent along the corridor, per side', gt=0)
+    # the end, the stop and the front safety check
+    end_band: float = param(0.25, '[m] a slice "has a wall" with a point this close to the line', gt=0)
+    end_gap: float = param(0.5, '[m] one side without wall for this long = end of the corridor', gt=0)
+    exit_margin: float = param(0.35, '[m] stop the base centre this far past the end', ge=0)
+    stop_margin: float = param(0.08, '[m] front safety: stop this far before touching anything '
+                                     'ahead', ge=0)
+    max_jump: float = param(0.2, '[m] a wall fit this far from the tracked centre line is rejected',
+                            gt=0)
+    max_turn: float = param(0.35, '[rad] ... or turned this much from it', gt=0)
+    search_half_angle: float = param(math.radians(60.0), '[rad] the corridor is searched within '
+                                                         '+- this of straight ahead', gt=0)
+    min_informative: float = param(0.5, '[fraction] a scan whose informative beams (REP 117 hit, '
+                                        'no return, too close) are fewer, over the whole fan or '
+                                        'within search_half_angle ahead, is unusable: blocked',
+                                   ge=0, le=1)
 
     def __post_init__(self):
-        for k, v in vars(self).items():
-            if not (isinstance(v, (int, float)) and math.isfinite(v)):
-                raise ValueError('%s must be a finite number, got %r' % (k, v))
-        for k in ('robot_radius', 'max_speed', 'speed_limit', 'max_angular', 'decel', 'k_lateral',
-                  'k_heading', 'max_approach', 'wall_time', 'look_ahead', 'fit_ahead', 'max_width',
-                  'slice_length', 'tukey_scale', 'end_band', 'end_gap', 'slow_heading'):
-            if getattr(self, k) <= 0:
-                raise ValueError('%s must be > 0, got %r' % (k, getattr(self, k)))
-        if self.min_wall_points < 2:
-            raise ValueError('min_wall_points must be >= 2')
+        validate(self)
 
     @property
     def min_width(self):
@@ -277,17 +291,21 @@ def corridor_toward(points, target, params, max_angle=math.radians(60.0)):
 
     ``points``: robot-frame (base_footprint) scan points [m]; ``target``: ``(x, y)`` [m] in the
     same frame (pose B). The corridor (:func:`find_corridor`) must run within ``max_angle``
-    [rad] of the bearing to the target, and the target must lie beyond where its walls start.
-    Used by the mission proxy to decide whether the corridor law applies.
+    [rad] of the bearing to the target, and the target must lie beyond the walls the robot sees
+    (farther along the corridor than their far end): a target beside the entrance, or inside
+    the visible stretch of the corridor, is reached without the law. Used by the mission proxy
+    to decide whether the corridor law applies. A non-finite target raises ``ValueError``.
     """
+    tx, ty = float(target[0]), float(target[1])
+    if not (math.isfinite(tx) and math.isfinite(ty)):
+        raise ValueError('corridor_toward: target (%r, %r) is not a finite point' % (tx, ty))
     walls = find_corridor(points, params)
     if walls is None:
         return None
-    tx, ty = float(target[0]), float(target[1])
     if abs(wrap_angle(math.atan2(ty, tx) - walls.theta)) > max_angle:
         return None
     along = tx * math.cos(walls.theta) + ty * math.sin(walls.theta)
-    if along <= min(walls.extent_left[0], walls.extent_right[0]):
+    if along <= max(walls.extent_left[1], walls.extent_right[1]):
         return None
     return walls
 
@@ -365,6 +383,36 @@ def control_law(e_y, e_theta, width, params, max_speed=None):
 
 
 @dataclass
+class Scan:
+    """One laser scan as plain values (the fields of sensor_msgs/LaserScan that matter here)."""
+    stamp: float                  # [s] ROS time of the scan
+    frame: str                    # the laser's frame
+    ranges: np.ndarray            # [m] REP 117 values (see tiago_nav.scan)
+    angle_min: float              # [rad] first beam, laser frame
+    angle_increment: float        # [rad] between beams
+    range_min: float              # [m]
+    range_max: float              # [m]
+
+
+def scan_usability(scan, params):
+    """Why the :class:`Scan` is too broken to judge the scene from, or ``''`` when it is usable.
+
+    Informative beams (:func:`tiago_nav.scan.informative_fraction`: a hit, no return or too
+    close; NaN and out-of-limits readings are not) must be at least ``min_informative`` of the
+    whole fan and of the beams within ``search_half_angle`` of straight ahead; an empty scan
+    has none."""
+    r = np.asarray(scan.ranges, float)
+    ahead = np.abs(scan.angle_min + scan.angle_increment * np.arange(r.size)) \
+        <= params.search_half_angle
+    worst = min(informative_fraction(r, scan.range_min, scan.range_max),
+                informative_fraction(r[ahead], scan.range_min, scan.range_max))
+    if worst >= params.min_informative and r.size:
+        return ''
+    return ('blocked: the laser scan is unusable (%.0f%% of its beams informative, need %.0f%%)'
+            % (100 * worst, 100 * params.min_informative))
+
+
+@dataclass
 class Command:
     """What :meth:`CorridorFollower.command` decides."""
     v: float = 0.0
@@ -393,7 +441,9 @@ class CorridorFollower:
         self.line = None            # (x, y, theta) of the centre line in odom: point + direction
         self.width = None
         self.end = None             # (x, y) odom point on the centre line where a wall ends
-        self.points = np.zeros((0, 2))     # last scan, odom frame
+        self.points = np.zeros((0, 2))     # last scan's hits, odom frame
+        self.too_close = np.zeros((0, 2))  # its too-close beams at range_min, odom frame
+        self.unusable = ''                 # why the last scan said nothing, if it did not
         self.scans = 0
         self.misses = 0
         self.failure = ''
@@ -402,11 +452,33 @@ class CorridorFollower:
         self._last_pose = None
 
     # --- perception -----------------------------------------------------------------------
-    def update_scan(self, points_odom, pose_odom):
-        """One scan: ``points_odom`` (N, 2) in odom [m], ``pose_odom`` the base pose at scan time.
+    def update_laser(self, scan, laser_pose, pose_odom):
+        """One :class:`Scan`, taken with the laser at ``laser_pose`` and the base at
+        ``pose_odom`` (both in odom), read by REP 117 (:mod:`tiago_nav.scan`): the walls are
+        fitted from its hits only; a too-close beam (-inf) is an obstacle at ``range_min`` along
+        it for the front safety check; no-return and invalid beams give no point.
+
+        A scan with too few informative beams (:func:`scan_usability`) says nothing: the walls
+        are not updated and :meth:`command` answers ``blocked`` until a usable scan arrives.
+        Returns the fitted :class:`Walls` (robot frame) or ``None``."""
+        self.unusable = scan_usability(scan, self.p)
+        if self.unusable:
+            return None
+        pts, _ = scan_to_points(scan.ranges, scan.angle_min, scan.angle_increment,
+                                scan.range_min, scan.range_max)
+        close = np.flatnonzero(classify(scan.ranges, scan.range_min, scan.range_max) == TOO_CLOSE)
+        a = scan.angle_min + scan.angle_increment * close
+        too_close = scan.range_min * np.column_stack((np.cos(a), np.sin(a)))
+        return self.update_scan(transform_points(laser_pose, pts), pose_odom,
+                                transform_points(laser_pose, too_close))
+
+    def update_scan(self, points_odom, pose_odom, too_close_odom=()):
+        """One scan: ``points_odom`` (N, 2) in odom [m] (its hits), ``pose_odom`` the base pose
+        at scan time, ``too_close_odom`` (K, 2) obstacles that only the front safety check uses.
         Returns the fitted :class:`Walls` (robot frame) or ``None``."""
         p = self.p
         self.points = np.asarray(points_odom, float).reshape(-1, 2)
+        self.too_close = np.asarray(too_close_odom, float).reshape(-1, 2)
         self.scans += 1
         local = transform_points(inverse(pose_odom), self.points)
         if self.line is None:
@@ -470,15 +542,21 @@ class CorridorFollower:
         return self.p.exit_margin - along
 
     # --- control --------------------------------------------------------------------------
-    def command(self, pose_odom):
-        """Velocities for the robot at ``pose_odom`` (its current odom pose)."""
-        p = self.p
+    def moved_to(self, pose_odom):
+        """The base is now at ``pose_odom``: adds the way from its last pose to ``travelled``."""
         if self._last_pose is not None:
             self.travelled += math.hypot(pose_odom[0] - self._last_pose[0],
                                          pose_odom[1] - self._last_pose[1])
         self._last_pose = pose_odom
+
+    def command(self, pose_odom):
+        """Velocities for the robot at ``pose_odom`` (its current odom pose)."""
+        p = self.p
+        self.moved_to(pose_odom)
         if self.failure:
             return Command(state='failed', reason=self.failure)
+        if self.unusable:
+            return Command(state='blocked', reason=self.unusable)
         if self.line is None:
             return Command(state='searching', reason='looking for a corridor ahead')
         e_y, e_th = self.errors(pose_odom)
@@ -493,7 +571,7 @@ class CorridorFollower:
             cmd.state = 'done'
             cmd.reason = 'travelled max_distance %.2f m before the corridor end' % self.max_distance
             return cmd
-        local = transform_points(inverse(pose_odom), self.points)
+        local = transform_points(inverse(pose_odom), np.vstack((self.points, self.too_close)))
         free = front_free_distance(local, p.robot_radius)
         cmd.front_free = free
         if free < p.stop_margin:
@@ -514,102 +592,30 @@ class CorridorFollower:
         return cmd
 
 
-def laser_points_in_odom(ranges, angles, laser_pose_odom, range_min=0.05, range_max=25.0):
-    """Scan ranges [m] at beam ``angles`` [rad] (laser frame) -> ``(N, 2)`` odom points, given
-    the laser's odom pose. Invalid beams (inf, NaN, out of limits) are dropped."""
-    r = np.asarray(ranges, float)
-    a = np.asarray(angles, float)
-    with np.errstate(invalid='ignore'):
-        ok = np.isfinite(r) & (r >= range_min) & (r <= range_max)
-    pts = np.column_stack((r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])))
-    return transform_points(laser_pose_odom, pts)
+SUCCEEDED, ABORTED, PREEMPTED = 'succeeded', 'aborted', 'preempted'
 
 
-def run_in_simulator(sim, params=CorridorParams(), max_speed=None, max_distance=None,
-                     timeout=60.0, on_step=None):
-    """Closed loop without ROS: ``sim`` (:class:`tiago_nav.sim.simulator.Simulator`) scans at
-    its scan rate, the law commands at its odometry rate. Returns ``(command, follower)`` with
-    the final :class:`Command`; ``on_step(sim, cmd)`` is called after every physics step."""
-    f = CorridorFollower(params, max_speed, max_distance)
-    cfg = sim.config
-    angles = cfg.laser.angles()
-    cmd = Command()
-    blocked_since = None
-    t_end = sim.time + timeout
-    scan_due, odom_due = True, True
-    while sim.time < t_end:
-        pose = sim.odom_pose
-        if scan_due:
-            laser = compose(pose, (cfg.laser.offset, 0.0, 0.0))
-            f.update_scan(laser_points_in_odom(sim.scan(), angles, laser, cfg.laser.range_min,
-                                               cfg.laser.range_max), pose)
-        if scan_due or odom_due:
-            cmd = f.command(pose)
-            if cmd.state in ('done', 'failed'):
-                sim.command(0.0, 0.0)
-                break
-            if cmd.state == 'blocked':
-                blocked_since = sim.time if blocked_since is None else blocked_since
-                if sim.time - blocked_since > 2.0:
-                    sim.command(0.0, 0.0)
-                    break
-            else:
-                blocked_since = None
-            sim.command(cmd.v, cmd.omega)
-        scan_due, odom_due = sim.step()
-        if on_step is not None:
-            on_step(sim, cmd)
-    else:
-        cmd = Command(state='failed', reason='timeout after %.0f s' % timeout)
-    sim.command(0.0, 0.0)
-    for _ in range(int(cfg.rate)):           # let it brake to a stop
-        sim.step()
-        if on_step is not None:
-            on_step(sim, cmd)
-    return cmd, f
+class GoalJudge:
+    """How a corridor goal ends, from the follower's :class:`Command` at each control tick:
+    ``done`` -> SUCCEEDED, ``failed`` -> ABORTED, ``blocked`` for longer than
+    ``blocked_timeout`` [s] -> ABORTED, each with the command's reason."""
 
+    def __init__(self, blocked_timeout):
+        self.blocked_timeout = float(blocked_timeout)
+        self.blocked_since = None
 
-def corridor_world(width, length=5.0, bend_deg=0.0, bend_at=None, start=(-1.0, 0.0, 0.0),
-                   wall=0.15, obstacle=None, name='corridor'):
-    """A test and benchmark world (a dict for :meth:`tiago_nav.sim.world.World.from_dict`): a
-    closed room (x < 0) whose doorway at x = 0 opens into a corridor of ``width`` [m] whose
-    centre line runs from (0, 0) along +x for ``bend_at`` (default ``length``) metres, then
-    turns by ``bend_deg`` [deg] for the rest of ``length``; open floor after it (the corridor is
-    the only way out of the room). ``start``
-    is ``(x, y, yaw_deg)``; ``obstacle`` an optional ``(x, y, radius)`` movable cylinder."""
-    bend_at = length if bend_at is None else bend_at
-    h = width / 2.0 + wall / 2.0
-    walls = []
-    b = math.radians(bend_deg)
-    segments = [((0.0, 0.0), 0.0, bend_at)]
-    if length > bend_at:
-        segments.append(((bend_at, 0.0), b, length - bend_at))
-    for (x0, y0), th, ln in segments:
-        for side in (1, -1):
-            # each wall segment's inner face follows the centre line at +-width/2; overlap 0.1 m
-            # at the bend so the outer side has no gap
-            cx = x0 + 0.5 * ln * math.cos(th) - side * h * math.sin(th)
-            cy = y0 + 0.5 * ln * math.sin(th) + side * h * math.cos(th)
-            walls.append({'x': cx, 'y': cy, 'length': ln + (0.1 if len(segments) > 1 else 0.0)
-                          + 0.0, 'width': wall, 'yaw_deg': math.degrees(th)})
-    # a closed room before the corridor: the doorway wall across x = 0 (faces at x = -wall..0)
-    # and walls around; the corridor is the only way out of it
-    half_room = max(2.0, width / 2.0 + 1.0)
-    back = min(start[0], 0.0) - 1.5
-    piece = half_room - width / 2.0
-    for side in (1, -1):
-        walls.append({'x': -wall / 2.0, 'y': side * (width / 2.0 + piece / 2.0), 'length': piece,
-                      'width': wall, 'yaw_deg': 90.0})
-        walls.append({'x': back / 2.0, 'y': side * (half_room + wall / 2.0), 'length': -back + wall,
-                      'width': wall, 'yaw_deg': 0.0})
-    walls.append({'x': back - wall / 2.0, 'y': 0.0, 'length': 2 * half_room + 2 * wall, 'width': wall,
-                  'yaw_deg': 90.0})
-    ex = bend_at + (length - bend_at) * math.cos(b)
-    ey = (length - bend_at) * math.sin(b)
-    d = {'name': name, 'resolution': 0.05,
-         'bounds': [back - 0.5, min(ey, 0.0) - half_room - 1.0, ex + 3.0, max(ey, 0.0) + half_room + 1.0],
-         'robot_start': list(start), 'walls': walls,
-         'corridor': {'entry': [0.0, 0.0], 'exit': [ex, ey], 'width': width}}
-    if obstacle is not None:
-        d['movable_obstacles'] = [{'x': obstacle[0], 'y': obstacle[1], 'radius': obstacle[2]}]
-    return d
+    def judge(self, cmd, now):
+        """``cmd`` decided at time ``now`` [s]: None while the goal goes on, else
+        ``(SUCCEEDED or ABORTED, reason)``."""
+        if cmd.state == 'done':
+            return SUCCEEDED, cmd.reason
+        if cmd.state == 'failed':
+            return ABORTED, cmd.reason
+        if cmd.state != 'blocked':
+            self.blocked_since = None
+            return None
+        if self.blocked_since is None:
+            self.blocked_since = now
+        if now - self.blocked_since > self.blocked_timeout:
+            return ABORTED, cmd.reason
+        return None

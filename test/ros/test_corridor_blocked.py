@@ -10,6 +10,7 @@ from actionlib_msgs.msg import GoalStatus
 from std_msgs.msg import UInt32
 
 from tiago_nav.msg import CorridorAction, CorridorGoal
+from tiago_nav.robot import ROBOT_RADIUS
 
 from simtest import SimTestCase
 
@@ -34,7 +35,7 @@ class CorridorBlockedTest(SimTestCase):
         rospy.sleep(1.0)
         x, y, _ = self.base_pose()
         obstacle = self.world.movable_obstacles[0]
-        gap = math.hypot(obstacle.x - x, obstacle.y - y) - obstacle.radius - 0.27
+        gap = math.hypot(obstacle.x - x, obstacle.y - y) - obstacle.radius - ROBOT_RADIUS
         self.assertGreater(gap, 0.0)
         self.assertLess(gap, 0.25)                  # it drove up to the obstacle, then stopped
         self.assertGreater(result.distance, 2.0)

@@ -13,6 +13,7 @@ from geometry_msgs.msg import Twist
 from std_msgs.msg import UInt32
 
 from tiago_nav.msg import CorridorAction, CorridorGoal
+from tiago_nav.robot import ROBOT_RADIUS
 
 from simtest import SimTestCase
 
@@ -63,7 +64,7 @@ class CorridorNodeTest(SimTestCase):
         across = -(x - ax) * math.sin(th) + (y - ay) * math.cos(th)
         first_end = min(ends.values())
         # out of the corridor: the base's back edge past the first wall end, within 0.5 m of it
-        self.assertGreater(along - 0.27, first_end - 0.05)
+        self.assertGreater(along - ROBOT_RADIUS, first_end - 0.05)
         self.assertLess(along, first_end + 0.8)
         self.assertLess(abs(across), 0.1)                                    # near the centre line
         self.assertLess(abs(math.atan2(math.sin(yaw - th), math.cos(yaw - th))), math.radians(10))

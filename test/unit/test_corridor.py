@@ -5,15 +5,17 @@ import math
 import numpy as np
 import pytest
 
-from tiago_nav.corridor import (CorridorFollower, CorridorParams, control_law, corridor_world,
-                                find_corridor, fit_walls, front_free_distance, laser_points_in_odom,
-                                run_in_simulator, wall_end)
+from tiago_nav.corridor import (CorridorFollower, CorridorParams, Scan, control_law, find_corridor,
+                                fit_walls, front_free_distance, wall_end)
 from tiago_nav.geometry import inverse, transform_points, wrap_angle
+from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.world import World
+from tiago_nav.sim.worlds import corridor_world
+from tiago_nav.testing.corridor import run_in_simulator
 
 P = CorridorParams()
-ROBOT_R = 0.27
+ROBOT_R = ROBOT_RADIUS
 
 
 def synthetic_scan(width, offset, heading, rng, noise=0.01, left_end=None, right_end=None,
@@ -122,8 +124,8 @@ def test_wall_end_detected(turn):
 
 def test_front_free_distance():
     pts = np.array([[1.0, 0.0], [0.5, 0.5], [0.8, -0.2]])
-    assert front_free_distance(pts, 0.27) == pytest.approx(0.8 - math.sqrt(0.27 ** 2 - 0.04))
-    assert front_free_distance(np.array([[1.0, 0.3]]), 0.27) == 25.0
+    assert front_free_distance(pts, ROBOT_R) == pytest.approx(0.8 - math.sqrt(ROBOT_R ** 2 - 0.04))
+    assert front_free_distance(np.array([[1.0, 0.3]]), ROBOT_R) == 25.0
 
 
 def test_follower_stops_for_an_obstacle_and_reports_no_corridor():
@@ -131,7 +133,7 @@ def test_follower_stops_for_an_obstacle_and_reports_no_corridor():
     f = CorridorFollower(P)
     pose = (0.0, 0.0, 0.0)
     scan = synthetic_scan(1.07, 0.0, 0.0, rng)
-    blocker = np.array([[0.27 + 0.05, 0.0], [0.27 + 0.05, 0.05]])
+    blocker = np.array([[ROBOT_R + 0.05, 0.0], [ROBOT_R + 0.05, 0.05]])
     f.update_scan(scan, pose)
     assert f.command(pose).state == 'driving'
     f.update_scan(np.vstack((scan, blocker)), pose)
@@ -233,10 +235,13 @@ def test_max_distance_stops_early():
     assert track[-1, 0] - (-0.5) == pytest.approx(2.0, abs=0.1)
 
 
-def test_laser_points_in_odom():
-    pts = laser_points_in_odom([1.0, np.inf, np.nan, 0.01, 2.0], [0.0, 0.1, 0.2, 0.3, math.pi / 2],
-                               (1.0, 2.0, math.pi / 2))
-    assert pts == pytest.approx(np.array([[1.0, 3.0], [-1.0, 2.0]]))
+def test_scan_hits_become_odom_points():
+    """Only the hits of a scan (REP 117) are points; they land where the laser's pose puts them."""
+    f = CorridorFollower(P)
+    scan = Scan(0.0, 'laser', np.array([1.0, np.inf, np.nan, 0.01, 2.0]), 0.0, math.pi / 8,
+                0.05, 25.0)
+    f.update_laser(scan, (1.0, 2.0, math.pi / 2), (0.8, 2.0, math.pi / 2))
+    assert f.points == pytest.approx(np.array([[1.0, 3.0], [-1.0, 2.0]]))
 
 
 def test_corridor_toward_needs_a_corridor_leading_to_the_target():
@@ -264,3 +269,9 @@ def test_corridor_toward_needs_a_corridor_leading_to_the_target():
     assert corridor_toward(at_start, behind, p) is None          # the corridor leads elsewhere
     pose_b = (11.0, 0.0, math.radians(-45.0))                     # the big room: no corridor
     assert corridor_toward(points(pose_b), transform_points(inverse(pose_b), [[6.5, -3.0]])[0], p) is None
+    # pose B beside the corridor (behind its right wall) or inside the stretch of it in view:
+    # reached without the law
+    for b in ((1.0, -1.2), (1.5, 0.0)):
+        assert corridor_toward(at_start, transform_points(inverse(start), [b])[0], p) is None, b
+    with pytest.raises(ValueError, match='finite'):
+        corridor_toward(at_start, (float('nan'), 0.0), p)

@@ -1,0 +1,294 @@
+"""Action server ``corridor_controller`` (tiago_nav/CorridorAction): drives the narrow corridor
+ahead from the laser alone (no map, no plan) and stops at its end. Law: :mod:`tiago_nav.corridor`.
+
+Subscribes ``~scan_topic``; publishes ``~cmd_vel_topic``; uses tf ``~odom_frame`` ->
+``~base_frame`` and -> the scan's frame (``~map_frame`` for the result's exit pose). Feedback at
+``~control_rate``; SUCCEEDED at the corridor's end (or after the goal's max_distance), ABORTED
+with the reason, PREEMPTED on cancel. The base is told to stop whenever a goal ends.
+
+:class:`CorridorServer` holds the decisions of one goal and talks to ROS only through the
+objects it is given (a clock, the action server, the velocity publisher and a small I/O object:
+:class:`RosIO` here, fakes in the unit tests).
+"""
+import math
+import sys
+import threading
+from dataclasses import dataclass
+
+import actionlib
+import numpy as np
+import rospy
+import tf2_ros
+from geometry_msgs.msg import Twist
+from sensor_msgs.msg import LaserScan
+
+from tiago_nav import clock as rclock
+from tiago_nav.corridor import (ABORTED, PREEMPTED, SUCCEEDED, CorridorFollower, CorridorParams,
+                                GoalJudge, Scan)
+from tiago_nav.motion import MotionMonitor, wait_until_still
+from tiago_nav.msg import CorridorAction, CorridorFeedback, CorridorResult
+from tiago_nav.params import ParamError, nested, param, validate
+from tiago_nav.ros.clock import RosClock
+from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
+from tiago_nav.ros.params import read
+
+NODE = 'corridor_controller'
+STOP_TIMEOUT = 2.0          # [s] after a stop command, wait at most this long for standstill
+
+
+@dataclass(frozen=True)
+class Params:
+    """Defaults of nodes/corridor_controller (private parameters). Units: m, rad, s (ROS time), m/s.
+
+    The law and its gains are documented in src/tiago_nav/corridor.py."""
+    law: CorridorParams = nested(CorridorParams)
+    control_rate: float = param(20.0, '[Hz, ROS time] commands and feedback', ge=5)
+    timeout: float = param(60.0, '[s] abort a goal after this long', gt=0)
+    blocked_timeout: float = param(2.0, '[s] abort when blocked ahead for this long', gt=0)
+    sensor_timeout: float = param(0.5, '[s] stop the base while the newest usable scan is older '
+                                       'than this', gt=0)
+    scan_timeout: float = param(1.0, '[s] abort when the newest usable scan is older than this '
+                                     '(> sensor_timeout)', gt=0)
+    startup_timeout: float = param(30.0, '[s wall] at start-up, wait this long for the first scan '
+                                         'and the tf, else exit 1', gt=0)
+    scan_topic: str = param('/scan', 'sensor_msgs/LaserScan input', nonempty=True)
+    cmd_vel_topic: str = param('/mobile_base_controller/cmd_vel', 'geometry_msgs/Twist output',
+                               nonempty=True)
+    odom_frame: str = param('odom', 'fixed frame the corridor is tracked in', nonempty=True)
+    base_frame: str = param('base_footprint', 'the robot base frame', nonempty=True)
+    map_frame: str = param('map', 'frame of the result\'s exit_pose (odom when unavailable)',
+                           nonempty=True)
+
+    def __post_init__(self):
+        validate(self)
+        if self.scan_timeout <= self.sensor_timeout:
+            raise ParamError('must be > sensor_timeout (%g s): the base stops first, then the goal '
+                             'aborts' % self.sensor_timeout, 'scan_timeout')
+
+
+def wait_ready(params, clock, io, timeout):
+    """Wait (at most ``timeout`` wall seconds) until a first scan and the tf from
+    ``~odom_frame`` to ``~base_frame`` and to the scan's frame exist.
+
+    Returns ``''`` when ready, else a sentence naming what is missing."""
+    end = clock.wall() + timeout
+    while True:
+        scan = io.latest_scan()
+        missing = 'no laser scan on %s' % params.scan_topic if scan is None else ''
+        for frame in (params.base_frame,) + ((scan.frame,) if scan is not None else ()):
+            try:
+                io.lookup(params.odom_frame, frame)
+            except LookupError as e:
+                missing = missing or 'no tf %s -> %s (%s)' % (params.odom_frame, frame, e)
+        if not missing:
+            return ''
+        if clock.wall() >= end or clock.shutdown():
+            return '%s within %g s' % (missing, timeout)
+        clock.sleep(0.05)
+
+
+class CorridorServer:
+    """The execute loop of the action server, for one goal at a time.
+
+    Args:
+        params: :class:`Params`.
+        clock: a :mod:`tiago_nav.clock` clock (ROS time).
+        server: the SimpleActionServer (``is_preempt_requested``, ``publish_feedback``,
+            ``set_succeeded/aborted/preempted(result, text)``, ``is_active``).
+        cmd_pub: publisher of geometry_msgs/Twist to the base.
+        io: ``latest_scan()`` -> the newest :class:`tiago_nav.corridor.Scan` or None;
+            ``lookup(parent, child, stamp=None)`` -> pose ``(x, y, yaw)`` of ``child`` in
+            ``parent`` at ROS time ``stamp`` [s] (None: the latest), raising ``LookupError``.
+    """
+
+    def __init__(self, params, clock, server, cmd_pub, io):
+        self.p, self.clock, self.server, self.cmd_pub, self.io = params, clock, server, cmd_pub, io
+
+    # --- ROS messages -------------------------------------------------------------------------
+    def publish(self, v=0.0, omega=0.0):
+        twist = Twist()
+        twist.linear.x, twist.angular.z = float(v), float(omega)
+        self.cmd_pub.publish(twist)
+
+    def stop(self):
+        self.publish(0.0, 0.0)
+
+    def feedback(self, follower, cmd):
+        fb = CorridorFeedback(distance=follower.travelled)
+        if math.isfinite(cmd.lateral_offset):   # walls known (not searching, scan usable)
+            fb.left_distance, fb.right_distance = cmd.left_distance, cmd.right_distance
+            fb.lateral_offset, fb.heading_error = cmd.lateral_offset, cmd.heading_error
+        self.server.publish_feedback(fb)
+
+    def result(self, follower, reason):
+        """The CorridorResult: distance travelled and where the base stands (``~map_frame``, else
+        ``~odom_frame``, else no pose)."""
+        res = CorridorResult(distance=follower.travelled if follower else 0.0, reason=reason)
+        for frame in (self.p.map_frame, self.p.odom_frame):
+            try:
+                pose = self.io.lookup(frame, self.p.base_frame)
+            except LookupError:
+                continue
+            res.exit_pose = pose_stamped(pose, frame, rospy.Time.from_sec(self.clock.now()))
+            break
+        return res
+
+    # --- the goal -----------------------------------------------------------------------------
+    def base_pose(self):
+        """The base's latest odom pose, or None when tf has none."""
+        try:
+            return self.io.lookup(self.p.odom_frame, self.p.base_frame)
+        except LookupError:
+            return None
+
+    def finish(self, follower, state, reason):
+        """End the goal: stop the base, wait until it stands still, then report ``state``
+        (SUCCEEDED, ABORTED or PREEMPTED) with ``reason`` as result and status text."""
+        self.stop()
+        wait_until_still(self.clock, self.base_pose, self.stop,
+                         MotionMonitor(window=0.2, speed_threshold=0.02, turn_threshold=0.02),
+                         STOP_TIMEOUT, stall=rclock.STALL)
+        pose = self.base_pose()
+        if follower is not None and pose is not None:
+            follower.moved_to(pose)             # the braking distance counts too
+        result = self.result(follower, reason)
+        {SUCCEEDED: self.server.set_succeeded, ABORTED: self.server.set_aborted,
+         PREEMPTED: self.server.set_preempted}[state](result, reason)
+
+    def execute(self, goal):
+        """The execute callback: runs ``goal`` (a CorridorGoal) to its end. An unexpected error
+        stops the base and aborts the goal with the error's type and text."""
+        follower = None
+        try:
+            if not (math.isfinite(goal.max_speed) and goal.max_speed >= 0
+                    and math.isfinite(goal.max_distance) and goal.max_distance >= 0):
+                self.finish(None, ABORTED, 'invalid goal: max_speed and max_distance must be >= 0')
+                return
+            follower = CorridorFollower(self.p.law, goal.max_speed or None,
+                                        goal.max_distance or None)
+            self.finish(follower, *self.run(follower))
+        except Exception as e:           # noqa: BLE001  (any error ends the goal, loudly)
+            self.crashed(follower, '%s: %s' % (type(e).__name__, e))
+        finally:
+            self.stop()
+
+    def crashed(self, follower, reason):
+        """End the goal after an unexpected error: ABORTED with ``reason``, even when reporting
+        where the robot stands fails too."""
+        self.stop()
+        if not self.server.is_active():
+            return
+        try:
+            self.finish(follower, ABORTED, reason)
+        except Exception:                # noqa: BLE001
+            if self.server.is_active():
+                self.server.set_aborted(CorridorResult(reason=reason), reason)
+
+    def run(self, follower):
+        """Drive until the goal ends; returns ``(state, reason)``.
+
+        Each tick: the newest scan (once, when it is new and tf places it) updates the law; the
+        base's latest odom pose gives the command. The base is held still while the newest usable
+        scan is older than ``sensor_timeout``; the goal aborts when it is older than
+        ``scan_timeout``, when the base's pose is unknown that long, on ``timeout``, when the
+        law fails or stays blocked longer than ``blocked_timeout``, and when ROS time stops."""
+        p = self.p
+        judge = GoalJudge(p.blocked_timeout)
+        ticker = rclock.Ticker(self.clock, 1.0 / p.control_rate)
+        start = self.clock.now()
+        used, tf_error, no_pose_since = None, '', None
+        while True:
+            if self.server.is_preempt_requested():
+                return PREEMPTED, 'cancelled'
+            now = self.clock.now()
+            if now - start > p.timeout:
+                return ABORTED, 'timeout after %.0f s' % p.timeout
+            scan = self.io.latest_scan()
+            if scan is not None and (used is None or scan.stamp != used):
+                try:
+                    laser = self.io.lookup(p.odom_frame, scan.frame, scan.stamp)
+                    base = self.io.lookup(p.odom_frame, p.base_frame, scan.stamp)
+                    follower.update_laser(scan, laser, base)
+                    used, tf_error = scan.stamp, ''
+                except LookupError as e:
+                    tf_error = ' (the newest scan has no tf: %s)' % e   # retried at the next tick
+            age = now - (start if used is None else min(used, now))
+            if age > p.scan_timeout:
+                return ABORTED, 'no laser data for %.1f s%s' % (age, tf_error)
+            try:
+                pose, no_pose_since = self.io.lookup(p.odom_frame, p.base_frame), None
+            except LookupError as e:
+                pose, no_pose_since = None, now if no_pose_since is None else no_pose_since
+                if now - no_pose_since > p.scan_timeout:
+                    return ABORTED, 'no tf %s -> %s for %.1f s: %s' % (
+                        p.odom_frame, p.base_frame, now - no_pose_since, e)
+            if pose is None:
+                self.stop()
+            else:
+                cmd = follower.command(pose)
+                end = judge.judge(cmd, now)
+                if end is not None:
+                    return end
+                if age > p.sensor_timeout:
+                    self.stop()                 # blind: hold still until a fresh scan
+                else:
+                    self.publish(cmd.v, cmd.omega)
+                self.feedback(follower, cmd)
+            if not ticker.tick():
+                return ABORTED, ('node shutting down' if self.clock.shutdown()
+                                 else 'ROS time stopped (no /clock?)')
+
+
+class RosIO:
+    """The ROS side of :class:`CorridorServer`'s ``io``: the newest scan from ``~scan_topic``
+    and tf lookups (never waiting: a stopped /clock cannot block the loop)."""
+
+    def __init__(self, params):
+        self.tf = tf2_ros.Buffer(rospy.Duration(10.0))
+        self.listener = tf2_ros.TransformListener(self.tf)
+        self.lock = threading.Lock()
+        self.scan = None
+        rospy.Subscriber(params.scan_topic, LaserScan, self.on_scan, queue_size=1)
+
+    def on_scan(self, msg):
+        scan = Scan(msg.header.stamp.to_sec(), msg.header.frame_id, np.asarray(msg.ranges, float),
+                    msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max)
+        with self.lock:
+            # the newest by stamp; an older stamp only after ROS time went back (a restart)
+            if self.scan is None or scan.stamp >= self.scan.stamp \
+                    or rospy.get_time() < self.scan.stamp:
+                self.scan = scan
+
+    def latest_scan(self):
+        with self.lock:
+            return self.scan
+
+    def lookup(self, parent, child, stamp=None):
+        t = rospy.Time(0) if stamp is None else rospy.Time.from_sec(stamp)
+        try:
+            tf = self.tf.lookup_transform(parent, child, t, rospy.Duration(0.0))
+        except tf2_ros.TransformException as e:
+            raise LookupError(str(e)) from None
+        return pose_from_transform(tf.transform)
+
+
+def main():
+    rospy.init_node(NODE)
+    try:
+        params = read(Params)
+    except ParamError as e:
+        rospy.logfatal('%s: %s', NODE, e)
+        sys.exit(2)
+    io, clock = RosIO(params), RosClock()
+    missing = wait_ready(params, clock, io, params.startup_timeout)
+    if missing:
+        rospy.logfatal('%s: %s; not starting the action server', NODE, missing)
+        sys.exit(1)
+    cmd_pub = rospy.Publisher(params.cmd_vel_topic, Twist, queue_size=1)
+    node = CorridorServer(params, clock, None, cmd_pub, io)
+    node.server = actionlib.SimpleActionServer(NODE, CorridorAction, execute_cb=node.execute,
+                                               auto_start=False)
+    node.server.start()
+    rospy.loginfo('%s ready (max_speed %.2f m/s, look-ahead %.1f m)', NODE,
+                  params.law.max_speed, params.law.look_ahead)
+    rospy.spin()
