@@ -64,7 +64,7 @@ def main():
         corridor, _ = scene.cast(CORRIDOR)
         laser_pose = scene.laser_pose(POSE_B)
         movable = set(scene.movable_ids)
-    ideal = LaserModel.ideal().apply(exact, laser, NOISE, np.random.default_rng(args.seed))
+    ideal = LaserModel(laser_model='ideal').apply(exact, laser, NOISE, np.random.default_rng(args.seed))
     tiago = LaserModel().apply(exact, laser, NOISE, np.random.default_rng(args.seed))
     counts = {name: int((tiago.effect == e).sum())
               for name, e in (('self_hits', SELF_HIT), ('mixed', MIXED), ('dropouts', DROPOUT))}

@@ -49,7 +49,7 @@ def wall_ranges(distance):
 
 # --- ideal ------------------------------------------------------------------------------------
 def test_ideal_is_the_exact_cast_plus_gaussian_noise_bit_for_bit(box_cast):
-    got = LaserModel.ideal().apply(box_cast, LASER, 0.01, np.random.default_rng(7))
+    got = LaserModel(laser_model='ideal').apply(box_cast, LASER, 0.01, np.random.default_rng(7))
     want = noisy(box_cast, 0.01, np.random.default_rng(7), LASER.range_min, LASER.range_max)
     np.testing.assert_array_equal(got.ranges, want)
     assert not got.effect.any()

@@ -47,7 +47,7 @@ def errors(noise, path, step=0.05, seeds=SEEDS):
 
 
 def test_ideal_odometry_is_the_true_pose_from_the_start():
-    odo = Odometry(OdometryNoise.ideal(), START, np.random.default_rng(0))
+    odo = Odometry(OdometryNoise(odometry_model='ideal'), START, np.random.default_rng(0))
     pose = (3.0, 1.0, -2.0)
     odo.advance(START, pose)
     assert odo.odom_pose(pose) == compose(inverse(START), pose)

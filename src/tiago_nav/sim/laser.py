@@ -91,11 +91,6 @@ class LaserModel:
             raise ParamError('must be >= dropout_rate (%g): grazing incidence loses more echoes'
                              % self.dropout_rate, 'grazing_dropout_rate')
 
-    @classmethod
-    def ideal(cls):
-        """The ``ideal`` profile: exact cast + Gaussian noise."""
-        return cls(laser_model='ideal')
-
     @property
     def is_ideal(self):
         return self.laser_model == 'ideal'

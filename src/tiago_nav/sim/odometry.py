@@ -55,11 +55,6 @@ class OdometryNoise:
     def __post_init__(self):
         validate(self)
 
-    @classmethod
-    def ideal(cls):
-        """Exact odometry."""
-        return cls(odometry_model='ideal')
-
     @property
     def is_ideal(self):
         return self.odometry_model == 'ideal'

@@ -7,6 +7,7 @@ the odom frame, whose origin is the robot's start pose (REP 105); it is exact or
 """
 import math
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -34,8 +35,8 @@ class SimConfig:
     seed: int = 0
     limits: BaseLimits = field(default_factory=BaseLimits)
     laser: LaserConfig = field(default_factory=LaserConfig)
-    laser_model: LaserModel = field(default_factory=LaserModel.ideal)
-    odometry: OdometryNoise = field(default_factory=OdometryNoise.ideal)
+    laser_model: LaserModel = field(default_factory=partial(LaserModel, laser_model='ideal'))
+    odometry: OdometryNoise = field(default_factory=partial(OdometryNoise, odometry_model='ideal'))
 
     def __post_init__(self):
         for k in ('rate', 'scan_rate', 'odom_rate', 'cmd_timeout', 'robot_radius'):
