@@ -54,7 +54,7 @@ class MotionMonitor:
         s = self.speeds()
         if s is None:
             return None
-        return s[0] > self.speed_threshold or s[1] > self.turn_threshold
+        return bool(s[0] > self.speed_threshold or s[1] > self.turn_threshold)
 
 
 def wait_until_still(clock, pose, stop, monitor, timeout, period=0.04, stall=10.0):

@@ -16,7 +16,7 @@ same node, read under their own names (so ``NavigationParams.nav.robot_radius`` 
 parameter in its :class:`ParamError`; :func:`validate` is called by ``__post_init__`` so that a
 library user who builds the dataclass by hand gets the same checks. :func:`config_yaml` renders a
 node's ``config/<node>.yaml`` (every parameter, its default and its comment) from the dataclass,
-and a unit test keeps the shipped files equal to it (``python3 -m tiago_nav.params`` rewrites
+and a unit test keeps the shipped files equal to it (``python3 -m tiago_nav.nodes`` rewrites
 them).
 """
 import math
@@ -56,9 +56,15 @@ def param(default, doc='', *, gt=None, ge=None, lt=None, le=None, choices=None, 
     return field(default=default, metadata=meta)
 
 
-def nested(cls):
-    """A field holding a nested parameter dataclass (its fields are read as the node's own)."""
-    return field(default_factory=cls, metadata={'nested': True})
+def nested(cls, **overrides):
+    """A field holding a nested parameter dataclass (its fields are read as the node's own).
+
+    ``overrides`` replace defaults of its parameters (at any depth, by parameter name), e.g.
+    ``nested(LaserModel, laser_model='ideal')``: still one default per use, written once.
+    """
+    factory = (lambda: build(cls, overrides)) if overrides else cls
+    return field(default_factory=factory, metadata={'nested': True, 'cls': cls,
+                                                     'overrides': overrides})
 
 
 def _default(f):
@@ -120,22 +126,28 @@ def check_value(f, value):
     return value
 
 
-def param_fields(cls):
-    """The parameter fields of ``cls``, nested dataclasses flattened (first occurrence of each
-    name wins), as ``(name, field)`` pairs in declaration order."""
+def _walk(cls, overrides=None):
+    """``(name, field, default)`` of every parameter of ``cls``, nested dataclasses flattened
+    (first occurrence of each name wins; outer ``nested(..., name=value)`` overrides win)."""
     out, seen = [], set()
 
-    def walk(c):
+    def walk(c, ov):
         for f in fields(c):
             if f.metadata.get('nested'):
-                walk(f.default_factory)
+                walk(f.metadata['cls'], {**f.metadata['overrides'], **ov})
             elif f.metadata.get('param'):
                 n = param_name(f)
                 if n not in seen:
                     seen.add(n)
-                    out.append((n, f))
-    walk(cls)
+                    out.append((n, f, ov[n] if n in ov else _default(f)))
+    walk(cls, dict(overrides or {}))
     return out
+
+
+def param_fields(cls):
+    """The parameter fields of ``cls``, nested dataclasses flattened (first occurrence of each
+    name wins), as ``(name, field)`` pairs in declaration order."""
+    return [(n, f) for n, f, _ in _walk(cls)]
 
 
 def validate(obj):
@@ -153,15 +165,16 @@ def validate(obj):
             object.__setattr__(obj, f.name, checked)
 
 
-def build(cls, values):
+def build(cls, values, overrides=None):
     """An instance of ``cls`` from a flat ``{param name: value}`` mapping (missing names keep
     their defaults; nested dataclasses get the values of their own fields)."""
+    given = {**(overrides or {}), **values}
     kw = {}
     for f in fields(cls):
         if f.metadata.get('nested'):
-            kw[f.name] = build(f.default_factory, values)
-        elif f.metadata.get('param') and param_name(f) in values:
-            kw[f.name] = values[param_name(f)]
+            kw[f.name] = build(f.metadata['cls'], given, f.metadata['overrides'])
+        elif f.metadata.get('param') and param_name(f) in given:
+            kw[f.name] = given[param_name(f)]
     return cls(**kw)
 
 
@@ -193,7 +206,7 @@ def read_params(cls, get, resolve=lambda name: name, prefix='~'):
 
 def defaults(cls):
     """``{param name: default}`` of every parameter of ``cls`` (nested flattened)."""
-    return {n: _default(f) for n, f in param_fields(cls)}
+    return {n: d for n, _, d in _walk(cls)}
 
 
 def _yaml_value(v):
@@ -214,9 +227,8 @@ def config_yaml(cls, title):
     comment, then every parameter with its default and its documentation."""
     lines = ['# %s' % t for t in title.splitlines()]
     lines.append('# Generated from %s.%s (the only place defaults are written): '
-                 'python3 -m tiago_nav.params' % (cls.__module__, cls.__name__))
-    rows = [(n, _yaml_value(_default(f)), f.metadata.get('doc', ''), _range(f))
-            for n, f in param_fields(cls)]
+                 'python3 -m tiago_nav.nodes' % (cls.__module__, cls.__name__))
+    rows = [(n, _yaml_value(d), f.metadata.get('doc', ''), _range(f)) for n, f, d in _walk(cls)]
     width = max(len('%s: %s' % (n, v)) for n, v, _, _ in rows) + 2
     for n, v, doc, rng in rows:
         comment = '; '.join(x for x in (doc, rng) if x)
@@ -239,9 +251,8 @@ def _range(f):
 def markdown_table(cls):
     """A README table (``| param | default | meaning |``) of every parameter of ``cls``."""
     lines = ['| param | default | meaning |', '|---|---|---|']
-    for n, f in param_fields(cls):
+    for n, f, d in _walk(cls):
         doc = f.metadata.get('doc', '')
-        rng = _range(f)
-        lines.append('| `~%s` | %s | %s |' % (n, _yaml_value(_default(f)) if _default(f) != '' else '""',
-                                             '; '.join(x for x in (doc, rng) if x)))
+        lines.append('| `~%s` | %s | %s |' % (n, _yaml_value(d) if d != '' else '""',
+                                             '; '.join(x for x in (doc, _range(f)) if x)))
     return '\n'.join(lines)

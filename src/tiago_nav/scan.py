@@ -14,6 +14,8 @@ Angles are in the laser's frame (``base_laser_link``), radians; ranges and point
 """
 import numpy as np
 
+from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
+
 HIT, NO_RETURN, TOO_CLOSE, INVALID = 0, 1, 2, 3
 
 
@@ -57,3 +59,34 @@ def scan_to_points(ranges, angle_min, angle_increment, range_min=0.0, range_max=
     ang = angle_min + angle_increment * idx
     rv = r[idx]
     return np.column_stack((rv * np.cos(ang), rv * np.sin(ang))), idx
+
+
+BODY_MARGIN = 0.05   # [m] beyond the footprint, still the robot: 5 sigma of 0.01 m range noise
+
+
+def body_returns(ranges, angles, laser_pose=(LASER_OFFSET, 0.0, 0.0), radius=ROBOT_RADIUS,
+                 margin=BODY_MARGIN):
+    """Mask of the beams whose return lies on or inside the robot's own body: ignore them.
+
+    The body is the footprint, a circle of ``radius`` + ``margin`` about base_footprint's origin
+    (the margin covers the range noise of a return from the body's shell). Only finite ranges
+    are judged (NaN and +-inf are False: :func:`classify` decides what they mean). A real
+    obstacle this close is already touching the robot.
+
+    Args:
+        ranges: ``(n,)`` ranges [m] of a scan.
+        angles: ``(n,)`` beam angles [rad] in the laser frame (:func:`beam_angles`).
+        laser_pose: ``(x, y, yaw)`` of the laser frame in base_footprint [m, rad].
+        radius: [m] the footprint's radius.
+        margin: [m] added to ``radius``.
+
+    Returns:
+        ``(n,)`` bool array, True for the beams to ignore.
+    """
+    r = np.asarray(ranges, dtype=float)
+    a = np.asarray(angles, dtype=float) + laser_pose[2]
+    finite = np.isfinite(r)
+    rf = np.where(finite, r, 0.0)
+    x = laser_pose[0] + rf * np.cos(a)
+    y = laser_pose[1] + rf * np.sin(a)
+    return finite & (np.hypot(x, y) <= radius + margin)

@@ -1,19 +1,21 @@
 """The mock TIAGo without ROS: a :class:`Scene`, a :class:`DiffDrive` base and a noisy laser,
 stepped at a fixed rate of simulated time. :mod:`tiago_nav.nodes.simulator` wires it to ROS.
 
-Ground truth lives in the world (map) frame. Odometry is exact and expressed in the odom
-frame, which is the robot's start pose (so ``map → odom`` is the start pose, REP 105).
+Ground truth (:attr:`Simulator.pose`) lives in the world (map) frame. Odometry is expressed in
+the odom frame, whose origin is the robot's start pose (REP 105); it is exact or drifts
+(:mod:`tiago_nav.sim.odometry`). The laser is modelled by a profile (:mod:`tiago_nav.sim.laser`).
 """
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from tiago_nav.geometry import compose, inverse
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.sim.diffdrive import BaseLimits, DiffDrive
-from tiago_nav.sim.scene import LaserConfig, Scene, noisy
+from tiago_nav.sim.laser import LaserModel
+from tiago_nav.sim.odometry import Odometry, OdometryNoise
+from tiago_nav.sim.scene import LaserConfig, Scene
 
 
 CONTACT_CLEARANCE = 0.02   # [m] a contact event ends when the base is this far from what it hit
@@ -23,7 +25,9 @@ CONTACT_CLEARANCE = 0.02   # [m] a contact event ends when the base is this far 
 class SimConfig:
     """Simulator settings. Rates are in Hz of simulated time; ``scan_rate`` and ``odom_rate``
     must divide ``rate``. ``laser_noise`` is the range noise's std [m]; ``cmd_timeout`` [s]
-    stops the base when no command arrives for that long."""
+    stops the base when no command arrives for that long. ``laser_model`` and ``odometry``
+    default to the exact models here, for tests; the simulator node's parameters default to
+    ``tiago`` and ``drift``."""
     rate: float = param(60.0, '[Hz] physics steps per simulated second; scan_rate and odom_rate divide it',
                         gt=0)
     scan_rate: float = param(15.0, '[Hz] /scan', gt=0)
@@ -32,9 +36,11 @@ class SimConfig:
     cmd_timeout: float = param(0.5, '[s] the base brakes to a stop when no cmd_vel arrives for this long',
                                gt=0)
     robot_radius: float = param(ROBOT_RADIUS, "[m] the base's footprint", gt=0)
-    seed: int = param(0, 'laser noise seed', ge=0)
+    seed: int = param(0, 'seed of the laser noise and of the odometry drift', ge=0)
     limits: BaseLimits = nested(BaseLimits)
     laser: LaserConfig = nested(LaserConfig)
+    laser_model: LaserModel = nested(LaserModel, laser_model='ideal')
+    odometry: OdometryNoise = nested(OdometryNoise, odometry_model='ideal')
 
     def __post_init__(self):
         validate(self)
@@ -64,6 +70,8 @@ class Simulator:
                              % (world.source, self.start_pose[0], self.start_pose[1]))
         self.base = DiffDrive(self.start_pose, config.limits)
         self.rng = np.random.default_rng(config.seed)
+        self.odometry = Odometry(config.odometry, self.start_pose,
+                                 np.random.default_rng((config.seed, 1)))
         self.steps = 0
         self.collisions = 0
         self._touching = ()
@@ -113,6 +121,7 @@ class Simulator:
             self.scene.set_robot_pose(before)
         elif self._touching and self.scene.robot_clear_of(self._touching, CONTACT_CLEARANCE):
             self._touching = ()
+        self.odometry.advance(before, self.base.pose)
         self.steps += 1
         return (self.steps % self._scan_every == 0, self.steps % self._odom_every == 0)
 
@@ -124,13 +133,16 @@ class Simulator:
 
     @property
     def odom_pose(self):
-        """Base pose in the odom frame (the start pose is the odom origin)."""
-        return compose(inverse(self.start_pose), self.base.pose)
+        """Base pose in the odom frame (the start pose is the odom origin): exact, or drifting
+        from the truth with ``config.odometry``."""
+        return self.odometry.odom_pose(self.base.pose)
 
     @property
     def map_to_odom(self):
-        """The transform map → odom as a pose ``(x, y, yaw)``: the start pose."""
-        return self.start_pose
+        """The ground-truth transform map → odom as a pose ``(x, y, yaw)``: the start pose with
+        exact odometry; with drift, ``pose ∘ inverse(odom_pose)`` (so that map → odom →
+        base_footprint is the true pose)."""
+        return self.odometry.map_to_odom(self.base.pose)
 
     @property
     def velocity(self):
@@ -138,12 +150,11 @@ class Simulator:
         return (self.base.v, self.base.w)
 
     def scan(self):
-        """One laser scan from the current pose: ranges [m] with Gaussian noise in REP 117
-        values (``+inf`` no return, ``-inf`` too close, see :func:`noisy`); beam angles are
-        ``config.laser.angles()``."""
+        """One laser scan from the current pose: ranges [m] (REP 117 values) as
+        ``config.laser_model`` reports them; beam angles are ``config.laser.angles()``."""
         ranges, _ = self.scene.cast()
         c = self.config
-        return noisy(ranges, c.laser_noise, self.rng, c.laser.range_min, c.laser.range_max)
+        return c.laser_model.apply(ranges, c.laser, c.laser_noise, self.rng).ranges
 
     def close(self):
         self.scene.close()
