@@ -75,8 +75,6 @@ class LocaliserConfig:
     prior_sigma_xy: float = param(0.1, '[m] std of the prediction as a prior (holds directions '
                                        'the scan does not constrain)', gt=0)
     prior_sigma_yaw_deg: float = param(5.0, '[deg] std of the prediction yaw as a prior', gt=0)
-    laser_offset: float = param(LASER_OFFSET, '[m] base_laser_link ahead of base_footprint '
-                                              '(used when the laser pose is not given)')
 
     def __post_init__(self):
         validate(self)
@@ -302,12 +300,13 @@ class Localiser:
         Args:
             ranges, angle_min, angle_increment, range_min, range_max: the LaserScan's fields
                 (REP 117 rules, :func:`tiago_nav.scan.scan_to_points`).
-            laser_pose: base_laser_link in base_footprint (default ``(laser_offset, 0, 0)``).
+            laser_pose: base_laser_link in base_footprint (default: TIAGo's, ``LASER_OFFSET``
+                ahead of base_footprint).
         """
         c = self.config
         pts, _ = scan_to_points(ranges, angle_min, angle_increment, range_min,
                                 min(range_max, c.max_range))
-        pts = transform_points(laser_pose or (c.laser_offset, 0.0, 0.0), pts)
+        pts = transform_points(laser_pose or (LASER_OFFSET, 0.0, 0.0), pts)
         pts = pts[np.hypot(pts[:, 0], pts[:, 1]) >= c.self_filter_radius]
         if len(pts) > c.max_points:
             pts = pts[np.linspace(0, len(pts) - 1, c.max_points).round().astype(int)]
@@ -320,7 +319,7 @@ class Localiser:
             odom_pose: base_footprint in odom ``(x, y, yaw)`` at the scan's time.
             points: ``(N, 2)`` scan points [m] in base_footprint (:meth:`scan_points`).
             sensor: ``(x, y)`` [m] of the laser in base_footprint (default
-                ``(laser_offset, 0)``).
+                ``(LASER_OFFSET, 0)``).
         """
         c = self.config
         predicted = self.predict(odom_pose)
@@ -332,7 +331,7 @@ class Localiser:
             reason = 'only %d scan points (need %d)' % (len(pts), c.min_inliers)
         else:
             solve = search if self._searching else register
-            pose, cov, r = solve(self.field, pts, predicted, c, sensor or (c.laser_offset, 0.0))
+            pose, cov, r = solve(self.field, pts, predicted, c, sensor or (LASER_OFFSET, 0.0))
             extra = (c.search_radius, c.search_yaw_deg) if self._searching else (0.0, 0.0)
             inliers = int(np.sum(np.abs(r) < c.inlier_distance))
             jump = math.hypot(pose[0] - predicted[0], pose[1] - predicted[1])
