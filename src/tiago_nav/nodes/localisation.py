@@ -4,7 +4,8 @@
 Subscribes ``/scan`` (sensor_msgs/LaserScan), ``/map`` (nav_msgs/OccupancyGrid, latched) and
 ``/initialpose`` (geometry_msgs/PoseWithCovarianceStamped, as AMCL takes it: resets the pose);
 looks up tf ``odom → base_footprint`` and ``base_footprint → <laser frame>`` at each scan's stamp;
-publishes tf ``map → odom`` and ``/amcl_pose`` (PoseWithCovarianceStamped in ``map``).
+publishes tf ``map → odom`` (on ``tf_topic``, ``/tf`` by default) and ``/amcl_pose``
+(PoseWithCovarianceStamped in ``map``).
 
 ``map → odom`` is sent at every scan stamped with the scan's time plus ``transform_tolerance``
 and re-sent at ``republish_rate`` stamped now plus ``transform_tolerance`` (as AMCL does): tf
@@ -22,6 +23,7 @@ import tf2_ros
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import OccupancyGrid
 from sensor_msgs.msg import LaserScan
+from tf2_msgs.msg import TFMessage
 
 from tiago_nav.clock import Ticker
 from tiago_nav.localisation import Localiser, LocaliserConfig
@@ -54,6 +56,9 @@ class Params:
                                    '(geometry_msgs/PoseWithCovarianceStamped)', nonempty=True)
     pose_topic: str = param('/amcl_pose', 'estimated pose out '
                             '(geometry_msgs/PoseWithCovarianceStamped)', nonempty=True)
+    tf_topic: str = param('/tf', 'topic map -> odom is published on (tf2_msgs/TFMessage); another '
+                                 'one keeps it out of the tf tree, e.g. to compare it with a '
+                                 'ground-truth map -> odom', nonempty=True)
     transform_tolerance: float = param(0.1, '[s] map -> odom is stamped this far in the future',
                                        ge=0)
     republish_rate: float = param(10.0, '[Hz] map -> odom is re-sent this often between scans',
@@ -100,7 +105,7 @@ class LocalisationNode:
         self.sent = None
         self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
         self.listener = tf2_ros.TransformListener(self.tf)
-        self.broadcaster = tf2_ros.TransformBroadcaster()
+        self.pub_tf = rospy.Publisher(params.tf_topic, TFMessage, queue_size=10)
         self.pub_pose = rospy.Publisher(params.pose_topic, PoseWithCovarianceStamped, queue_size=5)
         rospy.Subscriber(params.map_topic, OccupancyGrid, self.on_map, queue_size=1)
         rospy.Subscriber(params.initialpose_topic, PoseWithCovarianceStamped, self.on_initialpose,
@@ -173,8 +178,8 @@ class LocalisationNode:
             if m2o is None or stamp == self.sent:   # tf refuses a repeated stamp
                 return
             self.sent = stamp
-        self.broadcaster.sendTransform(transform_stamped(m2o, self.p.map_frame,
-                                                         self.p.odom_frame, stamp))
+        self.pub_tf.publish(TFMessage([transform_stamped(m2o, self.p.map_frame,
+                                                         self.p.odom_frame, stamp)]))
 
     def run(self):
         ticker = Ticker(RosClock(), 1.0 / self.p.republish_rate)
