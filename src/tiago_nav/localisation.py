@@ -161,9 +161,20 @@ def _sample(field, poses, points, beams):
 
 
 def score(field, poses, points, beams, scale):
-    """Robust misfit of the scan under each of the ``(K, 3)`` candidate poses (lower is better):
-    the sum over points of the truncated Cauchy loss ``log(1 + (r / scale)²)``, capped at
-    ``r = 3 scale``; a back-face point counts as the cap. Returns ``(K,)``."""
+    """Robust misfit of the scan under each candidate pose (lower is better): the sum over points
+    of the truncated Cauchy loss ``log(1 + (r / scale)²)``, capped at ``r = 3 scale``; a back-face
+    point counts as the cap.
+
+    Args:
+        field: the map's :class:`DistanceField`.
+        poses: ``(K, 3)`` candidate poses of base_footprint in map [m, m, rad].
+        points: ``(N, 2)`` scan points [m] in base_footprint.
+        beams: ``(N, 2)`` unit beam directions of the points (:func:`beam_directions`).
+        scale: [m] the loss scale.
+
+    Returns:
+        ``(K,)`` misfits.
+    """
     r, _, _, back = _sample(field, poses, points, beams)
     cap = math.log1p(9.0)
     rho = np.minimum(np.log1p((r / scale) ** 2), cap)
@@ -230,8 +241,17 @@ def register(field, points, guess, config, sensor=(0.0, 0.0)):
 def search(field, points, guess, config, sensor=(0.0, 0.0), keep=4):
     """Registration from an uncertain pose (after a (re)set): score a grid of start poses within
     ``config.search_radius`` and ``config.search_yaw_deg`` of ``guess`` (steps of 0.1 m and
-    5 deg), register from the ``keep`` best and return the :func:`register` result whose final
-    :func:`score` is lowest."""
+    5 deg), register from the ``keep`` best and keep the result whose final :func:`score` is
+    lowest.
+
+    Args:
+        field, points, config, sensor: as for :func:`register`.
+        guess: the given pose ``(x, y, yaw)`` of base_footprint in map.
+        keep: how many of the best-scored start poses are registered.
+
+    Returns:
+        the :func:`register` result ``(pose, covariance, residuals)`` of the best.
+    """
     nxy = 2 * int(math.ceil(config.search_radius / 0.1)) + 1
     nyaw = 2 * int(math.ceil(config.search_yaw_deg / 5.0)) + 1
     d = np.linspace(-config.search_radius, config.search_radius, nxy)
