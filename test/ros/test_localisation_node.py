@@ -46,6 +46,7 @@ class LocalisationNodeTest(SimTestCase):
     def on_tf(cls, msg):
         with cls.cond:
             cls.estimates.extend(msg.transforms)
+            cls.cond.notify_all()
 
     def next_pose(self, after):
         """The first /amcl_pose stamped after ``after`` (a rospy.Time), within TIMEOUT wall s."""
@@ -113,7 +114,9 @@ class LocalisationNodeTest(SimTestCase):
     def test_2_map_to_odom_puts_odometry_on_the_estimate(self):
         msg = self.next_pose(rospy.Time.now())
         tol = rospy.Duration(rospy.get_param('/localisation/transform_tolerance'))
-        with self.cond:
+        with self.cond:       # /tf_estimate and /amcl_pose arrive in either order
+            self.cond.wait_for(lambda: any(t.header.stamp == msg.header.stamp + tol
+                                           for t in self.estimates), TIMEOUT)
             sent = [t for t in self.estimates if t.header.stamp == msg.header.stamp + tol]
         self.assertTrue(sent, 'no map_estimate -> odom stamped with the scan time + tolerance')
         self.assertEqual((sent[0].header.frame_id, sent[0].child_frame_id), (FRAME, 'odom'))
