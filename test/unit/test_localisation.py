@@ -72,6 +72,26 @@ def test_update_takes_a_few_milliseconds(route):
     assert median < 0.025
 
 
+def test_a_tiago_like_laser_does_not_spoil_it(world):
+    """Self-hits at both ends of the fan, dropouts and mixed pixels (ranges between the beam's
+    and a neighbour's), as the real laser has them."""
+    rng = np.random.default_rng(7)
+
+    def damage(ranges):
+        r = np.array(ranges, dtype=float)
+        r[:20], r[-20:] = rng.uniform(0.1, 0.2, (2, 20))           # the robot's own body
+        r[rng.random(r.size) < 0.1] = np.nan                       # dropouts
+        mixed = np.flatnonzero(rng.random(r.size - 1) < 0.05)      # mixed pixels
+        far = np.where(np.isfinite(r[mixed + 1]), r[mixed + 1], 5.0)
+        r[mixed] = r[mixed] + rng.random(mixed.size) * (far - r[mixed])
+        return r
+
+    res = run_route(world, route=((2.0, 0.0), (5.5, 0.0), (7.2, -0.3), (8.6, -0.9)), seed=5,
+                    scan_hook=damage)
+    assert res.p95('loc_xy') <= BAR_XY and res.p95('loc_yaw') <= BAR_YAW, \
+        (res.p95('loc_xy'), math.degrees(res.p95('loc_yaw')))
+
+
 @pytest.mark.parametrize('offset', [(0.3, 0.0, 10.0), (0.0, -0.3, -10.0), (-0.2, 0.2, 10.0),
                                     (0.25, 0.15, -10.0)])
 def test_converges_from_a_wrong_initial_pose(world, offset):
