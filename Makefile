@@ -14,6 +14,7 @@ APT_PACKAGES := ros-core-dev catkin python3-catkin-pkg python3-rospy python3-act
 	python3-sensor-msgs python3-geometry-msgs python3-std-msgs python3-std-srvs \
 	python3-visualization-msgs python3-rosgraph-msgs python3-rostest python3-roslaunch \
 	python3-rosnode python3-rostopic python3-rosservice python3-rosgraph rosbash \
+	ros-robot-state-publisher \
 	python3-numpy python3-scipy python3-yaml python3-matplotlib python3-pytest python3-venv \
 	cmake g++ catkin-lint
 # PyPI-only packages, in the virtualenv (which sees the system's packages).

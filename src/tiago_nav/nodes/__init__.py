@@ -13,6 +13,7 @@ CONFIG_FILES = {
     'corridor_controller': 'corridor.yaml',
     'obstacle_detection': 'detection.yaml',
     'tiago_controller': 'tiago_controller.yaml',
+    'localisation': 'localisation.yaml',
 }
 
 

@@ -1,0 +1,371 @@
+"""Localisation without ROS: track base_footprint's pose in ``map`` by registering laser scans
+to the static map's distance field.
+
+Frames (REP 105): ``map`` is the world frame of the static map; ``odom`` is where odometry
+integrates (continuous, drifting); ``base_footprint`` is the robot's base on the floor;
+``base_laser_link`` is the laser, ``laser_pose`` [m, m, rad] in ``base_footprint``. Poses are
+``(x, y, yaw)`` [m, m, rad].
+
+Each scan is one :meth:`Localiser.update`:
+
+1. **predict**: the last estimate moved by the odometry delta since the last scan
+   (``odom → base_footprint`` then and now);
+2. **correct**: the scan's hits (``tiago_nav.scan.scan_to_points``; points within
+   ``self_filter_radius`` of base_footprint are the robot's own body and dropped) are
+   registered to the map: Gauss-Newton on the bilinearly interpolated distance field, iteratively
+   reweighted with Cauchy weights whose scale anneals from ``initial_scale`` to ``robust_scale``,
+   so points far from any mapped cell (unmapped obstacles, people, mixed pixels) lose their pull;
+   a weak prior ties directions the scan does not constrain (a corridor's axis) to the prediction;
+3. **gate**: the correction is kept only if enough points end within ``inlier_distance`` of the
+   map and it moves the pose no more than ``max_correction`` / ``max_correction_yaw_deg`` from
+   the prediction; otherwise the prediction is kept (and the update says why).
+
+The result gives ``map → odom`` (``pose_map ∘ inverse(pose_odom)``), what a localisation node
+publishes on tf, and a 3 × 3 covariance of ``(x, y, yaw)`` for a PoseWithCovarianceStamped.
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from tiago_nav.geometry import compose, inverse, transform_points, wrap_angle
+from tiago_nav.gridmap import GridMap, distance_to_mask
+from tiago_nav.params import ParamError, param, validate
+from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
+from tiago_nav.scan import scan_to_points
+
+# [m] beyond the base's radius, what still counts as the robot's own body for the self-filter
+# (TIAGo's laser sees the base's front corners at both ends of its ±110° fan)
+SELF_FILTER_MARGIN = 0.1
+# a registered point whose field gradient (unit length near surfaces) has more than this
+# component along its beam is on a surface facing away from the laser: ignored
+BACKFACE_COS = 0.2
+# covariance of (x, y, yaw) [m², m², rad²] added per scan whose correction is rejected
+UNCORRECTED_GROWTH = np.diag([0.01 ** 2, 0.01 ** 2, math.radians(0.5) ** 2])
+
+
+@dataclass(frozen=True)
+class LocaliserConfig:
+    """Scan-to-map registration and its gate."""
+    self_filter_radius: float = param(
+        ROBOT_RADIUS + SELF_FILTER_MARGIN,
+        "[m] hits closer than this to base_footprint are the robot's own body and ignored", gt=0)
+    max_range: float = param(12.0, '[m] hits further than this from the laser are ignored', gt=0)
+    max_points: int = param(240, 'at most this many scan points per update (evenly subsampled)',
+                            ge=10)
+    initial_scale: float = param(0.3, '[m] Cauchy loss scale of the first registration iteration',
+                                 gt=0)
+    robust_scale: float = param(0.05, '[m] Cauchy loss scale of the last iterations: points '
+                                      'much further than this from the map barely pull', gt=0)
+    iterations: int = param(12, 'Gauss-Newton iterations per scan', ge=1)
+    inlier_distance: float = param(0.1, '[m] a registered point this close to the map is an '
+                                         'inlier', gt=0)
+    min_inliers: int = param(40, 'fewer inliers than this: the correction is rejected', ge=3)
+    min_inlier_fraction: float = param(0.3, 'smaller inlier fraction than this: the correction '
+                                            'is rejected', ge=0, le=1)
+    max_correction: float = param(0.5, '[m] a correction moving the pose further than this from '
+                                        'the prediction is rejected', gt=0)
+    max_correction_yaw_deg: float = param(15.0, '[deg] a correction turning the pose more than '
+                                                'this from the prediction is rejected', gt=0)
+    search_radius: float = param(0.4, '[m] after a (re)set, the first scan searches start poses '
+                                      'this far around the given one', ge=0)
+    search_yaw_deg: float = param(15.0, '[deg] after a (re)set, the first scan searches start '
+                                        'headings this far around the given one', ge=0)
+    prior_sigma_xy: float = param(0.1, '[m] std of the prediction as a prior (holds directions '
+                                       'the scan does not constrain)', gt=0)
+    prior_sigma_yaw_deg: float = param(5.0, '[deg] std of the prediction yaw as a prior', gt=0)
+
+    def __post_init__(self):
+        validate(self)
+        if self.robust_scale > self.initial_scale:
+            raise ParamError('must be <= initial_scale (%g)' % self.initial_scale, 'robust_scale')
+
+
+@dataclass(frozen=True)
+class Update:
+    """What one scan did.
+
+    ``pose``: base_footprint in map after the update; ``map_to_odom``: the pose of odom in map;
+    ``covariance``: 3 × 3 of ``(x, y, yaw)`` [m², m·rad, rad²]; ``predicted``: the prediction
+    before correction; ``corrected``: whether the registration was accepted; ``inliers``: number
+    of points within ``inlier_distance`` after registration; ``points``: points used;
+    ``reason``: why a correction was rejected ('' when accepted).
+    """
+    pose: tuple
+    map_to_odom: tuple
+    covariance: np.ndarray
+    predicted: tuple
+    corrected: bool
+    inliers: int
+    points: int
+    reason: str = ''
+
+
+class DistanceField:
+    """The map's signed distance field [m] and its gradient, interpolated bilinearly at points in
+    ``map``; points outside the grid get the border value.
+
+    The occupancy grid is first refined ``upsample`` times (each cell split into ``upsample²``
+    sub-cells of the same value), so the field measures the distance to the occupied region's
+    boundary to within ``resolution / (2 upsample)`` instead of to the nearest occupied cell
+    centre: positive outside, negative inside occupied cells. The map's rasterisation marks a
+    cell occupied when an obstacle covers its central half, so a surface lies on average
+    ``resolution / 4`` inside that boundary: the field is shifted by it (a surface point reads 0).
+    """
+
+    def __init__(self, grid, upsample=4):
+        self.grid = grid
+        k = int(upsample)
+        fine = GridMap(np.repeat(np.repeat(grid.data, k, axis=0), k, axis=1),
+                       grid.resolution / k, grid.origin)
+        self.fine = fine
+        outside = fine.distance_field()
+        inside = distance_to_mask(~fine.occupied(), fine.resolution)
+        d = np.where(fine.occupied(), -inside, outside) + grid.resolution / 4.0
+        d[~np.isfinite(d)] = 0.0
+        self.d = d
+        gy, gx = np.gradient(d, fine.resolution)
+        self.gx, self.gy = gx, gy
+
+    def _coords(self, pts):
+        g = self.fine
+        col = (pts[:, 0] - g.origin[0]) / g.resolution - 0.5
+        row = (pts[:, 1] - g.origin[1]) / g.resolution - 0.5
+        return np.vstack((row, col))
+
+    def __call__(self, pts):
+        """``(distance, dx, dy)`` at the ``(N, 2)`` points [m] in map: three ``(N,)`` arrays
+        (signed distance [m] to the nearest mapped surface and its gradient)."""
+        c = self._coords(pts)
+        return tuple(ndimage.map_coordinates(a, c, order=1, mode='nearest')
+                     for a in (self.d, self.gx, self.gy))
+
+
+def beam_directions(points, sensor):
+    """Unit vectors ``(N, 2)`` from the laser at ``sensor`` ``(x, y)`` [m] to each point, in the
+    points' frame (base_footprint)."""
+    beams = np.asarray(points, dtype=float) - np.asarray(sensor, dtype=float)
+    return beams / np.maximum(np.hypot(beams[:, 0], beams[:, 1]), 1e-9)[:, None]
+
+
+def _sample(field, poses, points, beams):
+    """Field value and back-face flag of every point under every pose: ``(K, N)`` arrays."""
+    poses = np.atleast_2d(poses)
+    c, s = np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])
+    qx = poses[:, 0:1] + c * points[:, 0] - s * points[:, 1]
+    qy = poses[:, 1:2] + s * points[:, 0] + c * points[:, 1]
+    r, gx, gy = (a.reshape(qx.shape) for a in field(np.column_stack((qx.ravel(), qy.ravel()))))
+    along = gx * (c * beams[:, 0] - s * beams[:, 1]) + gy * (s * beams[:, 0] + c * beams[:, 1])
+    return r, gx, gy, along > BACKFACE_COS
+
+
+def score(field, poses, points, beams, scale):
+    """Robust misfit of the scan under each candidate pose (lower is better): the sum over points
+    of the truncated Cauchy loss ``log(1 + (r / scale)²)``, capped at ``r = 3 scale``; a back-face
+    point counts as the cap.
+
+    Args:
+        field: the map's :class:`DistanceField`.
+        poses: ``(K, 3)`` candidate poses of base_footprint in map [m, m, rad].
+        points: ``(N, 2)`` scan points [m] in base_footprint.
+        beams: ``(N, 2)`` unit beam directions of the points (:func:`beam_directions`).
+        scale: [m] the loss scale.
+
+    Returns:
+        ``(K,)`` misfits.
+    """
+    r, _, _, back = _sample(field, poses, points, beams)
+    cap = math.log1p(9.0)
+    rho = np.minimum(np.log1p((r / scale) ** 2), cap)
+    rho[back] = cap
+    return rho.sum(axis=1)
+
+
+def register(field, points, guess, config, sensor=(0.0, 0.0)):
+    """Scan-to-map registration: the base pose in map that puts ``points`` on the map.
+
+    Gauss-Newton, iteratively reweighted with Cauchy weights whose scale anneals from
+    ``config.initial_scale`` to ``config.robust_scale``, plus a weak prior towards ``guess``.
+
+    Args:
+        field: the map's :class:`DistanceField`.
+        points: ``(N, 2)`` scan points [m] in base_footprint.
+        guess: initial pose ``(x, y, yaw)`` of base_footprint in map (the prediction).
+        config: :class:`LocaliserConfig` (loss scales, iterations, prior).
+        sensor: ``(x, y)`` [m] of the laser in base_footprint: a point whose field gradient
+            points along its beam (away from the laser) would be seen from behind a mapped
+            surface (the back face of a thin wall is the classic false minimum) and gets no
+            weight.
+
+    Returns:
+        ``(pose, covariance, residuals)``: the registered pose, its 3 × 3 covariance (the
+        inverse of the Gauss-Newton normal matrix, the points weighted by the inverse of their
+        weighted residual variance, plus the prior's information) and the final
+        per-point signed distances [m] to the map.
+    """
+    prior = np.array(guess, dtype=float)
+    pose = prior.copy()
+    beams = beam_directions(points, sensor)
+    info_prior = np.diag([1.0 / config.prior_sigma_xy ** 2] * 2
+                         + [1.0 / math.radians(config.prior_sigma_yaw_deg) ** 2])
+    scales = np.geomspace(config.initial_scale, config.robust_scale, max(1, config.iterations // 2))
+    for it in range(config.iterations):
+        scale = scales[min(it, len(scales) - 1)]
+        r, gx, gy, back = (a[0] for a in _sample(field, pose, points, beams))
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        # d q / d yaw = R'(yaw) p
+        dqx = -s * points[:, 0] - c * points[:, 1]
+        dqy = c * points[:, 0] - s * points[:, 1]
+        j = np.column_stack((gx, gy, gx * dqx + gy * dqy))
+        w = 1.0 / (1.0 + (r / scale) ** 2)     # Cauchy weights
+        w[back] = 0.0
+        dp = prior - pose
+        dp[2] = wrap_angle(dp[2])
+        # the loss scale stands for the points' range std: their information is 1 / scale²
+        jtw = (j * w[:, None]).T
+        h = jtw @ j / scale ** 2 + info_prior
+        step = np.linalg.solve(h, -jtw @ r / scale ** 2 + info_prior @ dp)
+        pose += step
+        pose[2] = wrap_angle(pose[2])
+        if abs(step[0]) + abs(step[1]) < 1e-4 and abs(step[2]) < 1e-4 and scale == scales[-1]:
+            break
+    r = field(transform_points(tuple(pose), points))[0]
+    w = 1.0 / (1.0 + (r / config.robust_scale) ** 2)
+    dof = max(float(np.sum(w)) - 3.0, 1.0)
+    sigma2 = max(float(np.sum(w * r ** 2)) / dof, (0.25 * field.grid.resolution) ** 2)
+    cov = np.linalg.inv(h - jtw @ j / scale ** 2 + jtw @ j / sigma2)
+    return (float(pose[0]), float(pose[1]), float(pose[2])), cov, r
+
+
+def search(field, points, guess, config, sensor=(0.0, 0.0), keep=4):
+    """Registration from an uncertain pose (after a (re)set): score a grid of start poses within
+    ``config.search_radius`` and ``config.search_yaw_deg`` of ``guess`` (steps of 0.1 m and
+    5 deg), register from the ``keep`` best and keep the result whose final :func:`score` is
+    lowest.
+
+    Args:
+        field, points, config, sensor: as for :func:`register`.
+        guess: the given pose ``(x, y, yaw)`` of base_footprint in map.
+        keep: how many of the best-scored start poses are registered.
+
+    Returns:
+        the :func:`register` result ``(pose, covariance, residuals)`` of the best.
+    """
+    nxy = 2 * int(math.ceil(config.search_radius / 0.1)) + 1
+    nyaw = 2 * int(math.ceil(config.search_yaw_deg / 5.0)) + 1
+    d = np.linspace(-config.search_radius, config.search_radius, nxy)
+    dyaw = np.radians(np.linspace(-config.search_yaw_deg, config.search_yaw_deg, nyaw))
+    ox, oy, oyaw = np.meshgrid(d, d, dyaw, indexing='ij')
+    cand = np.column_stack((guess[0] + ox.ravel(), guess[1] + oy.ravel(), guess[2] + oyaw.ravel()))
+    beams = beam_directions(points, sensor)
+    order = np.argsort(score(field, cand, points, beams, config.inlier_distance))[:keep]
+    results = [register(field, points, tuple(cand[k]), config, sensor) for k in order]
+    finals = score(field, np.array([p for p, _, _ in results]), points, beams,
+                   config.inlier_distance)
+    return results[int(np.argmin(finals))]
+
+
+class Localiser:
+    """Tracks base_footprint in ``map`` from odometry and scans (see the module docstring).
+
+    Args:
+        grid: the static map, a :class:`tiago_nav.gridmap.GridMap` in ``map``.
+        pose: the initial pose ``(x, y, yaw)`` of base_footprint in map (uncertain: the first
+            scan searches around it, see :meth:`reset`).
+        config: :class:`LocaliserConfig`.
+    """
+
+    def __init__(self, grid, pose, config=LocaliserConfig()):
+        self.config = config
+        self.field = DistanceField(grid)
+        self.reset(pose)
+
+    @property
+    def map_to_odom(self):
+        """The pose of odom in map (``pose ∘ inverse(odom pose)`` of the last update), or the
+        pose itself before any odometry was seen."""
+        if self._odom is None:
+            return self.pose
+        return compose(self.pose, inverse(self._odom))
+
+    def reset(self, pose, covariance=None):
+        """Restart from ``pose`` (``(x, y, yaw)`` of base_footprint in map, e.g. /initialpose):
+        the next update predicts from it with zero odometry motion and searches start poses
+        within ``search_radius`` / ``search_yaw_deg`` of it (the gate then allows a correction
+        that far beyond its usual limits)."""
+        self.pose = tuple(float(v) for v in pose)
+        self.covariance = np.diag([self.config.search_radius ** 2] * 2
+                                  + [math.radians(self.config.search_yaw_deg) ** 2]) \
+            if covariance is None else np.asarray(covariance, dtype=float).reshape(3, 3)
+        self._odom = None       # odom → base_footprint at the last update
+        self._searching = True
+
+    def predict(self, odom_pose):
+        """The pose in map predicted from the odometry delta since the last update.
+
+        Args:
+            odom_pose: base_footprint in odom ``(x, y, yaw)`` at the scan's time.
+        """
+        if self._odom is None:
+            return self.pose
+        return compose(self.pose, compose(inverse(self._odom), odom_pose))
+
+    def scan_points(self, ranges, angle_min, angle_increment, range_min, range_max,
+                    laser_pose=None):
+        """The scan's hits as points [m] in base_footprint, self-hits (closer than
+        ``self_filter_radius`` to base_footprint) and far hits dropped, evenly subsampled to
+        at most ``max_points``.
+
+        Args:
+            ranges, angle_min, angle_increment, range_min, range_max: the LaserScan's fields
+                (REP 117 rules, :func:`tiago_nav.scan.scan_to_points`).
+            laser_pose: base_laser_link in base_footprint (default: TIAGo's, ``LASER_OFFSET``
+                ahead of base_footprint).
+        """
+        c = self.config
+        pts, _ = scan_to_points(ranges, angle_min, angle_increment, range_min,
+                                min(range_max, c.max_range))
+        pts = transform_points(laser_pose or (LASER_OFFSET, 0.0, 0.0), pts)
+        pts = pts[np.hypot(pts[:, 0], pts[:, 1]) >= c.self_filter_radius]
+        if len(pts) > c.max_points:
+            pts = pts[np.linspace(0, len(pts) - 1, c.max_points).round().astype(int)]
+        return pts
+
+    def update(self, odom_pose, points, sensor=None):
+        """Predict from odometry, correct with the scan, gate; returns an :class:`Update`.
+
+        Args:
+            odom_pose: base_footprint in odom ``(x, y, yaw)`` at the scan's time.
+            points: ``(N, 2)`` scan points [m] in base_footprint (:meth:`scan_points`).
+            sensor: ``(x, y)`` [m] of the laser in base_footprint (default
+                ``(LASER_OFFSET, 0)``).
+        """
+        c = self.config
+        predicted = self.predict(odom_pose)
+        self._odom = tuple(odom_pose)
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        reason = ''
+        inliers = 0
+        if len(pts) < c.min_inliers:
+            reason = 'only %d scan points (need %d)' % (len(pts), c.min_inliers)
+        else:
+            solve = search if self._searching else register
+            pose, cov, r = solve(self.field, pts, predicted, c, sensor or (LASER_OFFSET, 0.0))
+            extra = (c.search_radius, c.search_yaw_deg) if self._searching else (0.0, 0.0)
+            inliers = int(np.sum(np.abs(r) < c.inlier_distance))
+            jump = math.hypot(pose[0] - predicted[0], pose[1] - predicted[1])
+            turn = abs(wrap_angle(pose[2] - predicted[2]))
+            if inliers < c.min_inliers or inliers < c.min_inlier_fraction * len(pts):
+                reason = '%d of %d points match the map' % (inliers, len(pts))
+            elif jump > c.max_correction + extra[0] \
+                    or turn > math.radians(c.max_correction_yaw_deg + extra[1]):
+                reason = 'correction of %.2f m / %.1f deg is implausible' % (jump, math.degrees(turn))
+        if reason:
+            self.pose = predicted
+            self.covariance = self.covariance + UNCORRECTED_GROWTH
+        else:
+            self.pose, self.covariance = pose, cov
+            self._searching = False
+        return Update(self.pose, self.map_to_odom, self.covariance.copy(), predicted,
+                      not reason, inliers, len(pts), reason)

@@ -1,0 +1,206 @@
+"""localisation node: ``map → odom`` on tf from scans matched to the static map
+(library: :mod:`tiago_nav.localisation`).
+
+Subscribes ``/scan`` (sensor_msgs/LaserScan), ``/map`` (nav_msgs/OccupancyGrid, latched) and
+``/initialpose`` (geometry_msgs/PoseWithCovarianceStamped, as AMCL takes it: resets the pose);
+looks up tf ``odom → base_footprint`` and ``base_footprint → <laser frame>`` at each scan's stamp;
+publishes tf ``map → odom`` (on ``tf_topic``, ``/tf`` by default) and ``/amcl_pose``
+(PoseWithCovarianceStamped in ``map``).
+
+``map → odom`` is sent at every scan stamped with the scan's time plus ``transform_tolerance``
+and re-sent at ``republish_rate`` stamped now plus ``transform_tolerance`` (as AMCL does): tf
+consumers asking for "now" then never extrapolate past the last transform, at the price of
+using an estimate up to ``transform_tolerance`` old.
+"""
+import math
+import sys
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+import rospy
+import tf2_ros
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from nav_msgs.msg import OccupancyGrid
+from sensor_msgs.msg import LaserScan
+from tf2_msgs.msg import TFMessage
+
+from tiago_nav.clock import Ticker
+from tiago_nav.localisation import Localiser, LocaliserConfig
+from tiago_nav.params import ParamError, nested, param, validate
+from tiago_nav.ros import params as rosparams
+from tiago_nav.ros.clock import RosClock
+from tiago_nav.ros.conversions import (gridmap_from_msg, pose_from_msg, pose_from_transform,
+                                       pose_msg, transform_stamped)
+from tiago_nav.sim.world import WorldError, load_world
+
+# indices of x, y, yaw in a row-major 6 × 6 ROS pose covariance (x, y, z, roll, pitch, yaw)
+COV_INDEX = (0, 1, 5)
+
+
+@dataclass(frozen=True)
+class Params:
+    """Parameters of the localisation node (scan-to-map matching publishing map -> odom)."""
+    world: str = param('', '[path] world file whose robot_start is the initial pose when '
+                           'initial_pose is empty')
+    initial_pose: list = param([], '[m, m, deg] initial pose [x, y, yaw] of base_footprint in '
+                                   'map_frame (empty: the world\'s robot_start)')
+    map_frame: str = param('map', 'frame of the static map, parent of the published transform',
+                           nonempty=True)
+    odom_frame: str = param('odom', 'odometry frame (child of the published transform)',
+                            nonempty=True)
+    base_frame: str = param('base_footprint', "robot's base frame", nonempty=True)
+    scan_topic: str = param('/scan', 'laser scans (sensor_msgs/LaserScan)', nonempty=True)
+    map_topic: str = param('/map', 'static map (nav_msgs/OccupancyGrid, latched)', nonempty=True)
+    initialpose_topic: str = param('/initialpose', 'pose resets '
+                                   '(geometry_msgs/PoseWithCovarianceStamped)', nonempty=True)
+    pose_topic: str = param('/amcl_pose', 'estimated pose out '
+                            '(geometry_msgs/PoseWithCovarianceStamped)', nonempty=True)
+    tf_topic: str = param('/tf', 'topic map -> odom is published on (tf2_msgs/TFMessage); another '
+                                 'one keeps it out of the tf tree, e.g. to compare it with a '
+                                 'ground-truth map -> odom', nonempty=True)
+    transform_tolerance: float = param(0.1, '[s] map -> odom is stamped this far in the future',
+                                       ge=0)
+    republish_rate: float = param(10.0, '[Hz] map -> odom is re-sent this often between scans',
+                                  gt=0)
+    tf_timeout: float = param(0.5, '[s] wait at most this long for the odometry tf at a scan\'s '
+                                   'stamp', gt=0)
+    localiser: LocaliserConfig = nested(LocaliserConfig)
+
+    def __post_init__(self):
+        validate(self)
+        if self.initial_pose and (len(self.initial_pose) != 3 or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                for v in self.initial_pose)):
+            raise ParamError('expected [x, y, yaw_deg], got %r' % (self.initial_pose,),
+                             'initial_pose')
+
+
+def start_pose(params):
+    """The initial pose ``(x, y, yaw)`` [m, m, rad] of base_footprint in map: ``initial_pose``
+    if given, else the world's robot_start (:class:`WorldError` when the file is unusable,
+    :class:`ParamError` naming ``initial_pose`` when neither is given)."""
+    if not params.initial_pose and not params.world:
+        raise ParamError('give initial_pose [x, y, yaw_deg] or a world file', 'initial_pose')
+    if params.initial_pose:
+        x, y, yaw_deg = params.initial_pose
+        return (float(x), float(y), math.radians(yaw_deg))
+    return load_world(params.world).start_pose
+
+
+def covariance_6x6(cov3):
+    """The 36 row-major values of a ROS pose covariance from a 3 × 3 ``(x, y, yaw)`` one."""
+    out = np.zeros((6, 6))
+    out[np.ix_(COV_INDEX, COV_INDEX)] = cov3
+    return out.ravel().tolist()
+
+
+class LocalisationNode:
+    def __init__(self, params):
+        self.p = params
+        self.pose = start_pose(params)
+        self.localiser = None
+        self.lock = threading.Lock()
+        self.map_to_odom = None
+        self.sent = None
+        self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
+        self.listener = tf2_ros.TransformListener(self.tf)
+        self.pub_tf = rospy.Publisher(params.tf_topic, TFMessage, queue_size=10)
+        self.pub_pose = rospy.Publisher(params.pose_topic, PoseWithCovarianceStamped, queue_size=5)
+        rospy.Subscriber(params.map_topic, OccupancyGrid, self.on_map, queue_size=1)
+        rospy.Subscriber(params.initialpose_topic, PoseWithCovarianceStamped, self.on_initialpose,
+                         queue_size=1)
+        rospy.Subscriber(params.scan_topic, LaserScan, self.on_scan, queue_size=1,
+                         buff_size=2 ** 20)
+
+    def on_map(self, msg):
+        try:
+            grid = gridmap_from_msg(msg)
+        except ValueError as e:
+            rospy.logerr('localisation: unusable %s: %s', self.p.map_topic, e)
+            return
+        with self.lock:
+            pose = self.localiser.pose if self.localiser is not None else self.pose
+            self.localiser = Localiser(grid, pose, self.p.localiser)
+        rospy.loginfo('localisation: map %dx%d at %.3f m; starting at (%.2f, %.2f, %.1f deg)',
+                      msg.info.width, msg.info.height, msg.info.resolution, pose[0], pose[1],
+                      math.degrees(pose[2]))
+
+    def on_initialpose(self, msg):
+        if msg.header.frame_id.lstrip('/') != self.p.map_frame:
+            rospy.logerr('localisation: %s in frame %r ignored: poses must be in %r',
+                         self.p.initialpose_topic, msg.header.frame_id, self.p.map_frame)
+            return
+        pose = pose_from_msg(msg.pose.pose)
+        cov = np.asarray(msg.pose.covariance, dtype=float).reshape(6, 6)[np.ix_(COV_INDEX, COV_INDEX)]
+        with self.lock:
+            self.pose = pose
+            if self.localiser is not None:
+                self.localiser.reset(pose, cov if np.any(cov) else None)
+        rospy.loginfo('localisation: reset to (%.2f, %.2f, %.1f deg)', pose[0], pose[1],
+                      math.degrees(pose[2]))
+
+    def on_scan(self, msg):
+        stamp = msg.header.stamp
+        try:
+            odom = pose_from_transform(self.tf.lookup_transform(
+                self.p.odom_frame, self.p.base_frame, stamp,
+                rospy.Duration(self.p.tf_timeout)).transform)
+            laser = pose_from_transform(self.tf.lookup_transform(
+                self.p.base_frame, msg.header.frame_id, stamp,
+                rospy.Duration(self.p.tf_timeout)).transform)
+        except tf2_ros.TransformException as e:
+            rospy.logwarn_throttle(5.0, 'localisation: scan at %.3f skipped: %s', stamp.to_sec(), e)
+            return
+        with self.lock:
+            if self.localiser is None:
+                rospy.logwarn_throttle(5.0, 'localisation: no %s yet', self.p.map_topic)
+                return
+            pts = self.localiser.scan_points(msg.ranges, msg.angle_min, msg.angle_increment,
+                                             msg.range_min, msg.range_max, laser)
+            up = self.localiser.update(odom, pts, laser[:2])
+            self.map_to_odom = up.map_to_odom
+        if not up.corrected:
+            rospy.logwarn_throttle(5.0, 'localisation: correction rejected (%s); following '
+                                   'odometry', up.reason)
+        self.send_transform(stamp)
+        out = PoseWithCovarianceStamped()
+        out.header.stamp, out.header.frame_id = stamp, self.p.map_frame
+        out.pose.pose = pose_msg(up.pose)
+        out.pose.covariance = covariance_6x6(up.covariance)
+        self.pub_pose.publish(out)
+
+    def send_transform(self, stamp):
+        """Send the latest ``map → odom`` stamped ``stamp + transform_tolerance``."""
+        stamp = stamp + rospy.Duration(self.p.transform_tolerance)
+        with self.lock:
+            m2o = self.map_to_odom
+            if m2o is None or stamp == self.sent:   # tf refuses a repeated stamp
+                return
+            self.sent = stamp
+        self.pub_tf.publish(TFMessage([transform_stamped(m2o, self.p.map_frame,
+                                                         self.p.odom_frame, stamp)]))
+
+    def run(self):
+        ticker = Ticker(RosClock(), 1.0 / self.p.republish_rate)
+        while not rospy.is_shutdown():
+            if ticker.tick():
+                self.send_transform(rospy.Time.now())
+
+
+def main():
+    rospy.init_node('localisation')
+    try:
+        node = LocalisationNode(rosparams.read(Params))
+    except ParamError as e:
+        named = str(e).startswith('parameter ') or not e.name
+        rospy.logfatal('localisation: %s', e if named else 'parameter %s: %s'
+                       % (rospy.resolve_name('~' + e.name), e.reason))
+        sys.exit(2)
+    except WorldError as e:
+        rospy.logfatal('localisation: parameter %s: %s', rospy.resolve_name('~world'), e)
+        sys.exit(2)
+    try:
+        node.run()
+    except rospy.ROSInterruptException:
+        pass

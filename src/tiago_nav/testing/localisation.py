@@ -1,0 +1,155 @@
+"""Test support for the localiser: a drifting odometry and a route driven through the in-process
+simulator, with the localised and the dead-reckoned pose compared to ground truth.
+
+``python3 -m tiago_nav.testing.localisation`` prints the figures the README quotes.
+"""
+import math
+import statistics
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from tiago_nav.geometry import compose, inverse, wrap_angle
+from tiago_nav.localisation import Localiser, LocaliserConfig
+from tiago_nav.sim.raster import rasterise_world
+from tiago_nav.sim.simulator import SimConfig, Simulator
+
+# Through the course world's corridor into the big room, a loop there, and back into the corridor
+# (map frame [m]; the movable cylinders stay in the scene, unmapped).
+COURSE_ROUTE = ((2.0, 0.0), (5.5, 0.0), (7.2, -0.3), (8.6, -0.9), (8.6, 0.4), (7.0, 0.2),
+                (5.0, 0.0))
+
+
+class DriftingOdometry:
+    """Odometry that integrates the true motion with scale errors and noise (in base_footprint):
+    each step's distance is scaled by ``1 + distance_error`` and its rotation by
+    ``1 + rotation_error``, plus zero-mean noise whose std grows with the step (``noise`` of it).
+    The pose is in ``odom`` (origin: the first true pose)."""
+
+    def __init__(self, true_pose, distance_error=0.02, rotation_error=0.03, noise=0.01, seed=0):
+        self.last = tuple(true_pose)
+        self.pose = (0.0, 0.0, 0.0)
+        self.k = (1.0 + distance_error, 1.0 + rotation_error)
+        self.noise = noise
+        self.rng = np.random.default_rng(seed)
+
+    def step(self, true_pose):
+        """Integrate the motion from the last true pose to ``true_pose``; returns the odom pose."""
+        dx, dy, dth = compose(inverse(self.last), true_pose)
+        self.last = tuple(true_pose)
+        n = self.rng.normal(size=3) * self.noise
+        d = (dx * self.k[0] + abs(dx) * n[0], dy * self.k[0] + abs(dx) * n[1],
+             dth * self.k[1] + (abs(dth) + 0.1 * abs(dx)) * n[2])
+        self.pose = compose(self.pose, d)
+        return self.pose
+
+
+def steer(pose, target, v_max=0.5, w_max=1.0):
+    """A velocity command ``(v, w)`` [m/s, rad/s] that turns towards ``target`` and drives there."""
+    dx, dy = target[0] - pose[0], target[1] - pose[1]
+    err = wrap_angle(math.atan2(dy, dx) - pose[2])
+    w = max(-w_max, min(w_max, 2.0 * err))
+    v = v_max * max(0.0, math.cos(err)) ** 4 * min(1.0, math.hypot(dx, dy) / 0.5)
+    return v, w
+
+
+@dataclass
+class RouteResult:
+    """Per scan: position error [m] and yaw error [rad] of the localised pose and of dead
+    reckoning (drifting odometry from the true start), and the update times [s] (CPU time of
+    the updating thread, so that other processes on the machine do not count)."""
+    loc_xy: np.ndarray
+    loc_yaw: np.ndarray
+    odo_xy: np.ndarray
+    odo_yaw: np.ndarray
+    seconds: list
+    rejected: int
+
+    def p95(self, what):
+        return float(np.percentile(getattr(self, what), 95))
+
+
+def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=LocaliserConfig(),
+              seed=0, drift=(0.02, 0.03, 0.01), scan_hook=None, max_time=120.0):
+    """Drive the simulator along ``route`` and localise at every scan.
+
+    Args:
+        world: a :class:`tiago_nav.sim.world.World` (its movable obstacles are unmapped).
+        route: waypoints ``(x, y)`` [m] in map.
+        initial_error: ``(dx, dy, dyaw)`` [m, m, rad] added to the true start pose given to the
+            localiser.
+        config: :class:`LocaliserConfig`.
+        seed: seeds the laser noise and the odometry noise.
+        drift: ``(distance_error, rotation_error, noise)`` of :class:`DriftingOdometry`.
+        scan_hook: optional ``f(ranges) -> ranges`` applied to each scan (to damage it).
+        max_time: [s] of simulated time at most.
+
+    Returns:
+        a :class:`RouteResult`.
+    """
+    sim = Simulator(world, SimConfig(seed=seed))
+    try:
+        grid = rasterise_world(world)
+        las = sim.config.laser
+        odo = DriftingOdometry(sim.pose, *drift, seed=seed)
+        start = tuple(a + b for a, b in zip(sim.pose, initial_error))
+        loc = Localiser(grid, start, config)
+        errs = {k: [] for k in ('lx', 'ly', 'ox', 'oy')}
+        secs, rejected, i = [], 0, 0
+        while i < len(route) and sim.time < max_time:
+            pose = sim.pose
+            if math.hypot(route[i][0] - pose[0], route[i][1] - pose[1]) < 0.15:
+                i += 1
+                continue
+            sim.command(*steer(pose, route[i]))
+            scan_due, _ = sim.step()
+            odom = odo.step(sim.pose)
+            if not scan_due:
+                continue
+            ranges = sim.scan()
+            if scan_hook is not None:
+                ranges = scan_hook(ranges)
+            t0 = time.thread_time()
+            pts = loc.scan_points(ranges, las.angle_min, las.angle_increment, las.range_min,
+                                  las.range_max, (las.offset, 0.0, 0.0))
+            up = loc.update(odom, pts, (las.offset, 0.0))
+            secs.append(time.thread_time() - t0)
+            rejected += not up.corrected
+            truth = sim.pose
+            dead = compose(sim.start_pose, odom)
+            for key, est in (('l', up.pose), ('o', dead)):
+                errs[key + 'x'].append(math.hypot(est[0] - truth[0], est[1] - truth[1]))
+                errs[key + 'y'].append(abs(wrap_angle(est[2] - truth[2])))
+        return RouteResult(np.array(errs['lx']), np.array(errs['ly']), np.array(errs['ox']),
+                           np.array(errs['oy']), secs, rejected)
+    finally:
+        sim.close()
+
+
+def main(seeds=range(5)):
+    """Print the localised and dead-reckoned errors along :data:`COURSE_ROUTE` per seed and
+    pooled, and the median update time."""
+    import os
+    from tiago_nav.sim.world import load_world
+    here = os.path.dirname(os.path.abspath(__file__))
+    world = load_world(os.path.join(here, '..', '..', '..', 'worlds', 'ias_lab_room_full.yaml'))
+    runs = [run_route(world, seed=seed) for seed in seeds]
+    rows = [('seed %d' % s, [r]) for s, r in zip(seeds, runs)] + [('all', runs)]
+    print('| run | scans | rejected | localised p95 / max [cm] | [deg] | dead reckoning p95 '
+          '[cm] | [deg] | update median [ms] |')
+    print('|---|---|---|---|---|---|---|---|')
+    for name, rs in rows:
+        cat = {k: np.concatenate([getattr(r, k) for r in rs])
+               for k in ('loc_xy', 'loc_yaw', 'odo_xy', 'odo_yaw')}
+        secs = [t for r in rs for t in r.seconds]
+        print('| %s | %d | %d | %.1f / %.1f | %.2f / %.2f | %.1f | %.2f | %.1f |' % (
+            name, len(cat['loc_xy']), sum(r.rejected for r in rs),
+            100 * np.percentile(cat['loc_xy'], 95), 100 * cat['loc_xy'].max(),
+            math.degrees(np.percentile(cat['loc_yaw'], 95)), math.degrees(cat['loc_yaw'].max()),
+            100 * np.percentile(cat['odo_xy'], 95), math.degrees(np.percentile(cat['odo_yaw'], 95)),
+            1000 * statistics.median(secs)))
+
+
+if __name__ == '__main__':
+    main()

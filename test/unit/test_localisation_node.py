@@ -1,0 +1,55 @@
+"""The localisation node's own logic (parameters, start pose, covariance layout); the decisions
+are the library's (test_localisation.py)."""
+import math
+import os
+
+import numpy as np
+import pytest
+
+from conftest import ROOT
+from tiago_nav.nodes import CONFIG_FILES, config_text
+from tiago_nav.nodes.localisation import Params, covariance_6x6, start_pose
+from tiago_nav.params import ParamError, read_params
+from tiago_nav.sim.world import WorldError
+
+WORLD = os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml')
+
+
+def test_shipped_config_equals_the_dataclass_defaults():
+    with open(os.path.join(ROOT, 'config', CONFIG_FILES['localisation'])) as f:
+        assert f.read() == config_text('localisation'), \
+            'run: python3 -m tiago_nav.nodes localisation'
+
+
+def test_start_pose_from_the_parameter_or_the_world():
+    assert start_pose(Params(initial_pose=[1.0, -2.0, 90])) == pytest.approx((1.0, -2.0, math.pi / 2))
+    assert start_pose(Params(world=WORLD)) == pytest.approx((0.0, 0.0, 0.0))
+    # initial_pose wins over the world's robot_start
+    assert start_pose(Params(world=WORLD, initial_pose=[2, 0, 0]))[0] == 2.0
+    with pytest.raises(ParamError) as e:
+        start_pose(Params())
+    assert e.value.name == 'initial_pose'
+    with pytest.raises(WorldError):
+        start_pose(Params(world='/nonexistent.yaml'))
+
+
+@pytest.mark.parametrize('values, name', [
+    ({'initial_pose': [1.0, 2.0]}, 'initial_pose'),
+    ({'initial_pose': [1.0, 2.0, 'x']}, 'initial_pose'),
+    ({'map_frame': ''}, 'map_frame'),
+    ({'transform_tolerance': -0.1}, 'transform_tolerance'),
+    ({'robust_scale': 1.0}, 'robust_scale'),          # > initial_scale, a nested field
+    ({'min_inliers': 1}, 'min_inliers'),
+])
+def test_bad_parameters_are_named(values, name):
+    values = {'~' + k: v for k, v in values.items()}
+    with pytest.raises(ParamError) as e:
+        read_params(Params, lambda k, d: values.get(k, d))
+    assert e.value.name == name and name in str(e.value)
+
+
+def test_covariance_lands_on_x_y_yaw():
+    cov = covariance_6x6(np.array([[1.0, 2.0, 3.0], [2.0, 4.0, 5.0], [3.0, 5.0, 6.0]]))
+    m = np.array(cov).reshape(6, 6)
+    assert m[0, 0] == 1 and m[1, 1] == 4 and m[5, 5] == 6 and m[0, 5] == 3 and m[5, 1] == 5
+    assert np.count_nonzero(m) == 9
