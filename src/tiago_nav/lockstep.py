@@ -181,10 +181,13 @@ class Gate:
         wall: a function returning monotonic wall time [s].
         shutdown: a function returning True once the process is stopping.
         poll: [s wall] longest wait between two looks at timeouts and shutdown.
+        retick: [s wall] the tick is sent again after this long without an answer (one sent
+            before a participant's subscription was connected is lost).
     """
 
-    def __init__(self, schedule, wall, shutdown=lambda: False, poll=0.05):
+    def __init__(self, schedule, wall, shutdown=lambda: False, poll=0.05, retick=0.2):
         self.schedule, self.wall, self.shutdown, self.poll = schedule, wall, shutdown, poll
+        self.retick = retick
         self.cond = threading.Condition()
 
     def receive(self, ack):
@@ -201,16 +204,18 @@ class Gate:
         """Before stepping past simulated time ``t`` [s]: waits until every participant whose
         deadline is at or before ``t`` has answered or has been dropped. ``tick(t, waiting)``
         is called (to publish the tick) when the wait begins and again whenever a participant
-        is added to it. Returns the commands ``(v, w)`` to apply at ``t`` in order, or None on
-        shutdown."""
-        told = set()
+        is added to it, or ``retick`` has passed. Returns the commands ``(v, w)`` to apply at
+        ``t`` in order, or None on shutdown."""
+        told, last = set(), None
         with self.cond:
             while not self.shutdown():
-                waiting = self.schedule.hold(t, self.wall())
+                wall = self.wall()
+                waiting = self.schedule.hold(t, wall)
                 if not waiting:
                     return self.schedule.commands(t)
-                if not told.issuperset(waiting):
+                if not told.issuperset(waiting) or wall - last > self.retick:
                     told.update(waiting)
+                    last = wall
                     tick(t, waiting)
                 self.cond.wait(self.poll)
         return None

@@ -331,3 +331,28 @@ def test_a_participant_that_goes_silent_is_dropped_and_the_simulation_goes_on():
     assert not sched.is_participant('/steer') and sched.drops == 1
     assert sched.is_participant('/idle')
     assert math.isfinite(poses[-1][0])
+
+
+def test_gate_sends_the_tick_again_until_answered_and_names_who_is_missing():
+    s, _ = schedule(timeout=10.0)
+    gate = Gate(s, wall=time.monotonic, poll=0.005, retick=0.01)
+    gate.receive(Ack('/a', 0.0, 0.1))
+    gate.receive(Ack('/b', 0.0, 0.1))
+    ticks = []
+
+    def tick(t, waiting):       # the first tick is lost; /a answers the second, /b the third
+        ticks.append((t, tuple(waiting)))
+        if len(ticks) == 2:
+            gate.receive(Ack('/a', t, 0.1, command=(0.2, 0.0)))
+        if len(ticks) == 3:
+            gate.receive(Ack('/b', t, 0.1))
+    assert gate.hold(t_of(6), tick) == [(0.2, 0.0)]
+    assert ticks == [(t_of(6), ('/a', '/b'))] * 2 + [(t_of(6), ('/b',))]
+
+
+def test_gate_gives_up_on_shutdown():
+    s, _ = schedule(timeout=10.0)
+    stop = []
+    gate = Gate(s, wall=time.monotonic, shutdown=lambda: bool(stop), poll=0.005)
+    gate.receive(Ack('/a', 0.0, 0.1))
+    assert gate.hold(t_of(6), lambda t, w: stop.append(1)) is None
