@@ -36,10 +36,6 @@ def ack_from_msg(msg):
     return Ack(msg.node, msg.stamp.to_sec(), msg.period.to_sec(), cmd, msg.leave)
 
 
-def _stamp(t):
-    return None if t is None or t.is_zero() else t
-
-
 class LockstepHost:
     """The simulator's side.
 
@@ -172,12 +168,12 @@ class LockstepParticipant:
     @property
     def scan_stamp(self):
         """rospy.Time of the newest scan at or before the cycle, None when running free."""
-        return _stamp(self.tick_msg.scan_stamp) if self.tick_msg else None
+        return self.tick_msg.scan_stamp if self.tick_msg else None
 
     @property
     def odom_stamp(self):
         """rospy.Time of the newest odometry and tf at or before the cycle, None when free."""
-        return _stamp(self.tick_msg.odom_stamp) if self.tick_msg else None
+        return self.tick_msg.odom_stamp if self.tick_msg else None
 
     # --- the protocol ---------------------------------------------------------------------------
     def _ack(self, stamp, cmd=None, leave=False):

@@ -1,0 +1,166 @@
+#!/usr/bin/python3
+"""Rostest of the lockstep wire protocol over real topics, without the simulator node: a fake
+simulator loop in this process (the library's schedule through LockstepHost, publishing /clock,
+/scan, tf and ticks) and three LockstepParticipants (10 Hz and 20 Hz control loops, one idle)."""
+import threading
+import time
+import unittest
+
+import rospy
+import rostest
+import tf2_ros
+from geometry_msgs.msg import Twist
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import LaserScan
+from tf2_msgs.msg import TFMessage
+
+from tiago_nav.ros.conversions import transform_stamped
+from tiago_nav.ros.lockstep import LockstepHost, LockstepParticipant, ScanCache, lookup_at
+
+RATE = 60            # [Hz] physics steps
+STEPS = 150          # 2.5 s of simulated time
+TIMEOUT = 10.0       # [s wall] every wait of this test
+
+
+def wait_for(condition, what, timeout=TIMEOUT):
+    end = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > end:
+            raise AssertionError('timed out waiting for ' + what)
+        time.sleep(0.005)
+
+
+def step_time(k):
+    return rospy.Time(nsecs=k * 10**9 // RATE)
+
+
+class FakeSimulator(threading.Thread):
+    """The simulator node's step loop in lockstep, minus physics: scans every 4 steps, odometry
+    (tf odom -> base_footprint at x = its own time) every 2."""
+
+    def __init__(self):
+        super().__init__(daemon=True)
+        self.host = LockstepHost(RATE, timeout=5.0)
+        self.pub_clock = rospy.Publisher('/clock', Clock, queue_size=10)
+        self.pub_scan = rospy.Publisher('/scan', LaserScan, queue_size=5)
+        self.pub_tf = rospy.Publisher('/tf', TFMessage, queue_size=20)
+        self.applied = []                 # (step, v, w)
+        self.ignored, self.obeyed = [], []
+        rospy.Subscriber('/mobile_base_controller/cmd_vel', Twist, self.on_cmd_vel)
+        self.done = threading.Event()
+
+    def on_cmd_vel(self, msg):
+        (self.ignored if self.host.from_participant(msg) else self.obeyed).append(msg.linear.x)
+
+    def run(self):
+        scan_stamp = odom_stamp = None
+        for k in range(STEPS + 1):
+            t = step_time(k)
+            self.pub_clock.publish(Clock(t))
+            if k % 2 == 0:
+                self.pub_tf.publish(TFMessage([transform_stamped((t.to_sec(), 0.0, 0.0), 'odom',
+                                                                 'base_footprint', t)]))
+                odom_stamp = t
+            if k % 4 == 0:
+                scan = LaserScan()
+                scan.header.stamp, scan.header.frame_id = t, 'base_laser_link'
+                self.pub_scan.publish(scan)
+                scan_stamp = t
+            commands = self.host.hold(t, scan_stamp, odom_stamp)
+            if commands is None:
+                return
+            self.applied += [(k, v, w) for v, w in commands]
+        self.done.set()
+
+
+def control_loop(p, cycles, scans, tf, out):
+    """A controller's loop: per cycle the exact scan and transform of the tick, a command that
+    carries its own stamp (v) and period (w)."""
+    for _ in range(cycles):
+        if not p.tick():
+            out.append('stalled')
+            break
+        rec = dict(stamp=p.stamp, lockstep=p.lockstep)
+        if p.lockstep:
+            scan = scans.wait_for_scan(p.scan_stamp, TIMEOUT)
+            rec['scan'] = scan.header.stamp if scan is not None else None
+            rec['scan_stamp'] = p.scan_stamp
+            rec['x'] = lookup_at(tf, 'odom', 'base_footprint', p.odom_stamp, TIMEOUT).transform.translation.x
+            rec['odom_stamp'] = p.odom_stamp
+        cmd = Twist()
+        cmd.linear.x, cmd.angular.z = p.stamp.to_sec(), p.period
+        p.answer(cmd)
+        out.append(rec)
+    p.release()
+
+
+class LockstepAdapterTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node('lockstep_test')
+        cls.tf = tf2_ros.Buffer()
+        cls.listener = tf2_ros.TransformListener(cls.tf)
+        cls.scans = ScanCache('/scan')
+        cls.sim = FakeSimulator()
+        cls.p10 = LockstepParticipant(0.1, name='/p10', enabled=True)
+        cls.p20 = LockstepParticipant(0.05, name='/p20', enabled=True)
+        cls.idle = LockstepParticipant(0.1, enabled=True)      # named after this node
+        schedule = cls.sim.host.schedule
+        wait_for(lambda: len(schedule.members) == 3, 'the three participants to join')
+        cls.records = {0.1: [], 0.05: []}
+        loops = []
+        for p, n in ((cls.p10, 15), (cls.p20, 25)):
+            p.claim(rospy.Time(0))
+            loops.append(threading.Thread(target=control_loop, daemon=True,
+                                          args=(p, n, cls.scans, cls.tf, cls.records[p.period])))
+        for t in loops:
+            t.start()
+        cls.sim.start()
+        cls.finished = cls.sim.done.wait(TIMEOUT)
+        for t in loops:
+            t.join(TIMEOUT)
+
+    def test_1_the_simulation_ran_to_its_end_without_dropping_anyone(self):
+        self.assertTrue(self.finished, 'the fake simulator is stuck at %s' % rospy.get_time())
+        self.assertEqual(self.sim.host.schedule.drops, 0)
+
+    def test_2_each_loop_ran_every_cycle_of_its_period_in_lockstep(self):
+        for period, n in ((0.1, 15), (0.05, 25)):
+            recs = self.records[period]
+            self.assertNotIn('stalled', recs)
+            self.assertEqual([r['stamp'] for r in recs],
+                             [step_time(int(round(RATE * period)) * (i + 1)) for i in range(n)])
+            self.assertTrue(all(r['lockstep'] for r in recs))
+
+    def test_3_each_cycle_saw_exactly_the_newest_scan_and_odometry(self):
+        for recs in self.records.values():
+            for r in recs:
+                k = int(round(r['stamp'].to_sec() * RATE))
+                self.assertEqual(r['scan_stamp'], step_time(k - k % 4))
+                self.assertEqual(r['scan'], r['scan_stamp'])
+                self.assertEqual(r['odom_stamp'], step_time(k - k % 2))
+                self.assertEqual(r['x'], r['odom_stamp'].to_sec())
+
+    def test_4_each_command_was_applied_at_its_cycle_stamp(self):
+        applied = self.sim.applied
+        self.assertEqual(len(applied), 40)
+        for k, v, _ in applied:
+            self.assertAlmostEqual(v, step_time(k).to_sec(), delta=1e-6)
+        self.assertEqual(sorted(w for _, _, w in applied), [0.05] * 25 + [0.1] * 15)
+        self.assertEqual(self.sim.host.schedule.lag_stats()['max'], 0.0)
+
+    def test_5_cmd_vel_of_a_participant_is_ignored_until_it_leaves(self):
+        pub = rospy.Publisher('/mobile_base_controller/cmd_vel', Twist, queue_size=10)
+        wait_for(lambda: pub.get_num_connections() > 0, 'cmd_vel to connect')
+        pub.publish(Twist())
+        wait_for(lambda: self.sim.ignored, 'the participant\'s cmd_vel to arrive')
+        self.assertEqual(self.sim.obeyed, [])
+        self.idle.leave()
+        wait_for(lambda: not self.sim.host.schedule.is_participant(rospy.get_name()), 'leave')
+        pub.publish(Twist())
+        wait_for(lambda: self.sim.obeyed, 'cmd_vel of a node that left to be obeyed')
+        self.assertEqual(len(self.sim.ignored), 1)
+
+
+if __name__ == '__main__':
+    rostest.rosrun('tiago_nav', 'test_lockstep_adapter', LockstepAdapterTest)
