@@ -74,8 +74,9 @@ class FakeSimulator(threading.Thread):
 
 
 def control_loop(p, cycles, scans, tf, out):
-    """A controller's loop: per cycle the exact scan and transform of the tick, a command that
-    carries its own stamp (v) and period (w)."""
+    """A controller's loop: per cycle the exact scan and transform of the tick and the scans
+    new since the last cycle, a command that carries its own stamp (v) and period (w)."""
+    seen = None
     for _ in range(cycles):
         if not p.tick():
             out.append('stalled')
@@ -85,6 +86,8 @@ def control_loop(p, cycles, scans, tf, out):
             scan = scans.wait_for_scan(p.scan_stamp, TIMEOUT)
             rec['scan'] = scan.header.stamp if scan is not None else None
             rec['scan_stamp'] = p.scan_stamp
+            rec['new_scans'] = [s.header.stamp for s in scans.scans_after(seen, p.scan_stamp, TIMEOUT)]
+            seen = p.scan_stamp
             rec['x'] = lookup_at(tf, 'odom', 'base_footprint', p.odom_stamp, TIMEOUT).transform.translation.x
             rec['odom_stamp'] = p.odom_stamp
         cmd = Twist()
@@ -104,7 +107,8 @@ class LockstepAdapterTest(unittest.TestCase):
         cls.sim = FakeSimulator()
         cls.p10 = LockstepParticipant(0.1, name='/p10', enabled=True)
         cls.p20 = LockstepParticipant(0.05, name='/p20', enabled=True)
-        cls.idle = LockstepParticipant(0.1, enabled=True)      # named after this node
+        cls.idle_ready = []
+        cls.idle = LockstepParticipant(0.1, enabled=True, ready=cls.idle_takes_in)   # named after this node
         schedule = cls.sim.host.schedule
         wait_for(lambda: len(schedule.members) == 3, 'the three participants to join')
         cls.records = {0.1: [], 0.05: []}
@@ -119,6 +123,11 @@ class LockstepAdapterTest(unittest.TestCase):
         cls.finished = cls.sim.done.wait(TIMEOUT)
         for t in loops:
             t.join(TIMEOUT)
+
+    @classmethod
+    def idle_takes_in(cls, tick):
+        """The idle participant's ``ready``: it answers once it holds the tick's scan."""
+        cls.idle_ready.append((tick.stamp, cls.scans.wait_for_scan(tick.scan_stamp, TIMEOUT) is not None))
 
     def test_1_the_simulation_ran_to_its_end_without_dropping_anyone(self):
         self.assertTrue(self.finished, 'the fake simulator is stuck at %s' % rospy.get_time())
@@ -140,6 +149,14 @@ class LockstepAdapterTest(unittest.TestCase):
                 self.assertEqual(r['scan'], r['scan_stamp'])
                 self.assertEqual(r['odom_stamp'], step_time(k - k % 2))
                 self.assertEqual(r['x'], r['odom_stamp'].to_sec())
+
+    def test_3b_scans_after_gives_each_scan_once_in_order(self):
+        recs = self.records[0.1]
+        got = [t for r in recs for t in r['new_scans']]
+        self.assertEqual(got, [step_time(k) for k in range(0, 6 * len(recs) + 1, 4)])
+
+    def test_3c_the_idle_participant_answered_every_deadline_once_ready(self):
+        self.assertEqual(self.idle_ready, [(step_time(6 * i), True) for i in range(1, STEPS // 6 + 1)])
 
     def test_4_each_command_was_applied_at_its_cycle_stamp(self):
         applied = self.sim.applied

@@ -93,6 +93,16 @@ class ScanCache:
         with self.cond:
             return self.scans[-1] if self.scans else None
 
+    def scans_after(self, after, upto, timeout):
+        """Every cached scan stamped in (``after``, ``upto``] (rospy.Time; ``after`` None: no
+        lower bound), oldest first, once the one stamped ``upto`` has arrived (waiting up to
+        ``timeout`` [s wall]); None if it does not come."""
+        if self.wait_for_scan(upto, timeout) is None:
+            return None
+        with self.cond:
+            return [s for s in self.scans
+                    if (after is None or s.header.stamp > after) and s.header.stamp <= upto]
+
     def wait_for_scan(self, stamp, timeout):
         """The scan stamped exactly ``stamp`` (rospy.Time), waiting up to ``timeout`` [s wall]
         for it; None if it does not come (or has left the cache)."""
@@ -136,14 +146,18 @@ class LockstepParticipant:
             plain :class:`Ticker` and publishes nothing.
         stall: [s wall] :meth:`tick` gives up when ROS time stands still this long without a
             tick for it; keep it above the simulator's ``lockstep_timeout``.
+        ready: ``ready(tick)`` (a LockstepTick) returns once the node has taken in the sensor
+            data the tick names (e.g. its costmap holds every scan up to ``tick.scan_stamp``);
+            called before each idle answer, from the tick subscriber's thread. None: idle
+            answers are immediate.
     """
 
-    def __init__(self, period, clock=None, name=None, enabled=None, stall=STALL):
+    def __init__(self, period, clock=None, name=None, enabled=None, stall=STALL, ready=None):
         self.clock = clock or RosClock()
         self.period = float(period)
         self.name = name or rospy.get_name()
         self.enabled = rospy.get_param(USE_LOCKSTEP, False) if enabled is None else enabled
-        self.stall = stall
+        self.stall, self.ready = stall, ready
         self.stamp = None        # rospy.Time of the current cycle
         self.tick_msg = None     # its LockstepTick, None when running free
         self.ticker = None if self.enabled else Ticker(self.clock, self.period, stall)
@@ -184,6 +198,9 @@ class LockstepParticipant:
 
     def join_msg(self):
         with self.cond:
+            now = self.clock.now()
+            if now < self.core.last:          # ROS time went back: a restarted simulator
+                self.core = ParticipantCore(self.period, now)
             return LockstepAck(node=self.name, stamp=rospy.Time.from_sec(self.core.last),
                                period=rospy.Duration.from_sec(self.period))
 
@@ -193,14 +210,23 @@ class LockstepParticipant:
             self.core.on_tick(tick)
             if self.core.latest is tick:
                 self._msgs = {tick.stamp: msg}
-            self._idle_answer()
             self.cond.notify_all()
+        self._idle_answer()
 
     def _idle_answer(self):
-        stamp = self.core.idle_answer()
-        if stamp is not None:
-            self._ack(self._msgs[stamp].stamp)
-            self.core.answered(stamp)
+        """Answers the newest tick with no command when it is due and no control loop owns it
+        (after ``ready``)."""
+        with self.cond:
+            due = self.core.idle_answer()
+            msg = self._msgs.get(due)
+        if due is None:
+            return
+        if self.ready is not None:
+            self.ready(msg)
+        with self.cond:
+            if self.core.idle_answer() == due:
+                self._ack(msg.stamp)
+                self.core.answered(due)
 
     def claim(self, since=None):
         """A control loop takes the cycles after ``since`` (rospy.Time, default now; give the
@@ -214,7 +240,7 @@ class LockstepParticipant:
         if self.enabled:
             with self.cond:
                 self.core.release()
-                self._idle_answer()
+            self._idle_answer()
 
     def tick(self):
         """Waits for the next cycle: the simulator's tick for this participant's next deadline
