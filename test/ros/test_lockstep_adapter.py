@@ -54,6 +54,7 @@ class FakeSimulator(threading.Thread):
 
     def run(self):
         scan_stamp = odom_stamp = None
+        start = time.monotonic()
         for k in range(STEPS + 1):
             t = step_time(k)
             self.pub_clock.publish(Clock(t))
@@ -70,6 +71,8 @@ class FakeSimulator(threading.Thread):
             if commands is None:
                 return
             self.applied += [(k, v, w) for v, w in commands]
+        rospy.loginfo('fake simulator: %.2f s simulated in %.3f s of wall time, %d answers',
+                      STEPS / RATE, time.monotonic() - start, 15 + 25 + STEPS // 6)
         self.done.set()
 
 
