@@ -14,6 +14,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from tf2_msgs.msg import TFMessage
 
+from tiago_nav.motion import MotionMonitor
 from tiago_nav.ros.conversions import transform_stamped
 from tiago_nav.ros.lockstep import LockstepHost, LockstepParticipant, ScanCache, lookup_at
 
@@ -72,7 +73,7 @@ class FakeSimulator(threading.Thread):
                 return
             self.applied += [(k, v, w) for v, w in commands]
         rospy.loginfo('fake simulator: %.2f s simulated in %.3f s of wall time, %d answers',
-                      STEPS / RATE, time.monotonic() - start, 15 + 25 + STEPS // 6)
+                      STEPS / RATE, time.monotonic() - start, len(self.applied) + STEPS // 6)
         self.done.set()
 
 
@@ -82,7 +83,7 @@ def control_loop(p, cycles, scans, tf, out):
     seen = None
     for _ in range(cycles):
         if not p.tick():
-            out.append('stalled')
+            out['cycles'].append('stalled')
             break
         rec = dict(stamp=p.stamp, lockstep=p.lockstep)
         if p.lockstep:
@@ -96,7 +97,9 @@ def control_loop(p, cycles, scans, tf, out):
         cmd = Twist()
         cmd.linear.x, cmd.angular.z = p.stamp.to_sec(), p.period
         p.answer(cmd)
-        out.append(rec)
+        out['cycles'].append(rec)
+    out['still'] = p.wait_until_still(lambda: (0.0, 0.0, 0.0), lambda: out['stops'].append(p.stamp),
+                                      MotionMonitor(window=0.2), timeout=1.0)
     p.release()
 
 
@@ -114,7 +117,7 @@ class LockstepAdapterTest(unittest.TestCase):
         cls.idle = LockstepParticipant(0.1, enabled=True, ready=cls.idle_takes_in)   # named after this node
         schedule = cls.sim.host.schedule
         wait_for(lambda: len(schedule.members) == 3, 'the three participants to join')
-        cls.records = {0.1: [], 0.05: []}
+        cls.records = {period: dict(cycles=[], stops=[], still=None) for period in (0.1, 0.05)}
         loops = []
         for p, n in ((cls.p10, 15), (cls.p20, 25)):
             p.claim(rospy.Time(0))
@@ -138,15 +141,25 @@ class LockstepAdapterTest(unittest.TestCase):
 
     def test_2_each_loop_ran_every_cycle_of_its_period_in_lockstep(self):
         for period, n in ((0.1, 15), (0.05, 25)):
-            recs = self.records[period]
+            recs = self.records[period]['cycles']
             self.assertNotIn('stalled', recs)
             self.assertEqual([r['stamp'] for r in recs],
                              [step_time(int(round(RATE * period)) * (i + 1)) for i in range(n)])
             self.assertTrue(all(r['lockstep'] for r in recs))
 
+    def test_2b_stopping_runs_on_cycles_with_zero_commands_until_still(self):
+        for period, n in ((0.1, 15), (0.05, 25)):
+            rec = self.records[period]
+            self.assertTrue(rec['still'])
+            steps = int(round(RATE * period))
+            stops = rec['stops']
+            self.assertEqual(stops, [step_time(steps * (n + i + 1)) for i in range(len(stops))])
+            # the monitor (window 0.2 s) judges once 0.1 to 0.2 s of samples are in
+            self.assertTrue(0.1 / period + 1 <= len(stops) <= 0.2 / period + 1, len(stops))
+
     def test_3_each_cycle_saw_exactly_the_newest_scan_and_odometry(self):
-        for recs in self.records.values():
-            for r in recs:
+        for rec in self.records.values():
+            for r in rec['cycles']:
                 k = int(round(r['stamp'].to_sec() * RATE))
                 self.assertEqual(r['scan_stamp'], step_time(k - k % 4))
                 self.assertEqual(r['scan'], r['scan_stamp'])
@@ -154,7 +167,7 @@ class LockstepAdapterTest(unittest.TestCase):
                 self.assertEqual(r['x'], r['odom_stamp'].to_sec())
 
     def test_3b_scans_after_gives_each_scan_once_in_order(self):
-        recs = self.records[0.1]
+        recs = self.records[0.1]['cycles']
         got = [t for r in recs for t in r['new_scans']]
         self.assertEqual(got, [step_time(k) for k in range(0, 6 * len(recs) + 1, 4)])
 
@@ -162,11 +175,15 @@ class LockstepAdapterTest(unittest.TestCase):
         self.assertEqual(self.idle_ready, [(step_time(6 * i), True) for i in range(1, STEPS // 6 + 1)])
 
     def test_4_each_command_was_applied_at_its_cycle_stamp(self):
-        applied = self.sim.applied
+        applied = [(k, v, w) for k, v, w in self.sim.applied if (v, w) != (0.0, 0.0)]
+        zeros = [k for k, v, w in self.sim.applied if (v, w) == (0.0, 0.0)]
         self.assertEqual(len(applied), 40)
         for k, v, _ in applied:
             self.assertAlmostEqual(v, step_time(k).to_sec(), delta=1e-6)
         self.assertEqual(sorted(w for _, _, w in applied), [0.05] * 25 + [0.1] * 15)
+        # the stopping cycles' zero commands, each at its cycle's stamp
+        self.assertEqual(sorted(step_time(k) for k in zeros),
+                         sorted(t for rec in self.records.values() for t in rec['stops']))
         self.assertEqual(self.sim.host.schedule.lag_stats()['max'], 0.0)
 
     def test_5_cmd_vel_of_a_participant_is_ignored_until_it_leaves(self):

@@ -14,6 +14,7 @@ import tf2_ros
 from geometry_msgs.msg import Twist
 from sensor_msgs.msg import LaserScan
 
+from tiago_nav import motion
 from tiago_nav.clock import NAP, Ticker
 from tiago_nav.lockstep import Ack, Gate, ParticipantCore, Schedule, Tick
 from tiago_nav.msg import LockstepAck, LockstepTick
@@ -279,6 +280,26 @@ class LockstepParticipant:
             self._answered = True
             self.core.answered(self.stamp.to_sec())
             return self._ack(self.stamp, cmd)
+
+    def wait_until_still(self, pose, stop, monitor, timeout):
+        """:func:`tiago_nav.motion.wait_until_still` for a claimed control loop: each cycle
+        calls ``stop()`` (the node's stop, for observers) and answers with a zero command
+        (the simulator ignores a participant's cmd_vel), until ``monitor`` judges the poses
+        ``pose()`` still (True) or ``timeout`` [s ROS] has passed (False)."""
+        if self.ticker is not None:
+            return motion.wait_until_still(self.clock, pose, stop, monitor, timeout, stall=self.stall)
+        monitor.reset()
+        t0 = None
+        while self.tick():
+            stop()
+            self.answer(Twist())
+            now = self.stamp.to_sec()
+            t0 = now if t0 is None else t0
+            if monitor.update(now, pose()) is False:
+                return True
+            if now - t0 > timeout:
+                return False
+        return False
 
     def leave(self, cmd=None):
         """Stop taking part (the simulator no longer waits; ``cmd``: a last command)."""
