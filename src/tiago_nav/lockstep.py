@@ -260,10 +260,12 @@ class ParticipantCore:
 
     def next_cycle(self, now):
         """The cycle that has begun at ROS time ``now`` [s], as ``(stamp, tick)`` (``tick``
-        None when running free: the stamp is then ``now``), or None to keep waiting."""
+        None when running free: the stamp is then ``now``), or None to keep waiting. A tick
+        counts once ROS time has reached it (``/clock`` and the tick travel apart), so that
+        ``now`` equals the cycle's stamp while the simulator holds."""
         d = self.deadline()
         if self.latest is not None and self.latest.stamp >= d - EPS:
-            return self.latest.stamp, self.latest
+            return (self.latest.stamp, self.latest) if now >= self.latest.stamp - EPS else None
         if now > d + EPS:
             return now, None
         return None

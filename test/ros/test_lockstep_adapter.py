@@ -85,7 +85,7 @@ def control_loop(p, cycles, scans, tf, out):
         if not p.tick():
             out['cycles'].append('stalled')
             break
-        rec = dict(stamp=p.stamp, lockstep=p.lockstep)
+        rec = dict(stamp=p.stamp, lockstep=p.lockstep, now=rospy.Time.now())
         if p.lockstep:
             scan = scans.wait_for_scan(p.scan_stamp, TIMEOUT)
             rec['scan'] = scan.header.stamp if scan is not None else None
@@ -146,6 +146,7 @@ class LockstepAdapterTest(unittest.TestCase):
             self.assertEqual([r['stamp'] for r in recs],
                              [step_time(int(round(RATE * period)) * (i + 1)) for i in range(n)])
             self.assertTrue(all(r['lockstep'] for r in recs))
+            self.assertEqual([r['now'] for r in recs], [r['stamp'] for r in recs])   # ROS time held
 
     def test_2b_stopping_runs_on_cycles_with_zero_commands_until_still(self):
         for period, n in ((0.1, 15), (0.05, 25)):

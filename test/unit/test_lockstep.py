@@ -207,6 +207,7 @@ def test_participant_cycle_in_lockstep_waits_for_the_tick_of_its_deadline():
     core.on_tick(Tick(0.05))                             # another participant's tick
     assert core.next_cycle(0.1) is None
     core.on_tick(Tick(0.1, scan_stamp=1 / 15.0, odom_stamp=0.1))
+    assert core.next_cycle(0.1 - DT) is None             # /clock has not caught up yet
     stamp, tick = core.next_cycle(0.1)
     assert stamp == 0.1 and tick.scan_stamp == 1 / 15.0
     core.answered(stamp)

@@ -23,7 +23,7 @@ from tiago_nav.ros.clock import RosClock
 ACK_TOPIC = '/sim/lockstep/ack'
 TICK_TOPIC = '/sim/lockstep/tick'
 USE_LOCKSTEP = '/use_lockstep'      # bool: the participants take part (set by sim.launch)
-TIMEOUT = 2.0     # [s wall] the simulator's default wait for a missing answer
+TIMEOUT = 1.0     # [s wall] the simulator's default wait for a missing answer (< clock.STALL)
 STALL = 5.0       # [s wall] a participant gives up when ROS time stands longer (> TIMEOUT)
 
 
