@@ -168,6 +168,7 @@ class LockstepParticipant:
         self.core = ParticipantCore(self.period, self.clock.now())
         self._msgs = {}          # tick stamp [s] -> LockstepTick, for the newest tick
         self._answered = True
+        self._left = False
         self.pub = rospy.Publisher(ACK_TOPIC, LockstepAck, queue_size=100,
                                    subscriber_listener=_Join(self))
         self.sub = rospy.Subscriber(TICK_TOPIC, LockstepTick, self.on_tick, queue_size=10,
@@ -218,7 +219,7 @@ class LockstepParticipant:
         """Answers the newest tick with no command when it is due and no control loop owns it
         (after ``ready``)."""
         with self.cond:
-            due = self.core.idle_answer()
+            due = None if self._left else self.core.idle_answer()
             msg = self._msgs.get(due)
         if due is None:
             return
@@ -234,6 +235,7 @@ class LockstepParticipant:
         goal's stamp so that the first cycle does not depend on when the goal arrived)."""
         if self.enabled:
             with self.cond:
+                self._left = False
                 self.core.claim((since or rospy.Time.from_sec(self.clock.now())).to_sec())
 
     def release(self):
@@ -252,6 +254,9 @@ class LockstepParticipant:
         clock = self.clock
         last, since = clock.now(), clock.wall()
         with self.cond:
+            if not self.core.claimed:       # a loop without claim(): it owns every later cycle
+                self._left = False
+                self.core.claim(self.core.last)
             while not clock.shutdown():
                 now = clock.now()
                 cycle = self.core.next_cycle(now)
@@ -302,8 +307,12 @@ class LockstepParticipant:
         return False
 
     def leave(self, cmd=None):
-        """Stop taking part (the simulator no longer waits; ``cmd``: a last command)."""
+        """Stop taking part (the simulator no longer waits; ``cmd``: a last command) until the
+        next :meth:`claim` or :meth:`tick`."""
         if self.ticker is None:
+            with self.cond:
+                self._left = True
+                self.core.release()
             try:
                 self._ack(rospy.Time.from_sec(self.clock.now()), cmd, leave=True)
             except rospy.ROSException:
