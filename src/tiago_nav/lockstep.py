@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 EPS = 1e-6          # [s] two times closer than this are the same instant (steps are >= 1 ms)
 GRID_SLACK = 1e-3   # [steps] a stamp this close to a step is on it (ns stamps are floored)
+RESTART = 1.0       # [s] a tick this long before a participant's last answer: time went back
 
 
 def grid_after(t, period):
@@ -254,8 +255,11 @@ class ParticipantCore:
         return grid_after(max(self.last, self.since), self.period)
 
     def on_tick(self, tick):
-        """Keeps the newest tick."""
-        if self.latest is None or tick.stamp > self.latest.stamp:
+        """Keeps the newest tick. One from more than :data:`RESTART` before the last answer
+        means ROS time went back (a restarted simulator): the cycles start again from 0."""
+        if tick.stamp < self.last - RESTART:
+            self.last, self.since, self.latest = 0.0, min(self.since, 0.0), tick
+        elif self.latest is None or tick.stamp > self.latest.stamp:
             self.latest = tick
 
     def next_cycle(self, now):

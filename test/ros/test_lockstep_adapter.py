@@ -42,8 +42,8 @@ class FakeSimulator(threading.Thread):
 
     def __init__(self):
         super().__init__(daemon=True)
-        self.host = LockstepHost(RATE, timeout=SIM_TIMEOUT)
         self.pub_clock = rospy.Publisher('/clock', Clock, queue_size=10)
+        self.host = LockstepHost(RATE, timeout=SIM_TIMEOUT, clock_pub=self.pub_clock)
         self.pub_scan = rospy.Publisher('/scan', LaserScan, queue_size=5)
         self.pub_tf = rospy.Publisher('/tf', TFMessage, queue_size=20)
         self.applied = []                 # (step, v, w)

@@ -262,6 +262,17 @@ def test_claimed_cycle_is_the_first_deadline_after_the_goal_whoever_answered_bef
         assert core.deadline() == pytest.approx(0.3)
 
 
+def test_participant_starts_again_when_time_goes_back():
+    core = ParticipantCore(0.1, now=20.0)
+    core.claim(since=20.0)
+    core.on_tick(Tick(20.1))
+    core.answered(core.next_cycle(20.1)[0])
+    core.on_tick(Tick(20.05))                  # a late tick of the same run: kept as it was
+    assert core.latest.stamp == 20.1
+    core.on_tick(Tick(0.5))                    # a restarted simulator holding at 0.5
+    assert core.next_cycle(0.5) == (0.5, core.latest)
+
+
 def test_participant_rejects_a_bad_period():
     with pytest.raises(ValueError):
         ParticipantCore(0.0, now=0.0)

@@ -12,6 +12,7 @@ import time
 import rospy
 import tf2_ros
 from geometry_msgs.msg import Twist
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 
 from tiago_nav import motion
@@ -43,9 +44,13 @@ class LockstepHost:
     Args:
         rate: physics rate [Hz].
         timeout: [s wall] wait for a missing answer before dropping its participant.
+        clock_pub: the simulator's /clock publisher: each tick is preceded by /clock for the
+            held time again, so that a participant whose /clock subscription connected after
+            that time was published still sees ROS time reach its cycle.
     """
 
-    def __init__(self, rate, timeout=TIMEOUT):
+    def __init__(self, rate, timeout=TIMEOUT, clock_pub=None):
+        self.clock_pub = clock_pub
         self.gate = Gate(Schedule(rate, timeout, _log), time.monotonic, rospy.is_shutdown)
         self.pub = rospy.Publisher(TICK_TOPIC, LockstepTick, queue_size=10)
         self.sub = rospy.Subscriber(ACK_TOPIC, LockstepAck, self.on_ack, queue_size=None,
@@ -70,6 +75,8 @@ class LockstepHost:
         order, or None on shutdown. ``scan_stamp``/``odom_stamp``: rospy.Time of the newest
         scan and odometry published at or before ``t``."""
         def tick(_, waiting):
+            if self.clock_pub is not None:
+                self.clock_pub.publish(Clock(t))
             self.pub.publish(LockstepTick(stamp=t, scan_stamp=scan_stamp or rospy.Time(),
                                           odom_stamp=odom_stamp or rospy.Time(),
                                           waiting_for=waiting))
@@ -199,12 +206,11 @@ class LockstepParticipant:
         return msg
 
     def join_msg(self):
-        with self.cond:
-            now = self.clock.now()
-            if now < self.core.last:          # ROS time went back: a restarted simulator
-                self.core = ParticipantCore(self.period, now)
-            return LockstepAck(node=self.name, stamp=rospy.Time.from_sec(self.core.last),
-                               period=rospy.Duration.from_sec(self.period))
+        """The registration: stamped 0, so that the simulator holds at once at its current time
+        and the participant's answer to that tick sets its place (a simulator that already
+        knows the participant ignores it)."""
+        return LockstepAck(node=self.name, stamp=rospy.Time(0),
+                           period=rospy.Duration.from_sec(self.period))
 
     def on_tick(self, msg):
         with self.cond:
