@@ -1,0 +1,298 @@
+"""Lockstep between the simulator and its controllers (no ROS here).
+
+Participants (control loops) answer each control cycle with a :class:`Ack` that carries the
+cycle's base command. The simulator keeps a :class:`Schedule` of them and, before each physics
+step, asks it who is missing: simulated time never passes a participant's deadline until its
+answer is held. Deadlines lie on a fixed grid: the multiples of the participant's period counted
+from time 0, so two runs hold at the same instants whenever the participant joined.
+
+:class:`Gate` adds the waiting (a condition variable, a wall-clock timeout) for the simulator's
+step loop; :class:`ParticipantCore` is the cycle arithmetic of one participant, used by
+:class:`tiago_nav.ros.lockstep.LockstepParticipant`. Times are ROS times in seconds; a stamp is
+mapped to the physics step grid (``rate`` Hz) by :meth:`Schedule.step_of`.
+"""
+import heapq
+import math
+import threading
+from dataclasses import dataclass
+
+EPS = 1e-6          # [s] two times closer than this are the same instant (steps are >= 1 ms)
+GRID_SLACK = 1e-3   # [steps] a stamp this close to a step is on it (ns stamps are floored)
+RESTART = 1.0       # [s] a tick this long before a participant's last answer: time went back
+
+
+def grid_after(t, period):
+    """The first multiple of ``period`` [s] strictly after time ``t`` [s]."""
+    return (math.floor(t / period + EPS) + 1) * period
+
+
+@dataclass(frozen=True)
+class Ack:
+    """One participant's answer. ``stamp`` [s]: the cycle's time (sensor data up to it is
+    covered); ``period`` [s]; ``command``: ``(v, w)`` [m/s, rad/s] in base_footprint, applied from
+    ``stamp`` on, or None; ``leave``: drop me (after applying ``command``)."""
+    node: str
+    stamp: float
+    period: float
+    command: tuple = None
+    leave: bool = False
+
+
+@dataclass
+class _Member:
+    period: int                 # [steps]
+    answered: int               # [step] stamp of the last answer held
+    waiting_since: float = None  # [s wall] when the simulator began to wait for it
+
+    @property
+    def deadline(self):
+        """[step] the next multiple of the period after the last answer."""
+        return (self.answered // self.period + 1) * self.period
+
+
+def _percentile(ordered, q):
+    """Nearest-rank percentile ``q`` in [0, 100] of a sorted non-empty list."""
+    return ordered[min(len(ordered) - 1, max(0, math.ceil(q / 100.0 * len(ordered)) - 1))]
+
+
+class Schedule:
+    """The simulator's side: who takes part, their deadlines, their commands.
+
+    Args:
+        rate: physics rate [Hz]; periods must be whole numbers of steps.
+        timeout: [s wall] how long the simulator waits for a missing answer before it drops
+            that participant (it rejoins with its next answer).
+        log: ``log(level, text)`` with level ``'info'`` or ``'warn'``; silent by default.
+    """
+
+    def __init__(self, rate, timeout, log=None):
+        if not (rate > 0 and timeout > 0):
+            raise ValueError('rate and timeout must be > 0, got %r, %r' % (rate, timeout))
+        self.rate, self.timeout = float(rate), float(timeout)
+        self.log = log or (lambda level, text: None)
+        self.members = {}
+        self._pending = []      # heap of (stamp step, sequence, node, v, w)
+        self._seq = 0
+        self.lags = []          # [s sim] application time - stamp, per applied command
+        self.drops = 0
+
+    # --- time grid ------------------------------------------------------------------------
+    def step_of(self, t):
+        """The step index of time ``t`` [s]: the nearest step when ``t`` is on the grid (ROS
+        stamps are whole nanoseconds, floored), else the step before."""
+        x = t * self.rate
+        k = round(x)
+        return int(k) if abs(x - k) < GRID_SLACK else math.floor(x)
+
+    def period_steps(self, period):
+        """The period [s] in steps, or None when it is not a positive whole number of steps."""
+        x = period * self.rate
+        k = round(x)
+        return int(k) if k >= 1 and abs(x - k) < GRID_SLACK else None
+
+    # --- answers --------------------------------------------------------------------------
+    def is_participant(self, node):
+        """True while ``node`` takes part: its velocity commands come in its answers, so its
+        ``cmd_vel`` messages must be ignored."""
+        return node in self.members
+
+    def deadline(self, node):
+        """The participant's next deadline [s]."""
+        return self.members[node].deadline / self.rate
+
+    def receive(self, ack, wall):
+        """Takes one answer, received at wall time ``wall`` [s]. The first answer registers the
+        participant; a period off the step grid is refused (with a warning) and the answer
+        ignored; an answer not newer than the last one held is ignored. Returns True when the
+        answer was taken."""
+        member = self.members.get(ack.node)
+        period = self.period_steps(ack.period)
+        if period is None and not ack.leave:
+            self.log('warn', 'lockstep: %s asks for a period of %g s, not a whole number of '
+                     '%g s physics steps: ignored (it runs free)' % (ack.node, ack.period, 1 / self.rate))
+            return False
+        stamp = self.step_of(ack.stamp)
+        if member is not None and stamp <= member.answered and not ack.leave:
+            return False
+        if ack.command is not None:
+            v, w = ack.command
+            heapq.heappush(self._pending, (stamp, self._seq, ack.node, float(v), float(w)))
+            self._seq += 1
+        if ack.leave:
+            if self.members.pop(ack.node, None) is not None:
+                self.log('info', 'lockstep: %s left' % ack.node)
+            return True
+        if member is None:
+            self.members[ack.node] = _Member(period, stamp)
+            self.log('info', 'lockstep: %s joined, period %g s' % (ack.node, period / self.rate))
+        else:
+            member.period, member.answered, member.waiting_since = period, stamp, None
+        return True
+
+    # --- the simulator's questions ------------------------------------------------------------
+    def hold(self, t, wall):
+        """Who must answer before simulated time may step past ``t`` [s]: the sorted names of
+        participants whose deadline is at or before ``t``. One waited for longer than
+        ``timeout`` (wall time ``wall`` [s]) is dropped with a warning instead."""
+        step = self.step_of(t)
+        waiting = []
+        for name in sorted(self.members):
+            m = self.members[name]
+            if m.deadline > step:
+                continue
+            if m.waiting_since is None:
+                m.waiting_since = wall
+            if wall - m.waiting_since > self.timeout:
+                del self.members[name]
+                self.drops += 1
+                self.log('warn', 'lockstep: no answer from %s for its deadline %.3f s within '
+                         '%g s of wall time: going on without it until it answers again'
+                         % (name, m.deadline / self.rate, self.timeout))
+            else:
+                waiting.append(name)
+        return waiting
+
+    def commands(self, t):
+        """The commands ``(v, w)`` due at time ``t`` [s] (stamped at or before it), in the order
+        of their stamps; the last one is the one in force. Records each one's lag."""
+        step = self.step_of(t)
+        out = []
+        while self._pending and self._pending[0][0] <= step:
+            stamp, _, _, v, w = heapq.heappop(self._pending)
+            self.lags.append((step - stamp) / self.rate)
+            out.append((v, w))
+        return out
+
+    def lag_stats(self):
+        """Lag [s of simulated time] between a command's stamp and its application: ``count``,
+        ``max``, ``p50``, ``p95``, ``p99`` (zeros when no command was applied)."""
+        ordered = sorted(self.lags)
+        if not ordered:
+            return dict(count=0, max=0.0, p50=0.0, p95=0.0, p99=0.0)
+        return dict(count=len(ordered), max=ordered[-1], p50=_percentile(ordered, 50),
+                    p95=_percentile(ordered, 95), p99=_percentile(ordered, 99))
+
+
+class Gate:
+    """A :class:`Schedule` shared between the simulator's step loop and the threads that
+    receive answers.
+
+    Args:
+        schedule: the :class:`Schedule`.
+        wall: a function returning monotonic wall time [s].
+        shutdown: a function returning True once the process is stopping.
+        poll: [s wall] longest wait between two looks at timeouts and shutdown.
+        retick: [s wall] the tick is sent again after this long without an answer (one sent
+            before a participant's subscription was connected is lost).
+    """
+
+    def __init__(self, schedule, wall, shutdown=lambda: False, poll=0.05, retick=0.2):
+        self.schedule, self.wall, self.shutdown, self.poll = schedule, wall, shutdown, poll
+        self.retick = retick
+        self.cond = threading.Condition()
+
+    def receive(self, ack):
+        """From a subscriber thread: hands one :class:`Ack` to the schedule."""
+        with self.cond:
+            self.schedule.receive(ack, self.wall())
+            self.cond.notify_all()
+
+    def is_participant(self, node):
+        with self.cond:
+            return self.schedule.is_participant(node)
+
+    def hold(self, t, tick):
+        """Before stepping past simulated time ``t`` [s]: waits until every participant whose
+        deadline is at or before ``t`` has answered or has been dropped. ``tick(t, waiting)``
+        is called (to publish the tick) when the wait begins and again whenever a participant
+        is added to it, or ``retick`` has passed. Returns the commands ``(v, w)`` to apply at
+        ``t`` in order, or None on shutdown."""
+        told, last = set(), None
+        with self.cond:
+            while not self.shutdown():
+                wall = self.wall()
+                waiting = self.schedule.hold(t, wall)
+                if not waiting:
+                    return self.schedule.commands(t)
+                if not told.issuperset(waiting) or wall - last > self.retick:
+                    told.update(waiting)
+                    last = wall
+                    tick(t, waiting)
+                self.cond.wait(self.poll)
+        return None
+
+
+@dataclass(frozen=True)
+class Tick:
+    """What a participant reads from the simulator's tick: the held time and the stamps [s] of
+    the newest scan and odometry at or before it."""
+    stamp: float
+    scan_stamp: float = None
+    odom_stamp: float = None
+
+
+class ParticipantCore:
+    """The cycle arithmetic of one participant (thread-safety is the caller's).
+
+    A cycle begins at the participant's next deadline (the next multiple of ``period`` [s]
+    after its last answer, or after the time it was claimed ``since``): in lockstep when the
+    simulator's tick for that time has arrived; running free when ROS time has gone past the
+    deadline without one (the simulator is not holding for this participant: no lockstep, or
+    not registered yet). While not claimed by a control loop the participant is *idle*: every
+    tick due to it is answered at once with no command (:meth:`idle_answer`)."""
+
+    def __init__(self, period, now):
+        if not (period > 0 and math.isfinite(period)):
+            raise ValueError('period must be > 0 s, got %r' % (period,))
+        self.period = float(period)
+        self.last = float(now)    # [s] stamp of the last answer (or the start)
+        self.since = -math.inf    # [s] the control loop owns cycles after this time
+        self.claimed = False
+        self.latest = None        # the newest Tick received
+
+    def deadline(self):
+        """[s] the next cycle's time."""
+        return grid_after(max(self.last, self.since), self.period)
+
+    def on_tick(self, tick):
+        """Keeps the newest tick. One from more than :data:`RESTART` before the last answer
+        means ROS time went back (a restarted simulator): the cycles start again from 0."""
+        if tick.stamp < self.last - RESTART:
+            self.last, self.since, self.latest = 0.0, min(self.since, 0.0), tick
+        elif self.latest is None or tick.stamp > self.latest.stamp:
+            self.latest = tick
+
+    def next_cycle(self, now):
+        """The cycle that has begun at ROS time ``now`` [s], as ``(stamp, tick)`` (``tick``
+        None when running free: the stamp is then ``now``), or None to keep waiting. A tick
+        counts once ROS time has reached it (``/clock`` and the tick travel apart), so that
+        ``now`` equals the cycle's stamp while the simulator holds."""
+        d = self.deadline()
+        if self.latest is not None and self.latest.stamp >= d - EPS:
+            return (self.latest.stamp, self.latest) if now >= self.latest.stamp - EPS else None
+        if now > d + EPS:
+            return now, None
+        return None
+
+    def answered(self, stamp):
+        """Records an answer sent for ``stamp`` [s]."""
+        self.last = max(self.last, stamp)
+
+    def claim(self, since):
+        """A control loop takes the cycles after time ``since`` [s] (e.g. its goal's stamp);
+        earlier ones are still answered idle."""
+        self.claimed, self.since = True, float(since)
+
+    def release(self):
+        """The control loop is done: cycles are answered idle again."""
+        self.claimed, self.since = False, -math.inf
+
+    def idle_answer(self):
+        """The stamp [s] to answer at once with no command, or None: the newest tick when it is
+        due and no control loop owns it."""
+        t = self.latest
+        if t is None or t.stamp < grid_after(self.last, self.period) - EPS:
+            return None
+        if self.claimed and t.stamp > self.since + EPS:
+            return None
+        return t.stamp

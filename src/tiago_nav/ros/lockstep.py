@@ -1,0 +1,337 @@
+"""Lockstep over ROS topics (the protocol: :mod:`tiago_nav.lockstep` and the README).
+
+:class:`LockstepHost` is the simulator's side (answers in, ticks out, cmd_vel of participants
+told apart); :class:`LockstepParticipant` a control loop's side, used in place of
+:class:`tiago_nav.clock.Ticker`; :class:`ScanCache` and :func:`lookup_at` wait in wall time for
+the exact scan and transform of a cycle (ROS time stands still while the simulator holds).
+"""
+import collections
+import threading
+import time
+
+import rospy
+import tf2_ros
+from geometry_msgs.msg import Twist
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import LaserScan
+
+from tiago_nav import motion
+from tiago_nav.clock import NAP, Ticker
+from tiago_nav.lockstep import Ack, Gate, ParticipantCore, Schedule, Tick
+from tiago_nav.msg import LockstepAck, LockstepTick
+from tiago_nav.ros.clock import RosClock
+
+ACK_TOPIC = '/sim/lockstep/ack'
+TICK_TOPIC = '/sim/lockstep/tick'
+USE_LOCKSTEP = '/use_lockstep'      # bool: the participants take part (set by sim.launch)
+TIMEOUT = 1.0     # [s wall] the simulator's default wait for a missing answer (< clock.STALL)
+STALL = 5.0       # [s wall] a participant gives up when ROS time stands longer (> TIMEOUT)
+
+
+def _log(level, text):
+    (rospy.logwarn if level == 'warn' else rospy.loginfo)(text)
+
+
+def ack_from_msg(msg):
+    """LockstepAck -> :class:`tiago_nav.lockstep.Ack`."""
+    cmd = (msg.cmd.linear.x, msg.cmd.angular.z) if msg.has_command else None
+    return Ack(msg.node, msg.stamp.to_sec(), msg.period.to_sec(), cmd, msg.leave)
+
+
+class LockstepHost:
+    """The simulator's side.
+
+    Args:
+        rate: physics rate [Hz].
+        timeout: [s wall] wait for a missing answer before dropping its participant.
+        clock_pub: the simulator's /clock publisher: each tick is preceded by /clock for the
+            held time again, so that a participant whose /clock subscription connected after
+            that time was published still sees ROS time reach its cycle.
+    """
+
+    def __init__(self, rate, timeout=TIMEOUT, clock_pub=None):
+        self.clock_pub = clock_pub
+        self.gate = Gate(Schedule(rate, timeout, _log), time.monotonic, rospy.is_shutdown)
+        self.pub = rospy.Publisher(TICK_TOPIC, LockstepTick, queue_size=10)
+        self.sub = rospy.Subscriber(ACK_TOPIC, LockstepAck, self.on_ack, queue_size=None,
+                                    tcp_nodelay=True)
+
+    @property
+    def schedule(self):
+        return self.gate.schedule
+
+    def on_ack(self, msg):
+        self.gate.receive(ack_from_msg(msg))
+
+    def from_participant(self, msg):
+        """True for a message (e.g. a cmd_vel Twist) published by a current participant: its
+        commands come in its answers, so this copy must not be applied."""
+        header = getattr(msg, '_connection_header', None) or {}
+        return self.gate.is_participant(header.get('callerid', ''))
+
+    def hold(self, t, scan_stamp, odom_stamp):
+        """Before stepping past simulated time ``t`` (rospy.Time): waits for the missing
+        answers (ticks published as needed). Returns the commands ``(v, w)`` to apply now, in
+        order, or None on shutdown. ``scan_stamp``/``odom_stamp``: rospy.Time of the newest
+        scan and odometry published at or before ``t``."""
+        def tick(_, waiting):
+            if self.clock_pub is not None:
+                self.clock_pub.publish(Clock(t))
+            self.pub.publish(LockstepTick(stamp=t, scan_stamp=scan_stamp or rospy.Time(),
+                                          odom_stamp=odom_stamp or rospy.Time(),
+                                          waiting_for=waiting))
+        return self.gate.hold(t.to_sec(), tick)
+
+
+class ScanCache:
+    """The last few scans of ``topic``, found by stamp."""
+
+    def __init__(self, topic='/scan', size=8):
+        self.cond = threading.Condition()
+        self.scans = collections.deque(maxlen=size)
+        self.sub = rospy.Subscriber(topic, LaserScan, self.on_scan, queue_size=size,
+                                    tcp_nodelay=True)
+
+    def on_scan(self, msg):
+        with self.cond:
+            self.scans.append(msg)
+            self.cond.notify_all()
+
+    def latest(self):
+        with self.cond:
+            return self.scans[-1] if self.scans else None
+
+    def scans_after(self, after, upto, timeout):
+        """Every cached scan stamped in (``after``, ``upto``] (rospy.Time; ``after`` None: no
+        lower bound), oldest first, once the one stamped ``upto`` has arrived (waiting up to
+        ``timeout`` [s wall]); None if it does not come."""
+        if self.wait_for_scan(upto, timeout) is None:
+            return None
+        with self.cond:
+            return [s for s in self.scans
+                    if (after is None or s.header.stamp > after) and s.header.stamp <= upto]
+
+    def wait_for_scan(self, stamp, timeout):
+        """The scan stamped exactly ``stamp`` (rospy.Time), waiting up to ``timeout`` [s wall]
+        for it; None if it does not come (or has left the cache)."""
+        end = time.monotonic() + timeout
+        with self.cond:
+            while True:
+                for s in self.scans:
+                    if s.header.stamp == stamp:
+                        return s
+                left = end - time.monotonic()
+                if left <= 0 or rospy.is_shutdown():
+                    return None
+                self.cond.wait(min(left, 0.1))
+
+
+def lookup_at(buffer, target, source, stamp, timeout):
+    """tf ``target`` <- ``source`` at exactly ``stamp`` (no extrapolation), waiting up to
+    ``timeout`` [s wall] for it to arrive (tf2's own timeout runs in ROS time, which stands
+    still while the simulator holds). Raises tf2_ros.TransformException when it does not."""
+    end = time.monotonic() + timeout
+    while not buffer.can_transform(target, source, stamp) and time.monotonic() < end \
+            and not rospy.is_shutdown():
+        time.sleep(NAP)
+    return buffer.lookup_transform(target, source, stamp)
+
+
+class LockstepParticipant:
+    """A control loop in lockstep with the simulator, used in place of
+    :class:`tiago_nav.clock.Ticker`.
+
+    Idle (not claimed) it answers every tick due to it at once, with no command, from the tick
+    subscriber's thread. A control loop calls :meth:`claim` when its goal starts, then per
+    cycle :meth:`tick` and :meth:`answer`, and :meth:`release` when the goal ends.
+
+    Args:
+        period: control period [s], a whole number of the simulator's physics steps.
+        clock: a :mod:`tiago_nav.clock` clock (default :class:`RosClock`).
+        name: the participant's name; default the node's name (which is the callerid of its
+            cmd_vel messages, so that the simulator ignores those).
+        enabled: take part; default the ``/use_lockstep`` parameter. When False this is a
+            plain :class:`Ticker` and publishes nothing.
+        stall: [s wall] :meth:`tick` gives up when ROS time stands still this long without a
+            tick for it; keep it above the simulator's ``lockstep_timeout``.
+        ready: ``ready(tick)`` (a LockstepTick) returns once the node has taken in the sensor
+            data the tick names (e.g. its costmap holds every scan up to ``tick.scan_stamp``);
+            called before each idle answer, from the tick subscriber's thread. None: idle
+            answers are immediate.
+    """
+
+    def __init__(self, period, clock=None, name=None, enabled=None, stall=STALL, ready=None):
+        self.clock = clock or RosClock()
+        self.period = float(period)
+        self.name = name or rospy.get_name()
+        self.enabled = rospy.get_param(USE_LOCKSTEP, False) if enabled is None else enabled
+        self.stall, self.ready = stall, ready
+        self.stamp = None        # rospy.Time of the current cycle
+        self.tick_msg = None     # its LockstepTick, None when running free
+        self.ticker = None if self.enabled else Ticker(self.clock, self.period, stall)
+        if not self.enabled:
+            return
+        self.cond = threading.Condition()
+        self.core = ParticipantCore(self.period, self.clock.now())
+        self._msgs = {}          # tick stamp [s] -> LockstepTick, for the newest tick
+        self._answered = True
+        self._left = False
+        self.pub = rospy.Publisher(ACK_TOPIC, LockstepAck, queue_size=100,
+                                   subscriber_listener=_Join(self))
+        self.sub = rospy.Subscriber(TICK_TOPIC, LockstepTick, self.on_tick, queue_size=10,
+                                    tcp_nodelay=True)
+        rospy.on_shutdown(self.leave)
+
+    # --- what the cycle saw -------------------------------------------------------------------
+    @property
+    def lockstep(self):
+        """True when the current cycle is held by the simulator (its stamps are exact)."""
+        return self.tick_msg is not None
+
+    @property
+    def scan_stamp(self):
+        """rospy.Time of the newest scan at or before the cycle, None when running free."""
+        return self.tick_msg.scan_stamp if self.tick_msg else None
+
+    @property
+    def odom_stamp(self):
+        """rospy.Time of the newest odometry and tf at or before the cycle, None when free."""
+        return self.tick_msg.odom_stamp if self.tick_msg else None
+
+    # --- the protocol ---------------------------------------------------------------------------
+    def _ack(self, stamp, cmd=None, leave=False):
+        msg = LockstepAck(node=self.name, stamp=stamp, period=rospy.Duration.from_sec(self.period),
+                          has_command=cmd is not None, cmd=cmd or Twist(), leave=leave)
+        self.pub.publish(msg)
+        return msg
+
+    def join_msg(self):
+        """The registration: stamped 0, so that the simulator holds at once at its current time
+        and the participant's answer to that tick sets its place (a simulator that already
+        knows the participant ignores it)."""
+        return LockstepAck(node=self.name, stamp=rospy.Time(0),
+                           period=rospy.Duration.from_sec(self.period))
+
+    def on_tick(self, msg):
+        with self.cond:
+            tick = Tick(msg.stamp.to_sec())
+            self.core.on_tick(tick)
+            if self.core.latest is tick:
+                self._msgs = {tick.stamp: msg}
+            self.cond.notify_all()
+        self._idle_answer()
+
+    def _idle_answer(self):
+        """Answers the newest tick with no command when it is due and no control loop owns it
+        (after ``ready``)."""
+        with self.cond:
+            due = None if self._left else self.core.idle_answer()
+            msg = self._msgs.get(due)
+        if due is None:
+            return
+        if self.ready is not None:
+            self.ready(msg)
+        with self.cond:
+            if self.core.idle_answer() == due:
+                self._ack(msg.stamp)
+                self.core.answered(due)
+
+    def claim(self, since=None):
+        """A control loop takes the cycles after ``since`` (rospy.Time, default now; give the
+        goal's stamp so that the first cycle does not depend on when the goal arrived)."""
+        if self.enabled:
+            with self.cond:
+                self._left = False
+                self.core.claim((since or rospy.Time.from_sec(self.clock.now())).to_sec())
+
+    def release(self):
+        """Back to idle (answer the last cycle first, with the stop command)."""
+        if self.enabled:
+            with self.cond:
+                self.core.release()
+            self._idle_answer()
+
+    def tick(self):
+        """Waits for the next cycle: the simulator's tick for this participant's next deadline
+        (lockstep), or ROS time past it (running free). False on shutdown, or when ROS time
+        has stood still for ``stall`` wall seconds without a tick."""
+        if self.ticker is not None:
+            return self.ticker.tick()
+        clock = self.clock
+        last, since = clock.now(), clock.wall()
+        with self.cond:
+            if not self.core.claimed:       # a loop without claim(): it owns every later cycle
+                self._left = False
+                self.core.claim(self.core.last)
+            while not clock.shutdown():
+                now = clock.now()
+                cycle = self.core.next_cycle(now)
+                if cycle is not None:
+                    stamp, tick = cycle
+                    self.tick_msg = self._msgs[stamp] if tick is not None else None
+                    self.stamp = self.tick_msg.stamp if tick is not None else rospy.Time.from_sec(stamp)
+                    self._answered = False
+                    return True
+                if now != last:
+                    last, since = now, clock.wall()
+                elif clock.wall() - since > self.stall:
+                    return False
+                self.cond.wait(NAP)
+        return False
+
+    def answer(self, cmd=None):
+        """Answers the current cycle; ``cmd`` (geometry_msgs/Twist) is its base command, which
+        the simulator applies from the cycle's stamp on. Returns the LockstepAck sent (None
+        when not taking part or already answered)."""
+        if self.ticker is not None:
+            return None
+        with self.cond:
+            if self._answered or self.stamp is None:
+                return None
+            self._answered = True
+            self.core.answered(self.stamp.to_sec())
+            return self._ack(self.stamp, cmd)
+
+    def wait_until_still(self, pose, stop, monitor, timeout):
+        """:func:`tiago_nav.motion.wait_until_still` for a claimed control loop: each cycle
+        calls ``stop()`` (the node's stop, for observers) and answers with a zero command
+        (the simulator ignores a participant's cmd_vel), until ``monitor`` judges the poses
+        ``pose()`` still (True) or ``timeout`` [s ROS] has passed (False)."""
+        if self.ticker is not None:
+            return motion.wait_until_still(self.clock, pose, stop, monitor, timeout, stall=self.stall)
+        monitor.reset()
+        t0 = None
+        while self.tick():
+            stop()
+            self.answer(Twist())
+            now = self.stamp.to_sec()
+            t0 = now if t0 is None else t0
+            if monitor.update(now, pose()) is False:
+                return True
+            if now - t0 > timeout:
+                return False
+        return False
+
+    def leave(self, cmd=None):
+        """Stop taking part (the simulator no longer waits; ``cmd``: a last command) until the
+        next :meth:`claim` or :meth:`tick`."""
+        if self.ticker is None:
+            with self.cond:
+                self._left = True
+                self.core.release()
+            try:
+                self._ack(rospy.Time.from_sec(self.clock.now()), cmd, leave=True)
+            except rospy.ROSException:
+                pass        # shutting down: the simulator's timeout drops it instead
+
+
+class _Join(rospy.SubscribeListener):
+    """Sends the participant's registration to each simulator that connects to its answers
+    (a simulator started, or restarted, after the participant)."""
+
+    def __init__(self, participant):
+        super().__init__()
+        self.participant = participant
+
+    def peer_subscribe(self, topic_name, topic_publish, peer_publish):
+        peer_publish(self.participant.join_msg())
