@@ -20,7 +20,7 @@ and a unit test keeps the shipped files equal to it (``python3 -m tiago_nav.node
 them).
 """
 import math
-from dataclasses import MISSING, field, fields, is_dataclass
+from dataclasses import MISSING, field, fields
 
 _SENTINEL = object()
 

@@ -7,18 +7,11 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from tiago_nav.nodes import CONFIG_FILES, config_text
 from tiago_nav.nodes.localisation import Params, covariance_6x6, start_pose
 from tiago_nav.params import ParamError, read_params
 from tiago_nav.sim.world import WorldError
 
 WORLD = os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml')
-
-
-def test_shipped_config_equals_the_dataclass_defaults():
-    with open(os.path.join(ROOT, 'config', CONFIG_FILES['localisation'])) as f:
-        assert f.read() == config_text('localisation'), \
-            'run: python3 -m tiago_nav.nodes localisation'
 
 
 def test_start_pose_from_the_parameter_or_the_world():

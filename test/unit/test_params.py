@@ -5,6 +5,7 @@ from dataclasses import dataclass
 import pytest
 
 from conftest import ROOT
+from tiago_nav.nodes import CONFIG_FILES, config_text
 from tiago_nav.params import ParamError, config_yaml, defaults, nested, param, read_params, validate
 
 
@@ -68,13 +69,9 @@ def test_config_yaml_lists_every_parameter_once():
     assert keys == ['radius', 'beams', 'frame', 'method', 'gui', 'start', 'laser_offset']
 
 
-NODES = ('simulator', 'navigation', 'corridor_controller', 'obstacle_detection', 'tiago_controller')
-
-
-@pytest.mark.parametrize('module', NODES)
+@pytest.mark.parametrize('module', sorted(CONFIG_FILES))
 def test_shipped_config_equals_the_dataclass_defaults(module):
     """config/*.yaml are rendered from the dataclasses (python3 -m tiago_nav.nodes): a default
     is written once, in code."""
-    from tiago_nav.nodes import CONFIG_FILES, config_text
     with open(os.path.join(ROOT, 'config', CONFIG_FILES[module])) as f:
         assert f.read() == config_text(module), 'run: python3 -m tiago_nav.nodes ' + module

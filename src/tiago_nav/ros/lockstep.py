@@ -10,7 +10,6 @@ import threading
 import time
 
 import rospy
-import tf2_ros
 from geometry_msgs.msg import Twist
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
