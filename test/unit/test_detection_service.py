@@ -179,18 +179,62 @@ def test_frames_are_parameters(clean, grid):
     assert not a.success and a.message.startswith('no transform base_link <- base_laser_link')
 
 
-def test_pipeline_error_is_an_answer_not_a_crash(clean, grid):
+@pytest.mark.parametrize('error', [ValueError('ranges and angles disagree'),
+                                   RuntimeError('ranges and angles disagree'),
+                                   np.linalg.LinAlgError('ranges and angles disagree')])
+def test_pipeline_error_is_an_answer_not_a_crash(clean, grid, error):
     svc = service(grid)
 
     def broken(*args, **kw):
-        raise ValueError('ranges and angles disagree')
+        raise error
     svc.detector.detect = broken
     a = svc.handle('', 0.0, 0.0, FakeSensors(noisy_scan(clean)))
     assert not a.success and a.obstacles == ()
-    assert 'ranges and angles disagree' in a.message
+    assert a.message == 'detection failed on this scan: %s: ranges and angles disagree' \
+        % type(error).__name__
 
 
-def test_empty_world_answers_success_with_none(grid):
+def glitch(ranges, bad, fraction, seed=0):
+    """``ranges`` with ``fraction`` of the beams (seeded random choice) set to ``bad``."""
+    r = np.array(ranges, dtype=float)
+    idx = np.random.default_rng(seed).choice(len(r), int(round(fraction * len(r))), replace=False)
+    r[idx] = bad
+    return r
+
+
+@pytest.mark.parametrize('name, ranges', [
+    ('dead laser (all NaN)', lambda r: np.full(len(r), np.nan)),
+    ('all zero', lambda r: np.zeros(len(r))),
+    ('60 % NaN burst', lambda r: glitch(r, np.nan, 0.6)),
+    ('60 % below range_min', lambda r: glitch(r, 0.01, 0.6)),
+    ('60 % beyond range_max', lambda r: glitch(r, 1e6, 0.6)),
+    ('empty scan', lambda r: np.zeros(0)),
+])
+def test_a_scan_with_too_few_valid_beams_fails_instead_of_finding_none(clean, grid, name,
+                                                                       ranges):
+    for method in ('circle_fit', 'centroid', 'discontinuity'):
+        sensors = FakeSensors(ranges(noisy_scan(clean)))
+        a = service(grid).handle(method, 0.0, 0.0, sensors)
+        assert not a.success, (name, method, a.message)
+        assert a.obstacles == ()
+        assert a.message.startswith('too few valid beams to judge'), a.message
+        assert 'at least 50 % needed' in a.message
+        assert not [c for c in sensors.calls if c[0] == 'tf']   # judged before any tf wait
+
+
+def test_the_valid_fraction_is_a_parameter_and_inf_beams_count_as_valid(clean, grid):
+    r = glitch(noisy_scan(clean), np.nan, 0.3)
+    a = service(grid).handle('', 0.0, 0.0, FakeSensors(r))
+    assert a.success, a.message                       # 70 % valid: judged
+    assert len(a.obstacles) == len(clean[1])          # and the holes lose nothing
+    a = service(grid, min_informative_fraction=0.8).handle('', 0.0, 0.0, FakeSensors(r))
+    assert not a.success and '70 % of the 666 beams' in a.message
+    # REP 117: +inf (no return) and -inf (too close) are measurements, not gaps
+    r = glitch(glitch(noisy_scan(clean), np.inf, 0.3, 1), -np.inf, 0.3, 2)
+    assert service(grid).handle('', 0.0, 0.0, FakeSensors(r)).success
+
+
+def test_empty_world_answers_success_with_none():
     empty = GridMap(np.zeros((10, 10), dtype=np.int8), 0.05, (-0.25, -0.25))
     ranges = np.full(L.num_beams, np.inf)
     a = service(empty).handle('', 0.0, 0.0, FakeSensors(ranges))

@@ -21,7 +21,7 @@ from tiago_nav.detection.clustering import centroid_clusters
 from tiago_nav.detection.subtraction import MapDistance, subtract
 from tiago_nav.geometry import transform_points
 from tiago_nav.params import ParamError, param, validate
-from tiago_nav.scan import scan_to_points
+from tiago_nav.scan import TOO_CLOSE, classify, scan_to_points
 
 METHODS = ('circle_fit', 'centroid', 'discontinuity')
 
@@ -195,6 +195,9 @@ def _discontinuity(r, angle_min, inc, rmin, rmax, laser_pose, p):
     points = np.full((n, 2), np.nan)
     points[beam] = local
     rr = np.where(valid, r, np.inf)
+    # REP 117: -inf is something nearer than range_min, so no dip in front of it; NaN and
+    # out-of-limit values say nothing and count as far (as no return, +inf)
+    rr[classify(r, rmin, rmax) == TOO_CLOSE] = 0.0
     # segment boundaries where the range jumps (or validity changes)
     with np.errstate(invalid='ignore'):
         jumps = np.flatnonzero(~(np.abs(np.diff(rr)) <= p.jump)) + 1

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 from tiago_nav.detection.pipeline import METHODS, ObstacleDetector
 from tiago_nav.geometry import compose, inverse
+from tiago_nav.scan import informative_fraction
 
 # request fields that override a DetectionParams field (0 keeps the node's default)
 REQUEST_THRESHOLDS = ('scan_minus_map_threshold', 'cluster_threshold')
@@ -79,6 +80,19 @@ def check_request(method, scan_minus_map_threshold, cluster_threshold, default_m
     return method
 
 
+def check_scan(scan, min_fraction):
+    """Raise :class:`Failure` when fewer than ``min_fraction`` of the beams of the :class:`Scan`
+    say something (REP 117: a hit, no return or too close; NaN and finite values outside
+    ``[range_min, range_max]`` say nothing): a NaN burst or a dead laser must not read as "no
+    obstacles"."""
+    f = informative_fraction(scan.ranges, scan.range_min, scan.range_max)
+    if f < min_fraction:
+        raise Failure('too few valid beams to judge: %.0f %% of the %d beams of this scan are '
+                      'valid (NaN or outside [%g, %g] m otherwise), at least %.0f %% needed'
+                      % (100 * f, len(scan.ranges), scan.range_min, scan.range_max,
+                         100 * min_fraction))
+
+
 def found_obstacles(detections, laser_in_map, laser_in_robot):
     """:class:`Found` obstacles from the pipeline's detections (map frame), with their centres
     in the robot frame too, sorted by distance from the robot.
@@ -102,7 +116,8 @@ class DetectionService:
     """One DetectObstacles call after another, on the newest map.
 
     ``params`` has the fields of :class:`tiago_nav.nodes.obstacle_detection.Params`
-    (``detection``, ``method``, ``scan_timeout``, ``tf_timeout``, frames and topics).
+    (``detection``, ``method``, ``scan_timeout``, ``tf_timeout``,
+    ``min_informative_fraction``, frames and topics).
     """
 
     def __init__(self, params):
@@ -131,6 +146,7 @@ class DetectionService:
             if scan is None:
                 raise Failure('no %s received within %.1f s' % (self.params.scan_topic,
                                                                  self.params.scan_timeout))
+            check_scan(scan, self.params.min_informative_fraction)
             laser_in_map, laser_in_robot = self._poses(scan, sensors)
             return self._detect(scan, laser_in_map, laser_in_robot, method,
                                 scan_minus_map_threshold, cluster_threshold)
@@ -158,8 +174,9 @@ class DetectionService:
                 scan.range_max, laser_in_map, method,
                 scan_minus_map_threshold=scan_minus_map_threshold,
                 cluster_threshold=cluster_threshold)
-        except (ValueError, ArithmeticError, IndexError) as e:
-            raise Failure('detection failed on this scan: %s' % e) from None
+        except Exception as e:   # never a crash: the caller learns what went wrong
+            raise Failure('detection failed on this scan: %s: %s'
+                          % (type(e).__name__, e)) from None
         elapsed_ms = (time.perf_counter() - t0) * 1e3
         obstacles = found_obstacles(found, laser_in_map, laser_in_robot)
         return Answer(True, obstacles, '%d obstacle(s) found with %s in %.1f ms'

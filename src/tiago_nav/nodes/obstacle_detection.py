@@ -1,6 +1,15 @@
 """The obstacle_detection node: the ``obstacle_detection`` service (tiago_nav/DetectObstacles)
 on one fresh scan minus the latched map. ROS wiring only: the decisions are
-:class:`tiago_nav.detection.service.DetectionService`'s."""
+:class:`tiago_nav.detection.service.DetectionService`'s.
+
+Waits (all in wall time, each bounded):
+
+* start-up: the latched map, up to ``~map_timeout``; the service is advertised only once a
+  usable map has arrived, otherwise the node logs a fatal error and exits with status 1;
+* in each call: a scan stamped at or after the call, up to ``~scan_timeout`` (so a call that
+  comes before the first scan waits for it), then each transform at the scan's time, up to
+  ``~tf_timeout``. Running out of either is an answer with ``success: false``, never a hang.
+"""
 import sys
 import threading
 import time
@@ -37,6 +46,12 @@ class Params:
                                 'after it', gt=0)
     tf_timeout: float = param(1.0, '[s wall] a call waits this long for each transform at the '
                               'scan\'s time', gt=0)
+    map_timeout: float = param(30.0, '[s wall] at start-up, wait this long for a usable map before '
+                               'giving up (fatal, exit 1); the service is advertised after it',
+                               gt=0)
+    min_informative_fraction: float = param(
+        0.5, '[fraction] a scan with fewer valid beams (REP 117: hit, no return or too close) '
+        'is too broken to judge: the call fails', ge=0, le=1)
     map_topic: str = param('/map', 'the static map (nav_msgs/OccupancyGrid, latched)',
                            nonempty=True)
     scan_topic: str = param('/scan', 'the laser (sensor_msgs/LaserScan)', nonempty=True)
@@ -107,19 +122,32 @@ class DetectionNode:
     def __init__(self, params):
         self.params = params
         self.logic = DetectionService(params)
+        self.map_ready = threading.Event()
         self.sensors = RosSensors(params.scan_topic)
         self.markers = rospy.Publisher('~obstacles', MarkerArray, queue_size=1, latch=True)
         rospy.Subscriber(params.map_topic, OccupancyGrid, self.on_map, queue_size=1)
-        self.service = rospy.Service('obstacle_detection', DetectObstacles, self.handle)
+        self.service = None
 
     def on_map(self, msg):
         try:
             self.logic.set_map(gridmap_from_msg(msg))
+            self.map_ready.set()
             rospy.loginfo('obstacle_detection: map %dx%d at %.3f m', msg.info.width,
                           msg.info.height, msg.info.resolution)
         except ValueError as e:
             self.logic.map_unusable(str(e))
             rospy.logerr('obstacle_detection: %s', self.logic.map_error)
+
+    def advertise_when_ready(self):
+        """Wait up to ``~map_timeout`` (wall) for a usable map, then advertise the service.
+        Returns False, without advertising, when none came in time or on shutdown."""
+        deadline = time.monotonic() + self.params.map_timeout
+        while not rospy.is_shutdown() and time.monotonic() < deadline:
+            if self.map_ready.wait(min(0.1, max(deadline - time.monotonic(), 0.0))):
+                self.service = rospy.Service('obstacle_detection', DetectObstacles, self.handle)
+                rospy.loginfo('obstacle_detection: ready')
+                return True
+        return False
 
     def handle(self, req):
         answer = self.logic.handle(req.method, req.scan_minus_map_threshold,
@@ -135,8 +163,15 @@ class DetectionNode:
 def main():
     rospy.init_node('obstacle_detection')
     try:
-        DetectionNode(read(Params))
+        node = DetectionNode(read(Params))
     except ParamError as e:
         rospy.logfatal('obstacle_detection: %s', e)
         sys.exit(2)
+    if not node.advertise_when_ready():
+        if rospy.is_shutdown():
+            return
+        rospy.logfatal('obstacle_detection: no usable map on %s within ~map_timeout = %.1f s '
+                       '(%s): the service is not advertised', node.params.map_topic,
+                       node.params.map_timeout, node.logic.map_error)
+        sys.exit(1)
     rospy.spin()
