@@ -21,7 +21,7 @@ from tiago_nav.detection.clustering import centroid_clusters
 from tiago_nav.detection.subtraction import MapDistance, subtract
 from tiago_nav.geometry import transform_points
 from tiago_nav.params import ParamError, param, validate
-from tiago_nav.scan import TOO_CLOSE, classify, scan_to_points
+from tiago_nav.scan import scan_to_points
 
 METHODS = ('circle_fit', 'centroid', 'discontinuity')
 
@@ -91,7 +91,8 @@ class ObstacleDetector:
         """
         if method not in METHODS:
             raise ValueError('unknown method %r (expected one of %s)' % (method, ', '.join(METHODS)))
-        p = replace(self.params, **{k: v for k, v in overrides.items() if v})
+        changed = {k: v for k, v in overrides.items() if v}
+        p = replace(self.params, **changed) if changed else self.params
         r = np.asarray(ranges, dtype=float)
         if method == 'discontinuity':
             found = _discontinuity(r, angle_min, angle_increment, range_min,
@@ -192,12 +193,12 @@ def _discontinuity(r, angle_min, inc, rmin, rmax, laser_pose, p):
     local, beam = scan_to_points(r, angle_min, inc, rmin, rmax)
     valid = np.zeros(n, dtype=bool)
     valid[beam] = True
-    points = np.full((n, 2), np.nan)
+    points = np.empty((n, 2))
     points[beam] = local
     rr = np.where(valid, r, np.inf)
-    # REP 117: -inf is something nearer than range_min, so no dip in front of it; NaN and
-    # out-of-limit values say nothing and count as far (as no return, +inf)
-    rr[classify(r, rmin, rmax) == TOO_CLOSE] = 0.0
+    # REP 117: -inf is something nearer than range_min (no dip in front of it); NaN and
+    # out-of-limit values say nothing and count as far, as +inf (no return) does
+    rr[np.isneginf(r)] = 0.0
     # segment boundaries where the range jumps (or validity changes)
     with np.errstate(invalid='ignore'):
         jumps = np.flatnonzero(~(np.abs(np.diff(rr)) <= p.jump)) + 1
@@ -221,6 +222,6 @@ def _discontinuity(r, angle_min, inc, rmin, rmax, laser_pose, p):
         d = rr[k] + p.depth
         local = np.array([[d * math.cos(ang[k]), d * math.sin(ang[k])]])
         cx, cy = transform_points(laser_pose, local)[0]
-        pts = transform_points(laser_pose, points[s:e])
+        pts = transform_points(laser_pose, points[s:e])     # a segment is all hits
         out.append(Detection((float(cx), float(cy)), p.depth, e - s, pts))
     return out
