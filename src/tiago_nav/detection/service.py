@@ -132,15 +132,16 @@ class DetectionService:
 
     def map_unusable(self, reason):
         """The newest map cannot be used (``reason``): calls fail until a usable one comes."""
-        self.detector = None
-        self.map_error = 'unusable %s: %s' % (self.params.map_topic, reason)
+        self.map_error = 'unusable %s: %s' % (self.params.map_topic, reason)   # set before the
+        self.detector = None                                                  # detector goes
 
     def handle(self, method, scan_minus_map_threshold, cluster_threshold, sensors):
         """Answer one request (the fields of DetectObstacles.srv) with ``sensors``."""
         try:
             method = check_request(method, scan_minus_map_threshold, cluster_threshold,
                                    self.params.method)
-            if self.detector is None:
+            detector = self.detector        # one map for the whole call (maps come meanwhile)
+            if detector is None:
                 raise Failure(self.map_error)
             scan = sensors.fresh_scan(self.params.scan_timeout)
             if scan is None:
@@ -148,7 +149,7 @@ class DetectionService:
                                                                  self.params.scan_timeout))
             check_scan(scan, self.params.min_informative_fraction)
             laser_in_map, laser_in_robot = self._poses(scan, sensors)
-            return self._detect(scan, laser_in_map, laser_in_robot, method,
+            return self._detect(detector, scan, laser_in_map, laser_in_robot, method,
                                 scan_minus_map_threshold, cluster_threshold)
         except Failure as e:
             return Answer(False, (), str(e))
@@ -165,11 +166,11 @@ class DetectionService:
                               % (target, scan.frame_id, p.tf_timeout, e)) from None
         return poses
 
-    def _detect(self, scan, laser_in_map, laser_in_robot, method, scan_minus_map_threshold,
-                cluster_threshold):
+    def _detect(self, detector, scan, laser_in_map, laser_in_robot, method,
+                scan_minus_map_threshold, cluster_threshold):
         t0 = time.perf_counter()
         try:
-            found = self.detector.detect(
+            found = detector.detect(
                 scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
                 scan.range_max, laser_in_map, method,
                 scan_minus_map_threshold=scan_minus_map_threshold,
