@@ -294,9 +294,10 @@ def measure_service(world_path, start, calls, rtf):
                 time.sleep(0.5)
         rospy.wait_for_service('obstacle_detection', timeout=60)
         call = rospy.ServiceProxy('obstacle_detection', DetectObstacles, persistent=True)
-        # the node needs the latched map first
+        # the service comes with the map; the simulator's first scans and tf may still be on
+        # their way (the node answers success=false until they are there)
         for _ in range(60):
-            if call(DetectObstaclesRequest()).obstacles:
+            if call(DetectObstaclesRequest()).success:
                 break
             time.sleep(0.5)
         rt, proc, found = [], [], []
@@ -306,7 +307,7 @@ def measure_service(world_path, start, calls, rtf):
             rt.append((time.perf_counter() - t) * 1e3)
             found.append(len(resp.obstacles))
             ms = [float(w) for w in resp.message.replace('(', ' ').split() if _is_float(w)]
-            if len(ms) >= 2:
+            if resp.success and len(ms) >= 2:
                 proc.append(ms[-1])
         return {'calls': calls, 'real_time_factor': rtf,
                 'round_trip_ms_median': round(float(np.median(rt)), 2),
