@@ -67,10 +67,13 @@ def _merge(clusters, pts, threshold, gaps):
         ok = np.isfinite(d)
         if np.any(d[ok] <= np.maximum(gb[ok], gaps[clusters[a]][j[ok]])):
             edges.append((a, b))
+    if not edges:
+        return clusters
     n = len(clusters)
-    a, b = np.array(edges, dtype=int).reshape(-1, 2).T
-    graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n))
-    _, label = connected_components(graph, directed=False)
-    _, first = np.unique(label, return_index=True)
-    return [np.sort(np.concatenate([clusters[i] for i in np.flatnonzero(label == label[f])]))
-            for f in np.sort(first)]
+    a, b = np.array(edges, dtype=int).T
+    _, label = connected_components(coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n)),
+                                    directed=False)
+    groups = {}                  # by component, in the order of each one's first cluster
+    for c, g in zip(clusters, label):
+        groups.setdefault(g, []).append(c)
+    return [np.sort(np.concatenate(g)) for g in groups.values()]
