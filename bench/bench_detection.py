@@ -33,6 +33,7 @@ RESULTS = os.path.join(ROOT, 'bench', 'results')
 from tiago_nav.testing.harness import free_port, stop_process  # noqa: E402
 from tiago_nav.detection import METHODS, DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.detection.subtraction import MapDistance, brute_force_distance  # noqa: E402
+from tiago_nav import robot  # noqa: E402
 from tiago_nav.geometry import transform_points, wrap_angle  # noqa: E402
 from tiago_nav.scan import scan_to_points  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
@@ -41,7 +42,7 @@ from tiago_nav.sim.world import load_world  # noqa: E402
 
 WORLDS = ['ias_lab_room_full.yaml', 'open_hall.yaml']
 NOISE = 0.01            # [m] range noise std, as the simulator's default
-ROBOT_RADIUS = 0.27     # [m] the simulator's default base
+ROBOT_RADIUS = robot.ROBOT_RADIUS  # [m] the simulator's default base
 CLEARANCE = 0.1         # [m] extra free space around the sampled base
 MATCH_GATE = 0.05       # [m] a found centre matches an obstacle within its radius + this
 # circle_fit's targets: recall and RMS error over the obstacles in clear view, false positives
@@ -293,9 +294,10 @@ def measure_service(world_path, start, calls, rtf):
                 time.sleep(0.5)
         rospy.wait_for_service('obstacle_detection', timeout=60)
         call = rospy.ServiceProxy('obstacle_detection', DetectObstacles, persistent=True)
-        # the node needs the latched map first
+        # the service comes with the map; the simulator's first scans and tf may still be on
+        # their way (the node answers success=false until they are there)
         for _ in range(60):
-            if call(DetectObstaclesRequest()).obstacles:
+            if call(DetectObstaclesRequest()).success:
                 break
             time.sleep(0.5)
         rt, proc, found = [], [], []
@@ -305,7 +307,7 @@ def measure_service(world_path, start, calls, rtf):
             rt.append((time.perf_counter() - t) * 1e3)
             found.append(len(resp.obstacles))
             ms = [float(w) for w in resp.message.replace('(', ' ').split() if _is_float(w)]
-            if len(ms) >= 2:
+            if resp.success and len(ms) >= 2:
                 proc.append(ms[-1])
         return {'calls': calls, 'real_time_factor': rtf,
                 'round_trip_ms_median': round(float(np.median(rt)), 2),

@@ -28,6 +28,7 @@ class DetectionNodeTest(SimTestCase):
         cls.call = rospy.ServiceProxy('obstacle_detection', DetectObstacles)
 
     def check(self, resp, tol):
+        self.assertTrue(resp.success, resp.message)
         truth = [self.world.movable_obstacles[i] for i in self.visible]
         self.assertEqual(len(resp.obstacles), len(truth), resp.message)
         for c in truth:
@@ -65,11 +66,13 @@ class DetectionNodeTest(SimTestCase):
 
     def test_unknown_method_is_an_error(self):
         resp = self.call(DetectObstaclesRequest(method='hough'))
+        self.assertFalse(resp.success)
         self.assertEqual(len(resp.obstacles), 0)
         self.assertIn('unknown method', resp.message)
 
     def test_negative_threshold_is_an_error(self):
         resp = self.call(DetectObstaclesRequest(cluster_threshold=-1.0))
+        self.assertFalse(resp.success)
         self.assertEqual(len(resp.obstacles), 0)
         self.assertIn('cluster_threshold', resp.message)
 

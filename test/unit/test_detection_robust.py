@@ -120,3 +120,22 @@ def test_dropouts_beside_an_obstacle_do_not_pull_the_fit():
     det = ObstacleDetector(rasterise_world(w))
     again = det.detect(bad, L.angle_min, L.angle_increment, L.range_min, L.range_max, laser)
     assert max(errors(again, w, visible)) < 0.03
+
+
+@pytest.mark.parametrize('neighbour, dip', [(5.0, True), (math.inf, True), (math.nan, True),
+                                            (-math.inf, False)])
+def test_discontinuity_reads_a_too_close_neighbour_per_rep_117(neighbour, dip):
+    """A 10-beam segment at 2 m in front of a 5 m background is a dip (an obstacle); with its
+    left neighbour -inf (REP 117: something nearer than range_min) it stands in front of
+    nothing and is not one. +inf (no return) and NaN (says nothing) do not hide it."""
+    w = world([(2.0, 0.0, 0.2)])
+    det = ObstacleDetector(rasterise_world(w), DetectionParams())
+    r = np.full(L.num_beams, 5.0)
+    mid = L.num_beams // 2
+    r[mid - 5:mid + 5] = 2.0
+    r[mid - 6] = neighbour
+    found = det.detect(r, L.angle_min, L.angle_increment, L.range_min, L.range_max,
+                       (0.0, 0.0, 0.0), 'discontinuity')
+    assert len(found) == (1 if dip else 0), [d.center for d in found]
+    if dip:
+        assert found[0].center[0] == pytest.approx(2.0 + DetectionParams().depth, abs=0.01)

@@ -6,9 +6,11 @@ afterwards clusters whose centroids lie within ``threshold`` of each other are m
 refinements make it robust: a point also needs a neighbour in that cluster within ``gap`` (so
 two obstacles a few centimetres apart are not bridged by their centroids), and the merge needs the
 two clusters to touch within ``gap`` too. Distances to all clusters are computed at once (numpy);
-the merge uses a KD-tree (scipy) and a union-find over cluster pairs.
+the merge finds candidate pairs with a KD-tree and joins them as connected components (scipy).
 """
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 
@@ -51,29 +53,27 @@ def centroid_clusters(points, threshold, gap):
 
 def _merge(clusters, pts, threshold, gaps):
     """Merge clusters whose centroids are within ``threshold`` and whose points touch within
-    the larger gap of the two touching points (``gaps``: one per point); transitively, through a
-    union-find over the pairs (centroids of the clusters found by the pass)."""
+    the larger gap of the two touching points (``gaps``: one per point); transitively: the
+    connected components of the graph of such pairs (scipy.sparse.csgraph), in the order of
+    each component's first cluster."""
     if len(clusters) < 2:
         return clusters
     cent = np.array([pts[c].mean(axis=0) for c in clusters])
-    parent = list(range(len(clusters)))
-
-    def root(a):
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
     trees = [cKDTree(pts[c]) for c in clusters]
+    edges = []
     for a, b in cKDTree(cent).query_pairs(threshold):
-        if root(a) == root(b):
-            continue
         gb = gaps[clusters[b]]
         d, j = trees[a].query(pts[clusters[b]], distance_upper_bound=float(gaps.max()))
         ok = np.isfinite(d)
         if np.any(d[ok] <= np.maximum(gb[ok], gaps[clusters[a]][j[ok]])):
-            parent[root(a)] = root(b)
-    groups = {}
-    for i in range(len(clusters)):
-        groups.setdefault(root(i), []).append(clusters[i])
+            edges.append((a, b))
+    if not edges:
+        return clusters
+    n = len(clusters)
+    a, b = np.array(edges, dtype=int).T
+    _, label = connected_components(coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n)),
+                                    directed=False)
+    groups = {}                  # by component, in the order of each one's first cluster
+    for c, g in zip(clusters, label):
+        groups.setdefault(g, []).append(c)
     return [np.sort(np.concatenate(g)) for g in groups.values()]

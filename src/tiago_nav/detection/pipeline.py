@@ -20,6 +20,7 @@ from tiago_nav.detection.centres import centroid, circle_fit, radius_std
 from tiago_nav.detection.clustering import centroid_clusters
 from tiago_nav.detection.subtraction import MapDistance, subtract
 from tiago_nav.geometry import transform_points
+from tiago_nav.params import ParamError, param, validate
 from tiago_nav.scan import scan_to_points
 
 METHODS = ('circle_fit', 'centroid', 'discontinuity')
@@ -27,26 +28,38 @@ METHODS = ('circle_fit', 'centroid', 'discontinuity')
 
 @dataclass(frozen=True)
 class DetectionParams:
-    """Defaults of the node (config/detection.yaml). Lengths in metres."""
-    scan_minus_map_threshold: float = 0.12  # points closer than this to the map are the map's
-    cluster_threshold: float = 0.4          # centroid distance to join or merge a cluster
-    gap: float = 0.08                       # a cluster's points must touch within this, or 3
-                                            # beam spacings at their range (+1 per invalid beam)
-    min_points: int = 5                     # fewer points: noise
-    min_radius: float = 0.03                # fitted radius outside [min, max]: not an obstacle
-    max_radius: float = 0.6
-    max_fit_rms: float = 0.03               # residual of the circle fit above this: not round
-    obstacle_radius: float = 0.0            # > 0: fit centres with this radius fixed
-    max_radius_std: float = 0.02            # radius std error above this (a short arc):
-                                            # fit the centre with the median radius of the
-                                            # scan's well-measured obstacles instead
-    radius_spread: float = 0.03             # ... when those radii agree within this
-    range_noise: float = 0.01               # the laser's range noise std: the least residual
-                                            # assumed when judging a fitted radius's precision
-    max_range: float = 10.0                 # ignore beams longer than this
-    jump: float = 0.15                      # discontinuity: range jump that separates segments
-    depth: float = 0.2                      # discontinuity: closest point pushed back this far
-    max_width: float = 1.0                  # discontinuity: wider segments are walls
+    """The pipeline's parameters (lengths in metres, the map frame)."""
+    # map subtraction and clustering
+    scan_minus_map_threshold: float = param(
+        0.12, '[m] scan points closer than this to an occupied map cell are the map\'s', ge=0)
+    cluster_threshold: float = param(0.4, '[m] centroid clustering: join/merge distance', ge=0)
+    gap: float = param(0.08, '[m] a cluster\'s points touch within this, or 3 beam spacings at '
+                       'their range (+1 per invalid beam between them)', ge=0)
+    # the obstacle-shape filter
+    min_points: int = param(5, '[points] smaller clusters are noise', ge=0)
+    min_radius: float = param(0.03, '[m] a fitted radius below this is not an obstacle', ge=0)
+    max_radius: float = param(0.6, '[m] a fitted radius above this is not an obstacle', ge=0)
+    max_fit_rms: float = param(0.03, '[m] circle-fit residual above this: not round', ge=0)
+    # the circle fit
+    obstacle_radius: float = param(0.0, '[m] > 0 fixes the radius of the circle fit (0: fit it)',
+                                   ge=0)
+    max_radius_std: float = param(
+        0.02, '[m] a fitted radius with a std error above this (a short, hidden arc): fit the '
+        'centre with the median radius of the scan\'s well-measured obstacles', ge=0)
+    radius_spread: float = param(0.03, '[m] ... when those radii agree within this', ge=0)
+    range_noise: float = param(0.01, '[m] the laser\'s range noise std (least residual assumed '
+                               'when judging a fitted radius\'s precision)', ge=0)
+    max_range: float = param(10.0, '[m] beams longer than this are ignored', ge=0)
+    # the discontinuity method
+    jump: float = param(0.15, '[m] discontinuity method: range jump between segments', ge=0)
+    depth: float = param(0.2, '[m] discontinuity method: closest point pushed back this far', ge=0)
+    max_width: float = param(1.0, '[m] discontinuity method: wider segments are walls', ge=0)
+
+    def __post_init__(self):
+        validate(self)
+        if self.min_radius > self.max_radius:
+            raise ParamError('must be <= max_radius (%g), got %g'
+                             % (self.max_radius, self.min_radius), 'min_radius')
 
 
 @dataclass
@@ -78,7 +91,8 @@ class ObstacleDetector:
         """
         if method not in METHODS:
             raise ValueError('unknown method %r (expected one of %s)' % (method, ', '.join(METHODS)))
-        p = replace(self.params, **{k: v for k, v in overrides.items() if v})
+        changed = {k: v for k, v in overrides.items() if v}
+        p = replace(self.params, **changed) if changed else self.params
         r = np.asarray(ranges, dtype=float)
         if method == 'discontinuity':
             found = _discontinuity(r, angle_min, angle_increment, range_min,
@@ -175,10 +189,16 @@ def _is_obstacle(c, centre, rad, rms, sensor, p):
 
 def _discontinuity(r, angle_min, inc, rmin, rmax, laser_pose, p):
     """Range-jump segmentation of the raw scan (no map)."""
-    with np.errstate(invalid='ignore'):
-        valid = np.isfinite(r) & (r >= rmin) & (r <= rmax)
+    n = len(r)
+    local, beam = scan_to_points(r, angle_min, inc, rmin, rmax)
+    valid = np.zeros(n, dtype=bool)
+    valid[beam] = True
+    points = np.empty((n, 2))
+    points[beam] = local
     rr = np.where(valid, r, np.inf)
-    n = len(rr)
+    # REP 117: -inf is something nearer than range_min (no dip in front of it); NaN and
+    # out-of-limit values say nothing and count as far, as +inf (no return) does
+    rr[np.isneginf(r)] = 0.0
     # segment boundaries where the range jumps (or validity changes)
     with np.errstate(invalid='ignore'):
         jumps = np.flatnonzero(~(np.abs(np.diff(rr)) <= p.jump)) + 1
@@ -202,7 +222,6 @@ def _discontinuity(r, angle_min, inc, rmin, rmax, laser_pose, p):
         d = rr[k] + p.depth
         local = np.array([[d * math.cos(ang[k]), d * math.sin(ang[k])]])
         cx, cy = transform_points(laser_pose, local)[0]
-        pts = transform_points(laser_pose, np.column_stack((near * np.cos(ang[s:e]),
-                                                            near * np.sin(ang[s:e]))))
+        pts = transform_points(laser_pose, points[s:e])     # a segment is all hits
         out.append(Detection((float(cx), float(cy)), p.depth, e - s, pts))
     return out

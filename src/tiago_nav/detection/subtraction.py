@@ -1,12 +1,11 @@
 """Map subtraction: remove scan points that lie on the static map.
 
-:class:`MapDistance` computes, once per map, the Euclidean distance transform of the map's free
-space (scipy.ndimage), so the distance from any point to the nearest occupied cell is one array
+:class:`MapDistance` uses the map's Euclidean distance transform
+(:meth:`tiago_nav.gridmap.GridMap.distance_field`, computed once per map), so the distance from any point to the nearest occupied cell is one array
 look-up: O(N) for N scan points, against O(N·M) for comparing every scan point with every one of
 the M occupied cells (:func:`brute_force_distance`, kept as the reference).
 """
 import numpy as np
-from scipy import ndimage
 from scipy.spatial.distance import cdist
 
 
@@ -15,11 +14,7 @@ class MapDistance:
 
     def __init__(self, grid):
         self.grid = grid
-        occupied = grid.occupied()
-        if occupied.any():
-            self.field = ndimage.distance_transform_edt(~occupied) * grid.resolution
-        else:
-            self.field = np.full(grid.shape, np.inf)
+        self.field = grid.distance_field()
 
     def __call__(self, points):
         """Distances [m] for ``(N, 2)`` points in the map frame; ``inf`` outside the map.

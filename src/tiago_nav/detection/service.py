@@ -1,0 +1,184 @@
+"""The obstacle_detection service's decisions on plain values (no ROS here): checking a request,
+running the pipeline on one scan and composing the answer, std_srvs/Trigger style (``success``
+false with the reason in ``message`` for every failure; true with no obstacles means "looked,
+found none").
+
+Frames: ``map`` (the static map and the results), the robot frame (``base_footprint``) and the
+laser's (the scan's ``frame_id``), all named by the node's parameters. Units: metres, radians,
+seconds.
+
+:class:`DetectionService` reaches the sensors through a *sensors* object (the ROS one is in
+:mod:`tiago_nav.nodes.obstacle_detection`; unit tests pass a fake) with two methods:
+
+* ``fresh_scan(timeout)``: the first :class:`Scan` stamped at or after the call, or None after
+  ``timeout`` wall seconds;
+* ``transform(target, source, stamp, timeout)``: the pose ``(x, y, yaw)`` of frame ``source`` in
+  frame ``target`` at ``stamp``, waiting up to ``timeout`` wall seconds; raises
+  :class:`LookupError` (its text says why) when there is none.
+"""
+import math
+import time
+from dataclasses import dataclass
+
+from tiago_nav.detection.pipeline import METHODS, ObstacleDetector
+from tiago_nav.geometry import compose, inverse
+from tiago_nav.scan import informative_fraction
+
+# request fields that override a DetectionParams field (0 keeps the node's default)
+REQUEST_THRESHOLDS = ('scan_minus_map_threshold', 'cluster_threshold')
+
+
+class Failure(Exception):
+    """A call that gets no obstacles; ``str()`` is the message the caller sees."""
+
+
+@dataclass(frozen=True)
+class Scan:
+    """One laser scan as plain values (sensor_msgs/LaserScan's fields, REP 117 ranges [m])."""
+    ranges: tuple
+    angle_min: float        # [rad] in the laser frame
+    angle_increment: float  # [rad]
+    range_min: float        # [m]
+    range_max: float        # [m]
+    stamp: object           # the scan's time, as the sensors object understands it
+    frame_id: str           # the laser frame
+
+
+@dataclass(frozen=True)
+class Found:
+    """One obstacle of an answer."""
+    center: tuple           # (x, y) [m] in the map frame
+    center_robot: tuple     # (x, y) [m] in the robot frame at the scan's time
+    radius: float           # [m]
+    num_points: int         # scan points that support it
+
+
+@dataclass(frozen=True)
+class Answer:
+    """The service's reply: ``obstacles`` nearest the robot first; ``stamp`` is the scan's
+    (None when ``success`` is false)."""
+    success: bool
+    obstacles: tuple
+    message: str
+    stamp: object = None
+
+
+def check_request(method, scan_minus_map_threshold, cluster_threshold, default_method):
+    """The method a request asks for (``""``: ``default_method``).
+
+    Raises :class:`Failure` naming the bad field: an unknown ``method``, a threshold that is
+    negative or not finite (0 means the node's default).
+    """
+    method = method or default_method
+    if method not in METHODS:
+        raise Failure('bad request: unknown method %r: use one of %s'
+                      % (method, ', '.join(METHODS)))
+    for name, v in zip(REQUEST_THRESHOLDS, (scan_minus_map_threshold, cluster_threshold)):
+        if not math.isfinite(v) or v < 0:
+            raise Failure('bad request: %s must be >= 0 (0 = the node\'s default), got %g'
+                          % (name, v))
+    return method
+
+
+def check_scan(scan, min_fraction):
+    """Raise :class:`Failure` when fewer than ``min_fraction`` of the beams of the :class:`Scan`
+    say something (REP 117: a hit, no return or too close; NaN and finite values outside
+    ``[range_min, range_max]`` say nothing): a NaN burst or a dead laser must not read as "no
+    obstacles"."""
+    f = informative_fraction(scan.ranges, scan.range_min, scan.range_max)
+    if f < min_fraction:
+        raise Failure('too few valid beams to judge: %.0f %% of the %d beams of this scan are '
+                      'valid (NaN or outside [%g, %g] m otherwise), at least %.0f %% needed'
+                      % (100 * f, len(scan.ranges), scan.range_min, scan.range_max,
+                         100 * min_fraction))
+
+
+def found_obstacles(detections, laser_in_map, laser_in_robot):
+    """:class:`Found` obstacles from the pipeline's detections (map frame), with their centres
+    in the robot frame too, sorted by distance from the robot.
+
+    Args:
+        detections: :class:`tiago_nav.detection.Detection` s, centres in the map frame.
+        laser_in_map: ``(x, y, yaw)`` of the laser frame in the map frame at the scan's time.
+        laser_in_robot: ``(x, y, yaw)`` of the laser frame in the robot frame.
+    """
+    to_robot = compose(laser_in_robot, inverse(laser_in_map))
+    out = []
+    for d in detections:
+        rx, ry, _ = compose(to_robot, (d.center[0], d.center[1], 0.0))
+        out.append(Found((float(d.center[0]), float(d.center[1])), (rx, ry), float(d.radius),
+                         int(d.num_points)))
+    out.sort(key=lambda o: math.hypot(*o.center_robot))
+    return tuple(out)
+
+
+class DetectionService:
+    """One DetectObstacles call after another, on the newest map.
+
+    ``params`` has the fields of :class:`tiago_nav.nodes.obstacle_detection.Params`
+    (``detection``, ``method``, ``scan_timeout``, ``tf_timeout``,
+    ``min_informative_fraction``, frames and topics).
+    """
+
+    def __init__(self, params):
+        self.params = params
+        self.detector = None
+        self.map_error = 'no %s received yet' % params.map_topic
+
+    def set_map(self, grid):
+        """Use the :class:`tiago_nav.gridmap.GridMap` ``grid`` from now on."""
+        self.detector = ObstacleDetector(grid, self.params.detection)
+        self.map_error = None
+
+    def map_unusable(self, reason):
+        """The newest map cannot be used (``reason``): calls fail until a usable one comes."""
+        self.map_error = 'unusable %s: %s' % (self.params.map_topic, reason)   # set before the
+        self.detector = None                                                  # detector goes
+
+    def handle(self, method, scan_minus_map_threshold, cluster_threshold, sensors):
+        """Answer one request (the fields of DetectObstacles.srv) with ``sensors``."""
+        try:
+            method = check_request(method, scan_minus_map_threshold, cluster_threshold,
+                                   self.params.method)
+            detector = self.detector        # one map for the whole call (maps come meanwhile)
+            if detector is None:
+                raise Failure(self.map_error)
+            scan = sensors.fresh_scan(self.params.scan_timeout)
+            if scan is None:
+                raise Failure('no %s received within %.1f s' % (self.params.scan_topic,
+                                                                 self.params.scan_timeout))
+            check_scan(scan, self.params.min_informative_fraction)
+            laser_in_map, laser_in_robot = self._poses(scan, sensors)
+            return self._detect(detector, scan, laser_in_map, laser_in_robot, method,
+                                scan_minus_map_threshold, cluster_threshold)
+        except Failure as e:
+            return Answer(False, (), str(e))
+
+    def _poses(self, scan, sensors):
+        """The laser frame's pose in the map frame and in the robot frame at the scan's time."""
+        p = self.params
+        poses = []
+        for target in (p.map_frame, p.robot_frame):
+            try:
+                poses.append(sensors.transform(target, scan.frame_id, scan.stamp, p.tf_timeout))
+            except LookupError as e:
+                raise Failure('no transform %s <- %s at the scan time within %.1f s: %s'
+                              % (target, scan.frame_id, p.tf_timeout, e)) from None
+        return poses
+
+    def _detect(self, detector, scan, laser_in_map, laser_in_robot, method,
+                scan_minus_map_threshold, cluster_threshold):
+        t0 = time.perf_counter()
+        try:
+            found = detector.detect(
+                scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
+                scan.range_max, laser_in_map, method,
+                scan_minus_map_threshold=scan_minus_map_threshold,
+                cluster_threshold=cluster_threshold)
+        except Exception as e:   # never a crash: the caller learns what went wrong
+            raise Failure('detection failed on this scan: %s: %s'
+                          % (type(e).__name__, e)) from None
+        elapsed_ms = (time.perf_counter() - t0) * 1e3
+        obstacles = found_obstacles(found, laser_in_map, laser_in_robot)
+        return Answer(True, obstacles, '%d obstacle(s) found with %s in %.1f ms'
+                      % (len(obstacles), method, elapsed_ms), scan.stamp)

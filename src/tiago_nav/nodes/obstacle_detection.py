@@ -1,0 +1,177 @@
+"""The obstacle_detection node: the ``obstacle_detection`` service (tiago_nav/DetectObstacles)
+on one fresh scan minus the latched map. ROS wiring only: the decisions are
+:class:`tiago_nav.detection.service.DetectionService`'s.
+
+Waits (all in wall time, each bounded):
+
+* start-up: the latched map, up to ``~map_timeout``; the service is advertised only once a
+  usable map has arrived, otherwise the node logs a fatal error and exits with status 1;
+* in each call: a scan stamped at or after the call, up to ``~scan_timeout`` (so a call that
+  comes before the first scan waits for it), then each transform at the scan's time, up to
+  ``~tf_timeout``. Running out of either is an answer with ``success: false``, never a hang.
+"""
+import sys
+import threading
+import time
+from dataclasses import dataclass
+
+import rospy
+import tf2_ros
+from geometry_msgs.msg import Point
+from nav_msgs.msg import OccupancyGrid
+from sensor_msgs.msg import LaserScan
+from visualization_msgs.msg import MarkerArray
+
+from tiago_nav.detection import METHODS, DetectionParams
+from tiago_nav.detection.service import DetectionService, Scan
+from tiago_nav.msg import Obstacle
+from tiago_nav.params import ParamError, nested, param, validate
+from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform
+from tiago_nav.ros.markers import obstacle_markers
+from tiago_nav.ros.params import read
+from tiago_nav.srv import DetectObstacles, DetectObstaclesResponse
+
+
+@dataclass(frozen=True)
+class Params:
+    """Defaults of nodes/obstacle_detection (private parameters).
+
+    The pipeline's fields (lengths in metres) and the node's: default method, waits, frames and
+    topics.
+    """
+    detection: DetectionParams = nested(DetectionParams)
+    method: str = param('circle_fit', 'default method (a request\'s "" means this)',
+                        choices=METHODS)
+    scan_timeout: float = param(2.0, '[s wall] a call waits this long for a scan stamped at or '
+                                'after it', gt=0)
+    tf_timeout: float = param(1.0, '[s wall] a call waits this long for each transform at the '
+                              'scan\'s time', gt=0)
+    map_timeout: float = param(30.0, '[s wall] at start-up, wait this long for a usable map before '
+                               'giving up (fatal, exit 1); the service is advertised after it',
+                               gt=0)
+    min_informative_fraction: float = param(
+        0.5, '[fraction] a scan with fewer valid beams (REP 117: hit, no return or too close) '
+        'is too broken to judge: the call fails', ge=0, le=1)
+    map_topic: str = param('/map', 'the static map (nav_msgs/OccupancyGrid, latched)',
+                           nonempty=True)
+    scan_topic: str = param('/scan', 'the laser (sensor_msgs/LaserScan)', nonempty=True)
+    map_frame: str = param('map', 'frame of the map and of the obstacles\' centres',
+                           nonempty=True)
+    robot_frame: str = param('base_footprint', 'frame of the obstacles\' center_robot',
+                             nonempty=True)
+
+    def __post_init__(self):
+        validate(self)
+
+
+def obstacle_msg(found):
+    """:class:`tiago_nav.detection.service.Found` → tiago_nav/Obstacle."""
+    return Obstacle(center=Point(found.center[0], found.center[1], 0.0),
+                    center_robot=Point(found.center_robot[0], found.center_robot[1], 0.0),
+                    radius=found.radius, num_points=found.num_points)
+
+
+class RosSensors:
+    """The service's sensors (see :mod:`tiago_nav.detection.service`): the newest scan of
+    ``scan_topic`` and tf."""
+
+    def __init__(self, scan_topic):
+        self.scan = None
+        self.cond = threading.Condition()
+        self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
+        self.listener = tf2_ros.TransformListener(self.tf)
+        rospy.Subscriber(scan_topic, LaserScan, self.on_scan, queue_size=1)
+
+    def on_scan(self, msg):
+        with self.cond:
+            self.scan = msg
+            self.cond.notify_all()
+
+    def fresh_scan(self, timeout):
+        """The first scan stamped at or after now (ROS time), or None after ``timeout`` wall
+        seconds or on shutdown."""
+        after = rospy.Time.now()
+        deadline = time.monotonic() + timeout
+        with self.cond:
+            while not rospy.is_shutdown():
+                s = self.scan
+                if s is not None and s.header.stamp >= after:
+                    return Scan(s.ranges, s.angle_min, s.angle_increment, s.range_min,
+                                s.range_max, s.header.stamp, s.header.frame_id)
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return None
+                self.cond.wait(min(left, 0.1))
+        return None
+
+    def transform(self, target, source, stamp, timeout):
+        """``(x, y, yaw)`` of ``source`` in ``target`` at ``stamp``; LookupError if none
+        within ``timeout`` wall seconds."""
+        try:
+            t = self.tf.lookup_transform(target, source, stamp, rospy.Duration(timeout))
+        except (tf2_ros.LookupException, tf2_ros.ExtrapolationException,
+                tf2_ros.ConnectivityException) as e:
+            raise LookupError(str(e)) from None
+        return pose_from_transform(t.transform)
+
+
+class DetectionNode:
+    """Subscribes to the map, serves ``obstacle_detection``, draws each answer on
+    ``~obstacles`` (visualization_msgs/MarkerArray in the map frame)."""
+
+    def __init__(self, params):
+        self.params = params
+        self.logic = DetectionService(params)
+        self.map_ready = threading.Event()
+        self.sensors = RosSensors(params.scan_topic)
+        self.markers = rospy.Publisher('~obstacles', MarkerArray, queue_size=1, latch=True)
+        rospy.Subscriber(params.map_topic, OccupancyGrid, self.on_map, queue_size=1)
+        self.service = None
+
+    def on_map(self, msg):
+        try:
+            self.logic.set_map(gridmap_from_msg(msg))
+            self.map_ready.set()
+            rospy.loginfo('obstacle_detection: map %dx%d at %.3f m', msg.info.width,
+                          msg.info.height, msg.info.resolution)
+        except ValueError as e:
+            self.logic.map_unusable(str(e))
+            rospy.logerr('obstacle_detection: %s', self.logic.map_error)
+
+    def advertise_when_ready(self):
+        """Wait up to ``~map_timeout`` (wall) for a usable map, then advertise the service.
+        Returns False, without advertising, when none came in time or on shutdown."""
+        deadline = time.monotonic() + self.params.map_timeout
+        while not rospy.is_shutdown() and time.monotonic() < deadline:
+            if self.map_ready.wait(min(0.1, max(deadline - time.monotonic(), 0.0))):
+                self.service = rospy.Service('obstacle_detection', DetectObstacles, self.handle)
+                rospy.loginfo('obstacle_detection: ready')
+                return True
+        return False
+
+    def handle(self, req):
+        answer = self.logic.handle(req.method, req.scan_minus_map_threshold,
+                                   req.cluster_threshold, self.sensors)
+        obstacles = [obstacle_msg(o) for o in answer.obstacles]
+        if answer.success:
+            self.markers.publish(obstacle_markers(obstacles, self.params.map_frame, answer.stamp))
+        else:
+            rospy.logwarn('obstacle_detection: %s', answer.message)
+        return DetectObstaclesResponse(answer.success, obstacles, answer.message)
+
+
+def main():
+    rospy.init_node('obstacle_detection')
+    try:
+        node = DetectionNode(read(Params))
+    except ParamError as e:
+        rospy.logfatal('obstacle_detection: %s', e)
+        sys.exit(2)
+    if not node.advertise_when_ready():
+        if rospy.is_shutdown():
+            return
+        rospy.logfatal('obstacle_detection: no usable map on %s within ~map_timeout = %.1f s '
+                       '(%s): the service is not advertised', node.params.map_topic,
+                       node.params.map_timeout, node.logic.map_error)
+        sys.exit(1)
+    rospy.spin()
