@@ -1,42 +1,25 @@
-"""Closed-loop tests of the navigation library (the code nodes/navigation runs) driving the
-simulator without ROS: ground truth is the simulator's pose and contact count."""
+"""Closed-loop tests of the navigation library (the goal runner the move_base node runs)
+driving the simulator without ROS (tiago_nav.testing.navigation): ground truth is the
+simulator's pose and contact count."""
 import math
 import os
 
 import pytest
 
 from conftest import WORLDS
-from tiago_nav.nav.navigator import ABORTED, ACTIVE, SUCCEEDED, Navigator, NavConfig
+from tiago_nav.nav.navigator import ABORTED, SUCCEEDED, Navigator, NavConfig
 from tiago_nav.nav.planner import PlanError
 from tiago_nav.sim.raster import rasterise_world
-from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.world import World, load_world
+from tiago_nav.testing.navigation import ClosedLoop
 
 
 def drive(world, goal, start=None, limit=60.0):
-    sim = Simulator(world, SimConfig(seed=3), start_pose=start)
-    nav = Navigator(rasterise_world(world), NavConfig())
-    angles = sim.config.laser.angles()
-
-    def scan():
-        lp = sim.scene.laser_pose()
-        nav.add_scan(lp[:2], angles + lp[2], sim.scan())
-
-    scan()
-    nav.start(goal, sim.pose, sim.time)
-    state, reason, closest = ACTIVE, '', math.inf
-    while state == ACTIVE and sim.time < limit:
-        for _ in range(6):
-            if sim.step()[0]:
-                scan()
-        v, w, state, reason = nav.step(sim.pose, sim.time, 0.1)
-        sim.command(v, w)
-        for c in world.movable_obstacles:
-            closest = min(closest, math.hypot(sim.pose[0] - c.x, sim.pose[1] - c.y) - c.radius)
-    out = dict(state=state, reason=reason, pose=sim.pose, collisions=sim.collisions, time=sim.time,
-               closest=closest)
-    sim.close()
-    return out
+    loop = ClosedLoop(world, start=start)
+    try:
+        return loop.run_goal(goal, limit)
+    finally:
+        loop.close()
 
 
 def test_reaches_a_goal_behind_an_unmapped_cylinder():
@@ -84,3 +67,4 @@ def test_goal_in_wall_rejected_before_moving():
     wall = w.walls[5]
     with pytest.raises(PlanError, match='inside an obstacle'):
         nav.start((wall.x, wall.y, 0.0), w.start_pose, 0.0)
+

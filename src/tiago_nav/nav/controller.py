@@ -11,29 +11,45 @@ from dataclasses import dataclass
 import numpy as np
 
 from tiago_nav.geometry import wrap_angle
+from tiago_nav.params import ParamError, param, validate
+from tiago_nav.robot import ROBOT_RADIUS
 
 
-@dataclass
+@dataclass(frozen=True)
 class ControllerConfig:
-    robot_radius: float = 0.27        # [m]
-    max_vel_x: float = 1.0            # [m/s]
-    min_vel_x: float = 0.05           # [m/s] slowest forward cruise
-    max_vel_theta: float = 1.5        # [rad/s]
-    acc_lim_x: float = 1.0            # [m/s^2]
-    acc_lim_theta: float = 2.0        # [rad/s^2]
-    decel_x: float = 0.9              # [m/s^2] planned braking (a bit under the limit)
-    lookahead_min: float = 0.35       # [m]
-    lookahead_time: float = 0.7       # [s] lookahead = min + time * v
-    lookahead_max: float = 1.2        # [m]
-    rotate_in_place_angle: float = 1.3   # [rad] heading error above which the base turns on the spot
-    slow_clearance: float = 0.15      # [m] surface gap below which speed is scaled down
-    slow_clearance_speed: float = 0.35   # [m/s] speed at zero gap
-    safety_margin: float = 0.04       # [m] the collision check's extra radius
-    tight_clearance: float = 0.25     # [m] gap below which the base tracks the plan closely
-    tight_rotate_angle: float = 0.5   # [rad] ... and turns on the spot above this heading error
-    heading_gain: float = 2.5         # [1/s] in-place turning gain
-    xy_goal_tolerance: float = 0.15   # [m]
-    yaw_goal_tolerance: float = 0.1   # [rad]
+    """The local controller's limits and gains (parameters of the ``move_base`` node)."""
+    robot_radius: float = param(ROBOT_RADIUS, '[m] base footprint radius (tiago_nav.robot)', gt=0)
+    max_vel_x: float = param(1.0, '[m/s] forward speed limit', gt=0)
+    min_vel_x: float = param(0.05, '[m/s] slowest forward cruise', ge=0)
+    max_vel_theta: float = param(1.5, '[rad/s] turn rate limit', gt=0)
+    acc_lim_x: float = param(1.0, '[m/s^2] forward acceleration limit', gt=0)
+    acc_lim_theta: float = param(2.0, '[rad/s^2] angular acceleration limit', gt=0)
+    decel_x: float = param(0.9, '[m/s^2] braking used for the goal approach and the collision '
+                           'check (a bit under the limit)', gt=0)
+    lookahead_min: float = param(0.35, '[m] shortest pure-pursuit lookahead', gt=0)
+    lookahead_time: float = param(0.7, '[s] lookahead = lookahead_min + lookahead_time * speed', ge=0)
+    lookahead_max: float = param(1.2, '[m] longest lookahead', gt=0)
+    rotate_in_place_angle: float = param(1.3, '[rad] heading error above which the base turns '
+                                         'on the spot (open space)', gt=0)
+    slow_clearance: float = param(0.15, '[m] slow down when the gap to the nearest laser point '
+                                  'is below this', ge=0)
+    slow_clearance_speed: float = param(0.35, '[m/s] speed at zero gap', gt=0)
+    safety_margin: float = param(0.04, '[m] extra radius of the forward-collision check', ge=0)
+    tight_clearance: float = param(0.25, '[m] gap below which the base tracks the plan closely '
+                                   '(short lookahead)', ge=0)
+    tight_rotate_angle: float = param(0.5, '[rad] ... and turns on the spot above this heading '
+                                      'error', gt=0)
+    heading_gain: float = param(2.5, '[1/s] in-place turning gain', gt=0)
+    xy_goal_tolerance: float = param(0.15, '[m] goal reached within this distance', gt=0)
+    yaw_goal_tolerance: float = param(0.1, '[rad] ... and this heading error', gt=0)
+
+    def __post_init__(self):
+        validate(self)
+        if self.min_vel_x > self.max_vel_x:
+            raise ParamError('must not exceed max_vel_x (%g m/s)' % self.max_vel_x, 'min_vel_x')
+        if self.lookahead_max < self.lookahead_min:
+            raise ParamError('must be >= lookahead_min (%g m)' % self.lookahead_min,
+                             'lookahead_max')
 
 
 def _ramp(target, current, limit, dt):

@@ -8,24 +8,57 @@ Costs: ``LETHAL`` (254) where the robot centre would overlap an obstacle (within
 ``robot_radius`` of an occupied cell), ``INSCRIBED`` (253) on the boundary, then
 ``252 * exp(-cost_scaling_factor * (d - robot_radius))`` out to ``inflation_radius``, 0 beyond.
 """
-import numpy as np
-from scipy import ndimage
+from dataclasses import dataclass
+from functools import cached_property
 
+import numpy as np
+
+from tiago_nav.geometry import transform_points
+from tiago_nav.gridmap import distance_to_mask
+from tiago_nav.robot import ROBOT_RADIUS
+from tiago_nav.scan import HIT, beam_angles, classify, scan_to_points
 
 LETHAL = 254
 INSCRIBED = 253
 MAX_NON_LETHAL = 252
 
 
+@dataclass(frozen=True)
+class MapScan:
+    """One laser scan placed in the map: the laser's pose ``(x, y, yaw)`` in ``map`` at the
+    scan's stamp, the ranges [m] and the LaserScan's angle and range limits (laser frame, rad
+    and m), and the stamp [s, ROS time]."""
+    laser_pose: tuple
+    ranges: np.ndarray
+    angle_min: float
+    angle_increment: float
+    range_min: float
+    range_max: float
+    stamp: float = 0.0
+
+    @cached_property
+    def kinds(self):
+        """Per beam, :data:`~tiago_nav.scan.HIT`, ``NO_RETURN``, ``TOO_CLOSE`` or ``INVALID``."""
+        return classify(self.ranges, self.range_min, self.range_max)
+
+    def angles(self):
+        """Beam directions [rad] in ``map``."""
+        return self.laser_pose[2] + beam_angles(self.angle_min, self.angle_increment, len(self.ranges))
+
+    @cached_property
+    def obstacles(self):
+        """``(points (M, 2) in map, range [m] of each)``: the hits."""
+        pts, idx = scan_to_points(self.ranges, self.angle_min, self.angle_increment,
+                                  self.range_min, self.range_max)
+        return transform_points(self.laser_pose, pts), np.asarray(self.ranges, dtype=float)[idx]
+
+
 def inflate(occupied, resolution, robot_radius, inflation_radius, cost_scaling_factor):
     """Boolean ``(rows, cols)`` obstacles → ``(cost uint8, distance float [m])``.
 
     ``distance`` is each cell centre's Euclidean distance to the nearest occupied cell centre
-    (scipy's exact distance transform), ``cost`` as in the module docstring."""
-    if occupied.any():
-        dist = ndimage.distance_transform_edt(~occupied) * resolution
-    else:
-        dist = np.full(occupied.shape, np.inf)
+    (:func:`tiago_nav.gridmap.distance_to_mask`), ``cost`` as in the module docstring."""
+    dist = distance_to_mask(occupied, resolution)
     cost = np.zeros(occupied.shape, dtype=np.uint8)
     band = (dist >= robot_radius) & (dist <= inflation_radius)
     cost[band] = np.minimum(
@@ -42,7 +75,7 @@ class Costmap:
     ``raytrace_range`` [m]: beams clear the obstacle layer up to this range (or their hit).
     """
 
-    def __init__(self, grid, robot_radius=0.27, inflation_radius=0.8, cost_scaling_factor=4.0,
+    def __init__(self, grid, robot_radius=ROBOT_RADIUS, inflation_radius=0.8, cost_scaling_factor=4.0,
                  obstacle_range=4.0, raytrace_range=5.0):
         if robot_radius <= 0 or inflation_radius < robot_radius:
             raise ValueError('need 0 < robot_radius <= inflation_radius, got %r, %r'
@@ -66,17 +99,16 @@ class Costmap:
         self.obstacles[:] = False
         self.update()
 
-    def add_scan(self, origin, angles, ranges):
-        """Mark and clear the obstacle layer with one scan.
-
-        ``origin``: ``(x, y)`` of the laser in map [m]; ``angles``: beam directions in map [rad];
-        ``ranges``: [m], ``inf``/NaN for no return. Each beam clears the cells it passes through
-        (up to its hit or ``raytrace_range``), then hits within ``obstacle_range`` are marked.
-        Does not re-inflate: call :meth:`update`."""
-        angles = np.asarray(angles, dtype=float)
-        r = np.asarray(ranges, dtype=float)
-        ok = np.isfinite(r)
-        reach = np.where(ok, np.minimum(r, self.raytrace_range), self.raytrace_range)
+    def add_scan(self, scan):
+        """Mark and clear the obstacle layer with one :class:`MapScan`: each beam clears the
+        cells it passes through (up to its hit or ``raytrace_range``; a beam without a hit counts
+        as no return), then hits within ``obstacle_range`` are marked. Does not re-inflate: call
+        :meth:`update`."""
+        r = np.asarray(scan.ranges, dtype=float)
+        hit = scan.kinds == HIT
+        reach = np.where(hit, np.minimum(r, self.raytrace_range), self.raytrace_range)
+        angles = scan.angles()
+        origin = scan.laser_pose
         res = self.resolution
         step = res * 0.5
         n = int(np.ceil(self.raytrace_range / step))
@@ -86,15 +118,14 @@ class Costmap:
         c, sn = np.cos(angles), np.sin(angles)
         px = origin[0] + c[:, None] * s[None, :]
         py = origin[1] + sn[:, None] * s[None, :]
-        rc = self.grid.world_to_cell(np.column_stack((px[keep], py[keep])))
+        self._set(np.column_stack((px[keep], py[keep])), False)
+        pts, ranges = scan.obstacles
+        self._set(pts[ranges <= self.obstacle_range], True)
+
+    def _set(self, xy, value):
+        rc = self.grid.world_to_cell(xy)
         inb = self.grid.in_bounds(rc)
-        self.obstacles[rc[inb, 0], rc[inb, 1]] = False
-        hit = ok & (r <= self.obstacle_range)
-        hx = origin[0] + c[hit] * r[hit]
-        hy = origin[1] + sn[hit] * r[hit]
-        rc = self.grid.world_to_cell(np.column_stack((hx, hy)))
-        inb = self.grid.in_bounds(rc)
-        self.obstacles[rc[inb, 0], rc[inb, 1]] = True
+        self.obstacles[rc[inb, 0], rc[inb, 1]] = value
 
     def update(self):
         """Recompute ``cost`` and ``distance`` from both layers."""
@@ -109,6 +140,3 @@ class Costmap:
         out = np.full(len(rc), LETHAL, dtype=np.uint8)
         out[inb] = self.cost[rc[inb, 0], rc[inb, 1]]
         return out
-
-    def lethal(self):
-        return self.cost >= INSCRIBED

@@ -1,12 +1,13 @@
 """The per-goal state machine of the navigation server, free of ROS: costmap updates, planning
 and replanning, control, progress monitoring, recovery behaviours and the terminal outcome.
 
-``nodes/navigation`` feeds it scans and poses (map frame) and sends its commands; the benchmark
-and the unit tests drive it with :class:`tiago_nav.sim.simulator.Simulator` directly.
-Time is whatever clock the caller uses (sim time) [s].
+:class:`tiago_nav.nav.runner.GoalRunner` runs it for one goal (the ``move_base`` node wires that
+to ROS; :mod:`tiago_nav.testing.navigation` to the in-process simulator). Time is whatever clock
+the caller uses (ROS time, simulated under /use_sim_time) [s]; poses are ``(x, y, yaw)`` of
+base_footprint in ``map`` [m, m, rad].
 """
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -14,29 +15,47 @@ from tiago_nav.geometry import wrap_angle
 from tiago_nav.nav.controller import Controller, ControllerConfig
 from tiago_nav.nav.costmap import INSCRIBED, Costmap
 from tiago_nav.nav.planner import PlanError, plan
+from tiago_nav.params import ParamError, nested, param, validate
+from tiago_nav.robot import ROBOT_RADIUS
 
 ACTIVE, SUCCEEDED, ABORTED = 'active', 'succeeded', 'aborted'
 
 
-@dataclass
+@dataclass(frozen=True)
 class NavConfig:
-    robot_radius: float = 0.27          # [m]
-    inflation_radius: float = 0.8       # [m]
-    cost_scaling_factor: float = 4.0    # [1/m]
-    cost_weight: float = 1.5            # planner: weight of cost vs distance
-    shortcut_tolerance: float = 40.0    # planner: cost a line-of-sight shortcut may add (0-252)
-    obstacle_range: float = 4.0         # [m]
-    raytrace_range: float = 5.0         # [m]
-    planner_frequency: float = 1.0      # [Hz] periodic replanning (0: only when blocked)
-    planner_patience: float = 3.0       # [s] abort when no plan is found for this long
-    controller_patience: float = 6.0    # [s] no progress for this long -> next recovery
-    progress_distance: float = 0.15     # [m] moving this far counts as progress
-    blocked_lookahead: float = 2.5      # [m] of plan checked against the costmap every cycle
-    recovery_rotate: float = 2 * math.pi  # [rad] in-place turn of the rotate recovery
-    backup_distance: float = 0.3        # [m] of the back-up recovery
-    backup_speed: float = 0.15          # [m/s]
-    goal_timeout: float = 0.0           # [s] abort a goal after this long (0: never)
-    controller: ControllerConfig = field(default_factory=ControllerConfig)
+    """Costmap, planner, progress and recovery settings of the navigator."""
+    robot_radius: float = param(ROBOT_RADIUS, '[m] base footprint radius (tiago_nav.robot)', gt=0)
+    inflation_radius: float = param(0.8, '[m] the cost gradient reaches out this far', gt=0)
+    cost_scaling_factor: float = param(4.0, '[1/m] cost = 252 exp(-k (d - robot_radius))', gt=0)
+    cost_weight: float = param(1.5, 'planner: step cost multiplier 1 + cost_weight * cost / 252',
+                               ge=0)
+    shortcut_tolerance: float = param(40.0, 'planner: cost (0-252) a line-of-sight shortcut of '
+                                      'the grid path may add', ge=0)
+    obstacle_range: float = param(4.0, '[m] laser hits are marked up to this range', gt=0)
+    raytrace_range: float = param(5.0, '[m] beams clear the obstacle layer up to this range', gt=0)
+    planner_frequency: float = param(1.0, '[Hz] periodic replanning (0: only when the plan '
+                                     'ahead is blocked)', ge=0)
+    planner_patience: float = param(3.0, '[s] abort when no plan can be found for this long', gt=0)
+    controller_patience: float = param(6.0, '[s] no progress (progress_distance) for this long '
+                                       '-> next recovery (clear, rotate, back up), then abort', gt=0)
+    progress_distance: float = param(0.15, '[m] moving this far counts as progress for '
+                                     'controller_patience', gt=0)
+    blocked_lookahead: float = param(2.5, '[m] of plan checked against the costmap every cycle',
+                                     gt=0)
+    recovery_rotate: float = param(2 * math.pi, '[rad] in-place turn of the rotate recovery', gt=0)
+    backup_distance: float = param(0.3, '[m] of the back-up recovery', ge=0)
+    backup_speed: float = param(0.15, '[m/s] of the back-up recovery', gt=0)
+    goal_timeout: float = param(0.0, '[s] abort a goal after this long (0: never)', ge=0)
+    controller: ControllerConfig = nested(ControllerConfig)
+
+    def __post_init__(self):
+        validate(self)
+        if self.inflation_radius < self.robot_radius:
+            raise ParamError('must be >= robot_radius (%g m)' % self.robot_radius, 'inflation_radius')
+        if self.controller.robot_radius != self.robot_radius:
+            raise ParamError('differs from the controller\'s (%g, %g m): build both from one '
+                             'value' % (self.robot_radius, self.controller.robot_radius),
+                             'robot_radius')
 
 
 class Navigator:
@@ -58,17 +77,12 @@ class Navigator:
         self.reason = ''
 
     # --- sensing ----------------------------------------------------------------------------
-    def add_scan(self, origin, angles, ranges):
-        """One laser scan in map: laser ``origin (x, y)``, beam ``angles`` [rad] in map,
-        ``ranges`` [m] (inf for no return). Updates the obstacle layer and the points the
-        collision check uses."""
-        r = np.asarray(ranges, dtype=float)
-        a = np.asarray(angles, dtype=float)
-        ok = np.isfinite(r)
-        self.points = np.column_stack((origin[0] + r[ok] * np.cos(a[ok]),
-                                       origin[1] + r[ok] * np.sin(a[ok])))
-        self.costmap.add_scan(origin, a, r)
+    def add_scan(self, scan):
+        """One :class:`~tiago_nav.nav.costmap.MapScan`: updates the obstacle layer and the
+        points the collision check uses (the hits)."""
+        self.costmap.add_scan(scan)
         self.costmap.update()
+        self.points = scan.obstacles[0]
 
     def clear_costmaps(self):
         self.costmap.clear_obstacles()
@@ -102,6 +116,11 @@ class Navigator:
         self.recovery_action = None
         self._replan(pose, t)
         return self.path
+
+    def cancel(self):
+        """Forget the goal (it was preempted or ended outside :meth:`step`)."""
+        self.state = None
+        self.controller.reset()
 
     def _replan(self, pose, t):
         self.last_plan_try = t
