@@ -4,6 +4,7 @@ simulator's pose and contact count."""
 import math
 import os
 
+import numpy as np
 import pytest
 
 from conftest import WORLDS
@@ -68,3 +69,54 @@ def test_goal_in_wall_rejected_before_moving():
     with pytest.raises(PlanError, match='inside an obstacle'):
         nav.start((wall.x, wall.y, 0.0), w.start_pose, 0.0)
 
+
+@pytest.mark.parametrize('value', [np.nan, 0.0])
+def test_glitch_bursts_ahead_do_not_erase_an_unmapped_cylinder(value):
+    """Every other scan loses the 120 middle beams (NaN or 0, REP 117 invalid) while the robot
+    drives at a cylinder the map does not have: it still goes around without contact."""
+    w = World.from_dict(dict(name='t', resolution=0.05, bounds=[-1, -2, 6, 2], robot_start=[0, 0, 0],
+                             walls=[], static_cylinders=[],
+                             movable_obstacles=[dict(x=2.5, y=0.0, radius=0.25)]))
+    loop = ClosedLoop(w)
+    count = [0]
+
+    def burst(r):
+        count[0] += 1
+        if count[0] % 2:
+            mid = len(r) // 2
+            r[mid - 60:mid + 60] = value
+        return r
+    loop.scan_filter = burst
+    try:
+        r = loop.run_goal((5.0, 0.0, 0.0), 60.0)
+        cm = loop.nav.costmap
+        rc = cm.grid.world_to_cell([(2.5, 0.0)])[0]
+        marked = cm.obstacles[rc[0] - 6:rc[0] + 7, rc[1] - 6:rc[1] + 7].any()
+    finally:
+        loop.close()
+    assert r['state'] == SUCCEEDED, r['reason']
+    assert r['collisions'] == 0
+    assert r['closest'] > 0.27
+    assert marked, 'the cylinder vanished from the obstacle layer'
+
+
+def test_dead_laser_stops_the_robot_and_aborts():
+    """The laser dies 2 s into a goal through the shipped corridor: the base is stopped (true
+    speed ~0 within 1.5 s) and the goal aborts with 'no laser data', without contact."""
+    w = load_world(os.path.join(WORLDS, 'ias_lab_room_full.yaml'))
+    loop = ClosedLoop(w)
+    speeds = []
+
+    def kill():
+        loop.laser_dead = loop.sim.time >= 2.0
+        speeds.append((loop.sim.time, abs(loop.sim.velocity[0])))
+    loop.on_control.append(kill)
+    try:
+        r = loop.run_goal((*w.corridor.exit, 0.0), 60.0)
+    finally:
+        loop.close()
+    assert r['state'] == ABORTED
+    assert r['reason'].startswith('no laser data for 3.'), r['reason']
+    assert max(v for t, v in speeds if t >= 2.0 + 0.5 + 1.5) < 0.01
+    assert max(v for t, v in speeds if t < 2.0) > 0.5          # it was driving before
+    assert r['collisions'] == 0

@@ -51,6 +51,32 @@ def test_obstacle_marking_and_clearing():
     assert cm.cost_at([(1.5, 1.5)])[0] == 0
 
 
+@pytest.mark.parametrize('glitch', [np.nan, 0.0, 0.01, 30.0, -np.inf])
+def test_glitch_beams_never_erase_an_obstacle(glitch):
+    """REP 117: NaN, 0, below range_min and beyond range_max are invalid (do nothing); -inf is
+    too close (clears nothing, marks the cell at range_min)."""
+    cm = Costmap(empty(60, 60), obstacle_range=4.0, raytrace_range=5.0)
+    origin = (0.5, 1.5)
+    cm.add_scan(beam(origin, 1.0))
+    cm.add_scan(beam(origin, glitch))
+    cm.update()
+    assert cm.obstacles[cm.grid.world_to_cell([(1.5, 1.5)])[0][0], 30]
+    assert cm.cost_at([(1.5, 1.5)])[0] == LETHAL
+    near = cm.grid.world_to_cell([(origin[0] + 0.05, origin[1])])[0]
+    assert cm.obstacles[near[0], near[1]] == (glitch == -np.inf)
+
+
+def test_no_return_clears_only_to_raytrace_range():
+    cm = Costmap(empty(60, 100), obstacle_range=4.0, raytrace_range=2.0)
+    origin = (0.5, 1.5)
+    cm.add_scan(beam(origin, 1.0))
+    cm.add_scan(beam(origin, 3.0))
+    cm.add_scan(beam(origin, np.inf))
+    cm.update()
+    assert cm.cost_at([(1.5, 1.5)])[0] == 0           # within raytrace_range: cleared
+    assert cm.cost_at([(3.5, 1.5)])[0] == LETHAL      # beyond it: kept
+
+
 # --- planner -----------------------------------------------------------------------------
 def test_optimal_length_on_empty_grid():
     cost = np.zeros((20, 30), dtype=np.uint8)

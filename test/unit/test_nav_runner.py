@@ -10,8 +10,8 @@ import pytest
 from tiago_nav.geometry import wrap_angle, yaw_to_quaternion
 from tiago_nav.gridmap import GridMap
 from tiago_nav.nav.costmap import MapScan
-from tiago_nav.nav.navigator import NavConfig, Navigator
-from tiago_nav.nav.runner import GoalError, GoalRunner, PoseUnavailable
+from tiago_nav.nav.navigator import NavConfig, Navigator, ProgressWindow
+from tiago_nav.nav.runner import GoalError, GoalRunner, PoseUnavailable, goal_pose
 from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
 from tiago_nav.sim.diffdrive import BaseLimits, DiffDrive
 from tiago_nav.testing.fakes import FakeActionServer, FakeClock, FakePublisher
@@ -130,6 +130,23 @@ def test_goal_in_a_wall_rejected():
     assert rig.base.pose[0] == 1.0
 
 
+@pytest.mark.parametrize('position, q, why', [
+    ((float('nan'), 2.0), (0, 0, 0, 1), 'non-finite field (position.x=nan)'),
+    ((3.0, 2.0), (0, 0, float('inf'), 1), 'non-finite field (orientation.z=inf)'),
+    ((3.0, 2.0), (0, 0, 0, 0), 'cannot be normalised'),
+    ((3.0, 2.0), (0, 0, 1e-5, 1e-5), 'cannot be normalised')])
+def test_bad_goal_values_aborted_with_the_reason(position, q, why):
+    rig = Rig()
+    rig.run(*position, q=q)
+    assert rig.server.state == 'aborted'
+    assert why in rig.server.text, rig.server.text
+    assert rig.base.pose == (1.0, 2.0, 0.0) and rig.stopped_at_end()
+
+
+def test_unnormalised_quaternion_is_normalised():
+    assert goal_pose((1, 2, 0), (0, 0, 2 * math.sin(0.5), 2 * math.cos(0.5)))[2] == pytest.approx(1.0)
+
+
 def test_unknown_frame_rejected():
     rig = Rig()
     rig.run(3.0, 2.0, frame='odom_nowhere')
@@ -160,6 +177,124 @@ def test_shutdown_ends_the_loop():
     assert rig.server.state == 'aborted' and rig.server.text == 'node shutting down'
 
 
+def test_unexpected_exception_stops_and_aborts_with_its_text():
+    rig = Rig()
+    rig.fail_at = 1.0
+    rig.run(7.0, 2.0)
+    assert rig.server.state == 'aborted'
+    assert rig.server.text == "unexpected error: KeyError: 'a bug'"
+    assert rig.stopped_at_end()
+
+
+def speed_after(rig, t):
+    """The commanded forward speeds [m/s] published after ROS time ``t`` (cmd published at
+    each cycle; the trail has one pose per clock nap)."""
+    return [m.linear.x for m in rig.cmd.messages[int(t / 0.1) + 1:]]
+
+
+@pytest.mark.parametrize('sensor, text, stop_by', [
+    ('laser_on', 'no laser data for 3.', 2.0 + 0.5 + 0.1),     # stale after sensor_timeout
+    ('pose_on', 'no odometry/pose for 3.', 2.0 + 0.1)])        # a missing pose at once
+def test_dead_sensor_stops_the_base_then_aborts(sensor, text, stop_by):
+    rig = Rig()
+    rig.clock.on_advance(lambda dt: setattr(rig, sensor, rig.clock.t < 2.0))
+    rig.run(7.5, 2.0)
+    assert rig.server.state == 'aborted'
+    assert rig.server.text.startswith(text), rig.server.text
+    assert 4.8 <= rig.clock.now() <= 5.3          # last seen at 1.9-2.0 s, abort 3 s later
+    assert max(speed_after(rig, 0.0)[:20]) > 0.5  # it was driving
+    assert all(v == 0.0 for v in speed_after(rig, stop_by))
+    assert rig.stopped_at_end()
+    if sensor == 'pose_on':
+        assert 'tf map -> base_footprint lost' in rig.server.text
+
+
+def test_a_short_laser_gap_only_pauses():
+    rig = Rig()
+    rig.clock.on_advance(lambda dt: setattr(rig, 'laser_on', not 2.0 <= rig.clock.t < 3.5))
+    rig.run(7.0, 2.0)
+    assert rig.server.state == 'succeeded', rig.server.text
+    assert all(v == 0.0 for v in speed_after(rig, 2.6)[:7])   # stopped while stale
+
+
+@pytest.mark.parametrize('glitch', [lambda r: np.full(0, 0.0), lambda r: np.full(len(r), np.nan),
+                                    lambda r: np.zeros(len(r))])
+def test_empty_or_all_invalid_scan_is_blocked(glitch):
+    rig = Rig(config=NavConfig(no_progress_timeout=10.0))
+    rig.glitch = glitch
+    rig.scan()
+    rig.run(7.0, 2.0)
+    assert rig.server.state == 'aborted'
+    assert max(m.linear.x for m in rig.cmd.messages) == 0.0      # never drove forward
+    assert rig.base.pose[0] == pytest.approx(1.0, abs=1e-6)
+
+
+@pytest.mark.parametrize('value', [np.nan, 0.0, -np.inf])
+def test_glitch_over_an_unmapped_obstacle_keeps_it_and_blocks(value):
+    obstacle = (2.2, 2.0, 0.25)               # 1 m ahead of the laser, not in the map
+    rig = Rig(obstacle=obstacle)
+    cell = rig.nav.costmap.grid.world_to_cell([(obstacle[0] - 0.25, 2.0)])[0]
+    assert rig.nav.costmap.obstacles[cell[0], cell[1]]
+    seen = np.isfinite(rig.ranges())
+    rig.glitch = lambda r: np.where(seen, value, r)    # every beam on the obstacle glitches
+    rig.scan()
+    cm = rig.nav.costmap
+    assert cm.obstacles[cell[0], cell[1]], 'the glitch erased the obstacle'
+    pose = rig.base.pose
+    assert not rig.nav.controller.safe(pose, 0.8, 0.0, rig.nav.points, 0.1, rig.nav.blind)
+
+
+def test_too_close_beam_blocks_forward_motion():
+    rig = Rig()
+    rig.glitch = lambda r: np.where(np.arange(len(r)) == N_BEAMS // 2, -np.inf, r)
+    rig.scan()
+    assert not rig.nav.controller.safe(rig.base.pose, 0.3, 0.0, rig.nav.points, 0.1)
+
+
+def test_derived_goal_timeout():
+    cfg = NavConfig(goal_timeout_factor=0.5, goal_timeout_allowance=1.0)
+    rig = Rig(config=cfg)
+    rig.run(7.0, 2.0)
+    assert rig.server.state == 'aborted'
+    assert rig.server.text.startswith('timeout: goal not reached in 4 s (0.5 x the 6.0 m plan')
+    assert rig.clock.now() == pytest.approx(4.0, abs=0.15)
+    assert rig.stopped_at_end()
+
+
+def test_explicit_goal_timeout_zero_means_none():
+    rig = Rig(config=NavConfig(goal_timeout=0.0, goal_timeout_factor=0.01,
+                               goal_timeout_allowance=0.0))
+    rig.run(5.0, 2.0)
+    assert rig.server.state == 'succeeded', rig.server.text
+
+
+def test_progress_window_catches_oscillation_and_passes_progress():
+    w = ProgressWindow(10.0, 0.5)
+    # swinging 1 m back and forth along the plan: never 0.5 m below the window's start for long
+    hopeless = [w.update(t * 0.1, 5.0 + math.sin(t * 0.1)) for t in range(400)]
+    assert any(hopeless)
+    assert not any(hopeless[:100])            # the window must be full first
+    w.reset()
+    assert not any(w.update(t * 0.1, 10.0 - 0.06 * t * 0.1) for t in range(400))   # 6 cm/s
+    assert not ProgressWindow(0.0, 0.5).update(100.0, 1.0)
+
+
+def test_oscillating_robot_aborts_with_no_progress():
+    """A controller that swings the base back and forth over 0.6 m (more than the recovery
+    trigger's 0.15 m) is ended by the no-progress check."""
+    cfg = NavConfig(no_progress_timeout=8.0, goal_timeout=0.0)
+    rig = Rig(config=cfg)
+
+    def swing(pose, goal, points, dt, blind=False):
+        return (0.6 if int(rig.clock.now() / 1.5) % 2 == 0 else -0.6), 0.0, 'follow'
+    rig.nav.controller.command = swing
+    rig.run(7.0, 2.0)
+    assert rig.server.state == 'aborted'
+    assert rig.server.text.startswith('no progress: the path still to go has not shrunk by 0.50 m '
+                                      'in 8 s'), rig.server.text
+    assert rig.stopped_at_end()
+
+
 def test_params_cross_field_checks():
     from tiago_nav.nav.controller import ControllerConfig
     from tiago_nav.params import ParamError
@@ -171,6 +306,8 @@ def test_params_cross_field_checks():
     assert e.value.name == 'robot_radius'
     assert NavConfig(robot_radius=0.3, controller=ControllerConfig(robot_radius=0.3)).robot_radius == 0.3
     assert NavConfig().robot_radius == ControllerConfig().robot_radius == ROBOT_RADIUS
+    with pytest.raises(ParamError, match='sensor_abort_timeout'):
+        NavConfig(sensor_timeout=2.0, sensor_abort_timeout=1.0)
 
 
 def test_node_params_read_every_name():

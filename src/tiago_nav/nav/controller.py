@@ -107,20 +107,25 @@ class Controller:
         beyond = np.nonzero(d >= dist)[0]
         return p[beyond[0]] if len(beyond) else p[-1]
 
-    def safe(self, pose, v, w, points, dt):
+    def safe(self, pose, v, w, points, dt, blind=False):
         """True when ``(v, w)`` held for ``dt`` and then braked at ``decel_x`` keeps the footprint
-        (plus ``safety_margin``) clear of ``points``."""
+        (plus ``safety_margin``) clear of ``points``. ``blind`` (the laser saw nothing it could
+        vouch for): no forward motion is safe."""
         if v <= 1e-3:
             return True   # a round base turning on the spot or stopping cannot hit anything new
+        if blind:
+            return False
         horizon = dt + v / self.c.decel_x + 0.1
         poses = arc_poses(pose, v, w, horizon, 0.05)
         near = points[np.hypot(points[:, 0] - pose[0], points[:, 1] - pose[1])
                       < v * horizon + self.c.robot_radius + 0.3] if len(points) else points
         return min_gap(poses[:, :2], near, self.c.robot_radius + self.c.safety_margin) > 0.0
 
-    def command(self, pose, goal, points, dt):
-        """One control step. ``points``: laser hits ``(M, 2)`` in map. Returns
-        ``(v, w, phase)`` with phase ``'follow'``, ``'rotate'``, ``'arrived'`` or ``'blocked'``."""
+    def command(self, pose, goal, points, dt, blind=False):
+        """One control step. ``points``: obstacle points ``(M, 2)`` in map (laser hits and
+        what the collision check must assume); ``blind``: the newest scan had no informative
+        beam, so only turning on the spot is allowed. Returns ``(v, w, phase)`` with phase
+        ``'follow'``, ``'rotate'``, ``'arrived'`` or ``'blocked'``."""
         c = self.c
         x, y, yaw = pose
         dg = math.hypot(goal[0] - x, goal[1] - y)
@@ -163,11 +168,11 @@ class Controller:
         v = _ramp(v_t, self.v, c.acc_lim_x, dt)
         w_t = max(-c.max_vel_theta, min(c.max_vel_theta, k * max(v, c.min_vel_x)))
         w = _ramp(w_t, self.w, c.acc_lim_theta, dt)
-        if not self.safe(pose, v, w, points, dt):
+        if not self.safe(pose, v, w, points, dt, blind):
             # slower, then on the spot towards the plan (a round base cannot hit anything turning)
             for vs in (0.5 * v, 0.25 * v, 0.1, 0.05):
                 vs = min(vs, v)
-                if vs > 0.02 and self.safe(pose, vs, w, points, dt):
+                if vs > 0.02 and self.safe(pose, vs, w, points, dt, blind):
                     self.v, self.w = vs, w
                     return vs, w, 'follow'
             return self._turn(alpha, dt, 'blocked')

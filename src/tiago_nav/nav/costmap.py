@@ -7,6 +7,11 @@ Frames and units: everything is in the ``map`` frame, metres and radians. The gr
 Costs: ``LETHAL`` (254) where the robot centre would overlap an obstacle (within
 ``robot_radius`` of an occupied cell), ``INSCRIBED`` (253) on the boundary, then
 ``252 * exp(-cost_scaling_factor * (d - robot_radius))`` out to ``inflation_radius``, 0 beyond.
+
+Laser beams follow REP 117 (:func:`tiago_nav.scan.classify`): a hit marks its cell and clears
+the cells before it, ``+inf`` (no return) clears up to ``raytrace_range``, ``-inf`` (too close)
+marks the cell at ``range_min`` and clears nothing, and an invalid beam (NaN, a finite value
+outside the laser's limits) changes nothing.
 """
 from dataclasses import dataclass
 from functools import cached_property
@@ -16,7 +21,7 @@ import numpy as np
 from tiago_nav.geometry import transform_points
 from tiago_nav.gridmap import distance_to_mask
 from tiago_nav.robot import ROBOT_RADIUS
-from tiago_nav.scan import HIT, beam_angles, classify, scan_to_points
+from tiago_nav.scan import HIT, INVALID, NO_RETURN, TOO_CLOSE, beam_angles, classify, scan_to_points
 
 LETHAL = 254
 INSCRIBED = 253
@@ -45,12 +50,40 @@ class MapScan:
         """Beam directions [rad] in ``map``."""
         return self.laser_pose[2] + beam_angles(self.angle_min, self.angle_increment, len(self.ranges))
 
+    def informative(self):
+        """False for an empty scan or one whose every beam is invalid: it says nothing, so the
+        space ahead must be taken as blocked."""
+        return bool(np.any(self.kinds != INVALID))
+
     @cached_property
     def obstacles(self):
-        """``(points (M, 2) in map, range [m] of each)``: the hits."""
+        """``(points (M, 2) in map, range [m] of each)``: the hits, plus a point at
+        ``range_min`` along every too-close beam (something is there, nearer than the laser can
+        measure)."""
         pts, idx = scan_to_points(self.ranges, self.angle_min, self.angle_increment,
                                   self.range_min, self.range_max)
-        return transform_points(self.laser_pose, pts), np.asarray(self.ranges, dtype=float)[idx]
+        close = np.flatnonzero(self.kinds == TOO_CLOSE)
+        a = self.angle_min + self.angle_increment * close
+        pts = np.vstack((pts, self.range_min * np.column_stack((np.cos(a), np.sin(a)))))
+        r = np.concatenate((np.asarray(self.ranges, dtype=float)[idx],
+                            np.full(len(close), float(self.range_min))))
+        return transform_points(self.laser_pose, pts), r
+
+    def invalid_beam_at(self, xy):
+        """Boolean per ``(N, 2)`` map point: does the point lie in the direction of an invalid
+        beam (the laser cannot vouch for it being free)? Points outside the fan: False."""
+        if len(self.ranges) == 0 or len(xy) == 0:
+            return np.zeros(len(xy), dtype=bool)
+        x, y, yaw = self.laser_pose
+        inc = self.angle_increment or 1.0
+        # angle from the first beam, counted in the scan's direction of rotation, in [0, 2 pi)
+        rel = np.mod((np.arctan2(xy[:, 1] - y, xy[:, 0] - x) - yaw - self.angle_min) * np.sign(inc),
+                     2 * np.pi)
+        i = np.round(rel / abs(inc)).astype(int)
+        inside = (i >= 0) & (i < len(self.ranges))
+        out = np.zeros(len(xy), dtype=bool)
+        out[inside] = self.kinds[i[inside]] == INVALID
+        return out
 
 
 def inflate(occupied, resolution, robot_radius, inflation_radius, cost_scaling_factor):
@@ -100,14 +133,15 @@ class Costmap:
         self.update()
 
     def add_scan(self, scan):
-        """Mark and clear the obstacle layer with one :class:`MapScan`: each beam clears the
-        cells it passes through (up to its hit or ``raytrace_range``; a beam without a hit counts
-        as no return), then hits within ``obstacle_range`` are marked. Does not re-inflate: call
-        :meth:`update`."""
+        """Mark and clear the obstacle layer with one :class:`MapScan` (REP 117, see the module
+        docstring): hit and no-return beams clear the cells they pass through (up to the hit or
+        ``raytrace_range``), then hits within ``obstacle_range`` and too-close beams are marked.
+        Does not re-inflate: call :meth:`update`."""
         r = np.asarray(scan.ranges, dtype=float)
-        hit = scan.kinds == HIT
-        reach = np.where(hit, np.minimum(r, self.raytrace_range), self.raytrace_range)
-        angles = scan.angles()
+        kinds = scan.kinds
+        clears = (kinds == HIT) | (kinds == NO_RETURN)
+        reach = np.where(kinds == HIT, np.minimum(r, self.raytrace_range), self.raytrace_range)[clears]
+        angles = scan.angles()[clears]
         origin = scan.laser_pose
         res = self.resolution
         step = res * 0.5
@@ -132,6 +166,20 @@ class Costmap:
         self.cost, self.distance = inflate(self.static | self.obstacles, self.resolution,
                                            self.robot_radius, self.inflation_radius,
                                            self.cost_scaling_factor)
+
+    def occupied_near(self, xy, radius):
+        """Centres ``(M, 2)`` [m] of the occupied cells (static or laser-marked) within
+        ``radius`` [m] of the point ``xy``."""
+        g = self.grid
+        lo = g.world_to_cell([(xy[0] - radius, xy[1] - radius)])[0]
+        hi = g.world_to_cell([(xy[0] + radius, xy[1] + radius)])[0] + 1
+        r0, c0 = max(lo[0], 0), max(lo[1], 0)
+        r1, c1 = min(hi[0], g.height), min(hi[1], g.width)
+        if r1 <= r0 or c1 <= c0:
+            return np.zeros((0, 2))
+        rc = np.argwhere(self.static[r0:r1, c0:c1] | self.obstacles[r0:r1, c0:c1]) + (r0, c0)
+        pts = g.cell_to_world(rc)
+        return pts[np.hypot(pts[:, 0] - xy[0], pts[:, 1] - xy[1]) <= radius]
 
     def cost_at(self, xy):
         """Costs at ``(N, 2)`` map points; ``LETHAL`` outside the grid."""

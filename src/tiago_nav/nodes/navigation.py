@@ -4,7 +4,8 @@
 /map (latched) -> static costmap; /scan (placed in map with tf2 at its stamp) -> obstacle layer;
 tf map -> base_footprint -> pose; commands on /mobile_base_controller/cmd_vel. Serves the
 ``move_base`` action (move_base_msgs/MoveBaseAction), /move_base_simple/goal, ~plan,
-~make_plan and ~clear_costmaps once /map is in.
+~make_plan and ~clear_costmaps, all only once /map, a first scan and the robot's transform are
+in (each waited for with a timeout; the node exits 1 naming what is missing).
 """
 import math
 import sys
@@ -48,6 +49,8 @@ class Params:
     transform_tolerance: float = param(0.5, '[s wall] wait for a transform of a scan or a goal',
                                        gt=0)
     map_timeout: float = param(30.0, '[s wall] wait for /map at start-up', gt=0)
+    ready_timeout: float = param(30.0, '[s wall] then wait for a first scan and the transform '
+                                 'map -> base_footprint before serving goals', gt=0)
     nav: NavConfig = nested(NavConfig)
 
     def __post_init__(self):
@@ -99,7 +102,7 @@ class ActionIO:
 
 
 class MoveBase:
-    """The node: waits for the map, then advertises its action, topic and services."""
+    """The node: waits for what it needs, then advertises its action, topic and services."""
 
     def __init__(self, p):
         self.p = p
@@ -118,7 +121,13 @@ class MoveBase:
                            % (p.map_topic, p.map_timeout)) from None
         self.map_frame = msg.header.frame_id.lstrip('/') or self.map_frame
         self.nav = Navigator(gridmap_from_msg(msg), p.nav)
+        self.scan_problem = 'no message on %s' % p.scan_topic
         rospy.Subscriber(p.scan_topic, LaserScan, self.on_scan, queue_size=1)
+        self._wait(lambda: self.nav.scan_stamp is not None,
+                   lambda: 'no usable laser scan within %g s: %s' % (p.ready_timeout, self.scan_problem))
+        self._wait(lambda: self.tf.can_transform(self.map_frame, p.robot_base_frame, rospy.Time(0)),
+                   lambda: 'no transform %s -> %s within %g s (is odometry/localisation running?)'
+                   % (self.map_frame, p.robot_base_frame, p.ready_timeout))
         self.server = actionlib.SimpleActionServer('move_base', MoveBaseAction, self.execute,
                                                    auto_start=False)
         io = ActionIO(self.server, self.cmd_pub, self.plan_pub, self.clock, self.pose, self.to_map,
@@ -136,6 +145,17 @@ class MoveBase:
     def _log(level, text):
         (rospy.loginfo if level == 'info' else rospy.logwarn)('move_base: %s', text)
 
+    def _wait(self, ready, problem):
+        """Poll ``ready()`` in wall time for ``ready_timeout``; :class:`NotReady` with
+        ``problem()`` otherwise."""
+        t_end = self.clock.wall() + self.p.ready_timeout
+        while not ready():
+            if self.clock.shutdown():
+                raise NotReady('shut down while starting')
+            if self.clock.wall() > t_end:
+                raise NotReady(problem())
+            self.clock.sleep(0.05)
+
     def _transform(self, source, stamp):
         """``map <- source`` at ``stamp`` as ``(x, y, yaw)``, waiting up to
         ``transform_tolerance`` wall seconds (never on ROS time, which may stand still)."""
@@ -152,6 +172,7 @@ class MoveBase:
         try:
             lp, _ = self._transform(scan.header.frame_id, scan.header.stamp)
         except tf2_ros.TransformException as e:
+            self.scan_problem = 'scans cannot be placed in %s: %s' % (self.map_frame, e)
             rospy.logwarn_throttle(5.0, 'move_base: scan dropped, no transform: %s' % e)
             return
         ms = MapScan(lp, scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,

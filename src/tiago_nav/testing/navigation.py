@@ -4,7 +4,7 @@ simulated time, for the unit tests and bench/bench_navigation.py.
 
 Ground truth is the simulator's: its pose (map frame) and its contact count. Scans reach the
 navigator as the node's scan callback would deliver them (laser pose at the scan's time);
-``scan_filter`` and ``pose_frozen`` inject sensor faults.
+``scan_filter`` and ``laser_dead`` inject laser faults.
 """
 import math
 
@@ -13,7 +13,7 @@ import numpy as np
 from tiago_nav.geometry import yaw_to_quaternion
 from tiago_nav.nav.costmap import MapScan
 from tiago_nav.nav.navigator import NavConfig, Navigator
-from tiago_nav.nav.runner import ABORTED, PREEMPTED, SUCCEEDED, GoalRunner, PoseUnavailable
+from tiago_nav.nav.runner import ABORTED, PREEMPTED, SUCCEEDED, GoalRunner
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.testing.fakes import FakeActionServer
@@ -64,12 +64,7 @@ class SimIO:
         self.cmds, self.plans, self.feedback = [], [], []
 
     def pose(self):
-        loop = self.loop
-        if loop.pose_frozen is not None:
-            if loop.pose_frozen == 'missing':
-                raise PoseUnavailable('no transform map -> base_footprint')
-            return loop.pose_frozen
-        return loop.sim.pose, loop.sim.time
+        return self.loop.sim.pose, self.loop.sim.time
 
     def to_map(self, frame, pose):
         if frame not in ('map', ''):
@@ -108,7 +103,6 @@ class ClosedLoop:
         self.runner = GoalRunner(self.nav, self.io, period)
         self.scan_filter = None     # ranges -> ranges (fault injection); None: pass through
         self.laser_dead = False     # no scans at all
-        self.pose_frozen = None     # (pose, stamp) to report, 'missing', or None: the truth
         self.on_control = []        # hooks called after every simulator step
         self.scan()
 
