@@ -1,6 +1,6 @@
 #!/usr/bin/python3
-"""Navigation benchmark: the move_base node's library (tiago_nav.nav.Navigator, the exact code
-nodes/navigation runs) drives the simulator (tiago_nav.sim.Simulator: pybullet scene, diff-drive
+"""Navigation benchmark: the move_base node's goal runner and navigator (tiago_nav.nav, the exact
+code the node runs, through tiago_nav.testing.navigation.ClosedLoop) drives the simulator (tiago_nav.sim.Simulator: pybullet scene, diff-drive
 base with TIAGo's limits, 0.01 m laser noise) to N seeded random reachable goals in each shipped
 world, one after the other from robot_start, in simulated time at 10 Hz control / 15 Hz scans.
 
@@ -27,14 +27,18 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
-from tiago_nav.nav.navigator import ACTIVE, SUCCEEDED, NavConfig, Navigator  # noqa: E402
-from tiago_nav.nav.planner import PlanError, grid_path, path_length, shortcut  # noqa: E402
+from tiago_nav.gridmap import distance_to_mask  # noqa: E402
+from tiago_nav.nav.costmap import MapScan  # noqa: E402
+from tiago_nav.nav.navigator import SUCCEEDED, NavConfig, Navigator  # noqa: E402
+from tiago_nav.nav.planner import grid_path, path_length, shortcut  # noqa: E402
+from tiago_nav.params import build  # noqa: E402
+from tiago_nav.robot import ROBOT_RADIUS  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.simulator import SimConfig, Simulator  # noqa: E402
 from tiago_nav.sim.world import load_world  # noqa: E402
+from tiago_nav.testing.navigation import ClosedLoop  # noqa: E402
 
 WORLDS = ['ias_lab_room_full.yaml', 'open_hall.yaml']
-ROBOT_RADIUS = 0.27
 SPEED = 1.0
 CONTROL_DT = 0.1
 
@@ -45,7 +49,7 @@ def cspace(world, grid):
     cx, cy = grid.cell_centres()
     for c in world.movable_obstacles:
         occ |= np.hypot(cx - c.x, cy - c.y) <= c.radius
-    return ndimage.distance_transform_edt(~occ) * grid.resolution
+    return distance_to_mask(occ, grid.resolution)
 
 
 def shortest_length(grid, dist, a, b):
@@ -91,15 +95,8 @@ def run_world(name, n_goals, rng, config=None):
     labels, _ = ndimage.label(dist > ROBOT_RADIUS + 0.02)
     src = grid.world_to_cell([start[:2]])[0]
     candidates = np.argwhere((labels == labels[src[0], src[1]]) & (dist > ROBOT_RADIUS + 0.2))
-    sim = Simulator(world, SimConfig(seed=int(rng.integers(1 << 30))))
-    nav = Navigator(grid, config or NavConfig())
-    angles = sim.config.laser.angles()
-
-    def scan():
-        lp = sim.scene.laser_pose()
-        nav.add_scan(lp[:2], angles + lp[2], sim.scan())
-
-    scan()
+    loop = ClosedLoop(world, config, seed=int(rng.integers(1 << 30)))
+    sim = loop.sim
     runs = []
     for k in range(n_goals):
         while True:
@@ -109,45 +106,25 @@ def run_world(name, n_goals, rng, config=None):
         goal = (float(g[0]), float(g[1]), float(rng.uniform(-math.pi, math.pi)))
         L, ref = shortest_length(grid, dist, sim.pose[:2], goal[:2])
         tmin = lower_bound_time(sim.pose, goal, ref)
-        c0, t0, w0 = sim.collisions, sim.time, time.perf_counter()
-        trail = [sim.pose[:2]]
-        t_xy = None
-        try:
-            nav.start(goal, sim.pose, sim.time)
-            state, reason = ACTIVE, ''
-        except PlanError as e:
-            state, reason = 'rejected', str(e)
-        limit = 3.0 * L / SPEED + 30.0
-        while state == ACTIVE and sim.time - t0 < limit:
-            for _ in range(int(round(CONTROL_DT * sim.config.rate))):
-                due, _ = sim.step()
-                if due:
-                    scan()
-            v, w, state, reason = nav.step(sim.pose, sim.time, CONTROL_DT)
-            sim.command(v, w)
-            trail.append(sim.pose[:2])
-            if t_xy is None and math.hypot(sim.pose[0] - goal[0], sim.pose[1] - goal[1]) <= 0.15:
-                t_xy = sim.time - t0
-        if state == ACTIVE:
-            state, reason = 'timeout', 'no result after %.0f s' % limit
-        sim.command(0.0, 0.0)
-        for _ in range(30):          # let the base come to rest
-            sim.step()
+        w0 = time.perf_counter()
+        r = loop.run_goal(goal, limit=3.0 * L / SPEED + 30.0)
+        state, reason, t_xy, trail = r['state'], r['reason'], r['t_xy'], r['trail']
+        loop.settle()                # let the base come to rest
+        elapsed = r['time']         # simulated time [s] from the goal to its end
         x, y, yaw = sim.pose
         ok = (state == SUCCEEDED and math.hypot(x - goal[0], y - goal[1]) <= 0.15 + 0.01
               and abs(math.atan2(math.sin(yaw - goal[2]), math.cos(yaw - goal[2]))) <= 0.1 + 0.01)
-        trail = np.array(trail)
         runs.append(dict(goal=goal, state=state, reason=reason, success=bool(ok),
-                         collisions=int(sim.collisions - c0), shortest=L,
-                         time=float(sim.time - t0 - 0.5), time_ratio=float((sim.time - t0 - 0.5) / (L / SPEED)),
+                         collisions=int(r['collisions']), shortest=L,
+                         time=float(elapsed), time_ratio=float(elapsed / (L / SPEED)),
                          xy_time_ratio=float(t_xy / (L / SPEED)) if t_xy else float('nan'),
-                         lower_bound_ratio=float((sim.time - t0 - 0.5) / tmin),
+                         lower_bound_ratio=float(elapsed / tmin),
                          length_ratio=float(path_length(trail) / L), wall=time.perf_counter() - w0,
                          trail=trail.tolist(), reference=ref.tolist()))
         print('  %-18s goal %2d (%5.2f, %5.2f) L=%5.2f m  %-9s t/(L/v)=%.2f  xy t/(L/v)=%.2f  t/t_ref=%.2f  len=%.2f  coll=%d  %s'
               % (name[:-5], k, goal[0], goal[1], L, state, runs[-1]['time_ratio'], runs[-1]['xy_time_ratio'], runs[-1]['lower_bound_ratio'],
                  runs[-1]['length_ratio'], runs[-1]['collisions'], '' if ok else reason))
-    sim.close()
+    loop.close()
     return world, grid, runs
 
 
@@ -178,7 +155,7 @@ def timing(name, repeats=20):
     world = load_world(os.path.join(ROOT, 'worlds', name))
     grid = rasterise_world(world)
     nav = Navigator(grid, NavConfig())
-    dist = ndimage.distance_transform_edt(~grid.occupied()) * grid.resolution
+    dist = grid.distance_field()
     start = world.start_pose
     labels, _ = ndimage.label(dist > ROBOT_RADIUS + 0.1)
     rc = grid.world_to_cell([start[:2]])[0]
@@ -187,15 +164,16 @@ def timing(name, repeats=20):
     goal = grid.cell_to_world([np.unravel_index(np.argmax(far), far.shape)])[0]
     tp, tc = [], []
     scene_sim = Simulator(world, SimConfig(seed=0))
-    angles = scene_sim.config.laser.angles()
-    lp = scene_sim.scene.laser_pose()
-    ranges = scene_sim.scan()
+    laser = scene_sim.config.laser
+    scan = MapScan(scene_sim.scene.laser_pose(), scene_sim.scan(), laser.angle_min,
+                   laser.angle_increment, laser.range_min, laser.range_max)
     for _ in range(repeats):
         t = time.perf_counter()
         nav.make_plan(start[:2], goal)
         tp.append(time.perf_counter() - t)
         t = time.perf_counter()
-        nav.add_scan(lp[:2], angles + lp[2], ranges)
+        nav.scan_stamp = None
+        nav.add_scan(scan)
         tc.append(time.perf_counter() - t)
     scene_sim.close()
     return dict(map_cells='%dx%d' % (grid.width, grid.height), plan_ms=1e3 * float(np.median(tp)),
@@ -233,11 +211,7 @@ def main():
     ap.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                     help='override a NavConfig / ControllerConfig field (tuning)')
     args = ap.parse_args()
-    config = NavConfig()
-    for kv in args.set:
-        k, v = kv.split('=')
-        target = config if hasattr(config, k) else config.controller
-        setattr(target, k, float(v))
+    config = build(NavConfig, {k: float(v) for k, v in (kv.split('=') for kv in args.set)})
     n = 5 if args.quick else args.goals
     rng = np.random.default_rng(args.seed)
     results, out = {}, {'command': 'bench/bench_navigation.py' + (' --quick' if args.quick else ''),

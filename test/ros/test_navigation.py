@@ -4,7 +4,8 @@ SimpleActionClient of MoveBaseAction, checked against the world file's ground tr
 map -> base_footprint is the simulator's true pose, /sim/collisions its contact count):
 goals past the movable cylinders are reached within tolerance, a goal inside a wall and a goal in
 a free pocket no path reaches are ABORTED with a reason, a cancelled goal is PREEMPTED and the
-base stops, /move_base/make_plan answers, and /sim/collisions stays 0 throughout."""
+base stops, /move_base/make_plan answers, a goal with a NaN field or a zero quaternion is ABORTED at once
+with the reason and the robot does not move, and /sim/collisions stays 0 throughout."""
 import math
 
 import actionlib
@@ -180,6 +181,40 @@ class NavigationTest(SimTestCase):
                        and self.odom is not None and abs(self.odom.twist.twist.angular.z) < 0.02)
         self.assertTrue(reached, 'the /move_base_simple/goal pose was not reached')
         self.assert_no_collision()
+
+    def assert_rejected_and_still(self, goal, why):
+        t0 = rospy.Time.now()
+        state, text, _ = self.send_and_wait(goal, 10.0)
+        self.assertEqual(state, GoalStatus.ABORTED, text)
+        self.assertIn(why, text)
+        self.assertLess((rospy.Time.now() - t0).to_sec(), 2.0)
+        end = rospy.Time.now() + rospy.Duration(1.0)
+        while rospy.Time.now() < end:
+            tw = self.odom.twist.twist
+            self.assertLess(abs(tw.linear.x), 0.02, 'moving after a rejected goal')
+            self.assertLess(abs(tw.angular.z), 0.02, 'turning after a rejected goal')
+            rospy.sleep(0.1)
+
+    def test_9_nan_goal_and_zero_quaternion_rejected(self):
+        self.wait_still()
+        goal = goal_msg(float('nan'), 0.0, 0.0)
+        self.assert_rejected_and_still(goal, 'non-finite field (position.x=nan)')
+        goal = goal_msg(*self.base_pose()[:2], 0.0)
+        o = goal.target_pose.pose.orientation
+        o.x = o.y = o.z = o.w = 0.0
+        self.assert_rejected_and_still(goal, 'cannot be normalised')
+        goal = goal_msg(*self.base_pose()[:2], 0.0)
+        goal.target_pose.pose.orientation.z = float('nan')
+        self.assert_rejected_and_still(goal, 'orientation.z=nan')
+
+    def wait_still(self, timeout=20.0):
+        end = rospy.Time.now() + rospy.Duration(timeout)
+        while rospy.Time.now() < end:
+            tw = self.odom.twist.twist if self.odom is not None else None
+            if tw is not None and abs(tw.linear.x) < 0.01 and abs(tw.angular.z) < 0.01:
+                return
+            rospy.sleep(0.1)
+        self.fail('the robot did not come to rest')
 
 
 if __name__ == '__main__':

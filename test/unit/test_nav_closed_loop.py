@@ -1,42 +1,26 @@
-"""Closed-loop tests of the navigation library (the code nodes/navigation runs) driving the
-simulator without ROS: ground truth is the simulator's pose and contact count."""
+"""Closed-loop tests of the navigation library (the goal runner the move_base node runs)
+driving the simulator without ROS (tiago_nav.testing.navigation): ground truth is the
+simulator's pose and contact count."""
 import math
 import os
 
+import numpy as np
 import pytest
 
 from conftest import WORLDS
-from tiago_nav.nav.navigator import ABORTED, ACTIVE, SUCCEEDED, Navigator, NavConfig
+from tiago_nav.nav.navigator import ABORTED, SUCCEEDED, Navigator, NavConfig
 from tiago_nav.nav.planner import PlanError
 from tiago_nav.sim.raster import rasterise_world
-from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.world import World, load_world
+from tiago_nav.testing.navigation import ClosedLoop
 
 
 def drive(world, goal, start=None, limit=60.0):
-    sim = Simulator(world, SimConfig(seed=3), start_pose=start)
-    nav = Navigator(rasterise_world(world), NavConfig())
-    angles = sim.config.laser.angles()
-
-    def scan():
-        lp = sim.scene.laser_pose()
-        nav.add_scan(lp[:2], angles + lp[2], sim.scan())
-
-    scan()
-    nav.start(goal, sim.pose, sim.time)
-    state, reason, closest = ACTIVE, '', math.inf
-    while state == ACTIVE and sim.time < limit:
-        for _ in range(6):
-            if sim.step()[0]:
-                scan()
-        v, w, state, reason = nav.step(sim.pose, sim.time, 0.1)
-        sim.command(v, w)
-        for c in world.movable_obstacles:
-            closest = min(closest, math.hypot(sim.pose[0] - c.x, sim.pose[1] - c.y) - c.radius)
-    out = dict(state=state, reason=reason, pose=sim.pose, collisions=sim.collisions, time=sim.time,
-               closest=closest)
-    sim.close()
-    return out
+    loop = ClosedLoop(world, start=start)
+    try:
+        return loop.run_goal(goal, limit)
+    finally:
+        loop.close()
 
 
 def test_reaches_a_goal_behind_an_unmapped_cylinder():
@@ -84,3 +68,55 @@ def test_goal_in_wall_rejected_before_moving():
     wall = w.walls[5]
     with pytest.raises(PlanError, match='inside an obstacle'):
         nav.start((wall.x, wall.y, 0.0), w.start_pose, 0.0)
+
+
+@pytest.mark.parametrize('value', [np.nan, 0.0])
+def test_glitch_bursts_ahead_do_not_erase_an_unmapped_cylinder(value):
+    """Every other scan loses the 120 middle beams (NaN or 0, REP 117 invalid) while the robot
+    drives at a cylinder the map does not have: it still goes around without contact."""
+    w = World.from_dict(dict(name='t', resolution=0.05, bounds=[-1, -2, 6, 2], robot_start=[0, 0, 0],
+                             walls=[], static_cylinders=[],
+                             movable_obstacles=[dict(x=2.5, y=0.0, radius=0.25)]))
+    loop = ClosedLoop(w)
+    count = [0]
+
+    def burst(r):
+        count[0] += 1
+        if count[0] % 2:
+            mid = len(r) // 2
+            r[mid - 60:mid + 60] = value
+        return r
+    loop.scan_filter = burst
+    try:
+        r = loop.run_goal((5.0, 0.0, 0.0), 60.0)
+        cm = loop.nav.costmap
+        rc = cm.grid.world_to_cell([(2.5, 0.0)])[0]
+        marked = cm.obstacles[rc[0] - 6:rc[0] + 7, rc[1] - 6:rc[1] + 7].any()
+    finally:
+        loop.close()
+    assert r['state'] == SUCCEEDED, r['reason']
+    assert r['collisions'] == 0
+    assert r['closest'] > 0.27
+    assert marked, 'the cylinder vanished from the obstacle layer'
+
+
+def test_dead_laser_stops_the_robot_and_aborts():
+    """The laser dies 2 s into a goal through the shipped corridor: the base is stopped (true
+    speed ~0 within 1.5 s) and the goal aborts with 'no laser data', without contact."""
+    w = load_world(os.path.join(WORLDS, 'ias_lab_room_full.yaml'))
+    loop = ClosedLoop(w)
+    speeds = []
+
+    def kill():
+        loop.laser_dead = loop.sim.time >= 2.0
+        speeds.append((loop.sim.time, abs(loop.sim.velocity[0])))
+    loop.on_control.append(kill)
+    try:
+        r = loop.run_goal((*w.corridor.exit, 0.0), 60.0)
+    finally:
+        loop.close()
+    assert r['state'] == ABORTED
+    assert r['reason'].startswith('no laser data for 3.'), r['reason']
+    assert max(v for t, v in speeds if t >= 2.0 + 0.5 + 1.5) < 0.01
+    assert max(v for t, v in speeds if t < 2.0) > 0.5          # it was driving before
+    assert r['collisions'] == 0

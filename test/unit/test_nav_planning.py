@@ -8,7 +8,7 @@ import pytest
 from conftest import WORLDS
 from tiago_nav.gridmap import GridMap
 from tiago_nav.nav.controller import Controller, ControllerConfig
-from tiago_nav.nav.costmap import INSCRIBED, LETHAL, Costmap, inflate
+from tiago_nav.nav.costmap import INSCRIBED, LETHAL, Costmap, MapScan, inflate
 from tiago_nav.nav.planner import PlanError, grid_path, path_length, plan
 
 
@@ -30,19 +30,51 @@ def test_inflation_values_follow_distance():
     assert np.all(np.diff(row) <= 0)                  # decreasing away from the obstacle
 
 
+def beam(origin, r, angle=0.0, range_min=0.05, range_max=25.0):
+    """A one-beam scan from a laser at ``origin`` pointing along ``angle``."""
+    return MapScan((origin[0], origin[1], angle), np.array([r], dtype=float), 0.0, 0.01,
+                   range_min, range_max)
+
+
 def test_obstacle_marking_and_clearing():
     cm = Costmap(empty(60, 60), obstacle_range=4.0, raytrace_range=5.0)
     origin = (0.5, 1.5)
-    cm.add_scan(origin, [0.0], [1.0])                 # a hit 1 m east of the laser
+    cm.add_scan(beam(origin, 1.0))                    # a hit 1 m east of the laser
     cm.update()
     assert cm.cost_at([(1.5, 1.5)])[0] == LETHAL
     assert cm.cost_at([(1.5, 1.7)])[0] >= INSCRIBED   # inflated by the robot radius (0.2 m away)
-    cm.add_scan(origin, [0.0], [np.inf])              # the beam now sees through: cleared
+    cm.add_scan(beam(origin, np.inf))                 # the beam now sees through: cleared
     cm.update()
     assert cm.cost_at([(1.5, 1.5)])[0] == 0
-    cm.add_scan(origin, [0.0], [1.0])
+    cm.add_scan(beam(origin, 1.0))
     cm.clear_obstacles()
     assert cm.cost_at([(1.5, 1.5)])[0] == 0
+
+
+@pytest.mark.parametrize('glitch', [np.nan, 0.0, 0.01, 30.0, -np.inf])
+def test_glitch_beams_never_erase_an_obstacle(glitch):
+    """REP 117: NaN, 0, below range_min and beyond range_max are invalid (do nothing); -inf is
+    too close (clears nothing, marks the cell at range_min)."""
+    cm = Costmap(empty(60, 60), obstacle_range=4.0, raytrace_range=5.0)
+    origin = (0.5, 1.5)
+    cm.add_scan(beam(origin, 1.0))
+    cm.add_scan(beam(origin, glitch))
+    cm.update()
+    assert cm.obstacles[cm.grid.world_to_cell([(1.5, 1.5)])[0][0], 30]
+    assert cm.cost_at([(1.5, 1.5)])[0] == LETHAL
+    near = cm.grid.world_to_cell([(origin[0] + 0.05, origin[1])])[0]
+    assert cm.obstacles[near[0], near[1]] == (glitch == -np.inf)
+
+
+def test_no_return_clears_only_to_raytrace_range():
+    cm = Costmap(empty(60, 100), obstacle_range=4.0, raytrace_range=2.0)
+    origin = (0.5, 1.5)
+    cm.add_scan(beam(origin, 1.0))
+    cm.add_scan(beam(origin, 3.0))
+    cm.add_scan(beam(origin, np.inf))
+    cm.update()
+    assert cm.cost_at([(1.5, 1.5)])[0] == 0           # within raytrace_range: cleared
+    assert cm.cost_at([(3.5, 1.5)])[0] == LETHAL      # beyond it: kept
 
 
 # --- planner -----------------------------------------------------------------------------

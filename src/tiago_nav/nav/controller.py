@@ -11,29 +11,45 @@ from dataclasses import dataclass
 import numpy as np
 
 from tiago_nav.geometry import wrap_angle
+from tiago_nav.params import ParamError, param, validate
+from tiago_nav.robot import ROBOT_RADIUS
 
 
-@dataclass
+@dataclass(frozen=True)
 class ControllerConfig:
-    robot_radius: float = 0.27        # [m]
-    max_vel_x: float = 1.0            # [m/s]
-    min_vel_x: float = 0.05           # [m/s] slowest forward cruise
-    max_vel_theta: float = 1.5        # [rad/s]
-    acc_lim_x: float = 1.0            # [m/s^2]
-    acc_lim_theta: float = 2.0        # [rad/s^2]
-    decel_x: float = 0.9              # [m/s^2] planned braking (a bit under the limit)
-    lookahead_min: float = 0.35       # [m]
-    lookahead_time: float = 0.7       # [s] lookahead = min + time * v
-    lookahead_max: float = 1.2        # [m]
-    rotate_in_place_angle: float = 1.3   # [rad] heading error above which the base turns on the spot
-    slow_clearance: float = 0.15      # [m] surface gap below which speed is scaled down
-    slow_clearance_speed: float = 0.35   # [m/s] speed at zero gap
-    safety_margin: float = 0.04       # [m] the collision check's extra radius
-    tight_clearance: float = 0.25     # [m] gap below which the base tracks the plan closely
-    tight_rotate_angle: float = 0.5   # [rad] ... and turns on the spot above this heading error
-    heading_gain: float = 2.5         # [1/s] in-place turning gain
-    xy_goal_tolerance: float = 0.15   # [m]
-    yaw_goal_tolerance: float = 0.1   # [rad]
+    """The local controller's limits and gains (parameters of the ``move_base`` node)."""
+    robot_radius: float = param(ROBOT_RADIUS, '[m] base footprint radius (tiago_nav.robot)', gt=0)
+    max_vel_x: float = param(1.0, '[m/s] forward speed limit', gt=0)
+    min_vel_x: float = param(0.05, '[m/s] slowest forward cruise', ge=0)
+    max_vel_theta: float = param(1.5, '[rad/s] turn rate limit', gt=0)
+    acc_lim_x: float = param(1.0, '[m/s^2] forward acceleration limit', gt=0)
+    acc_lim_theta: float = param(2.0, '[rad/s^2] angular acceleration limit', gt=0)
+    decel_x: float = param(0.9, '[m/s^2] braking used for the goal approach and the collision '
+                           'check (a bit under the limit)', gt=0)
+    lookahead_min: float = param(0.35, '[m] shortest pure-pursuit lookahead', gt=0)
+    lookahead_time: float = param(0.7, '[s] lookahead = lookahead_min + lookahead_time * speed', ge=0)
+    lookahead_max: float = param(1.2, '[m] longest lookahead', gt=0)
+    rotate_in_place_angle: float = param(1.3, '[rad] heading error above which the base turns '
+                                         'on the spot (open space)', gt=0)
+    slow_clearance: float = param(0.15, '[m] slow down when the gap to the nearest laser point '
+                                  'is below this', ge=0)
+    slow_clearance_speed: float = param(0.35, '[m/s] speed at zero gap', gt=0)
+    safety_margin: float = param(0.04, '[m] extra radius of the forward-collision check', ge=0)
+    tight_clearance: float = param(0.25, '[m] gap below which the base tracks the plan closely '
+                                   '(short lookahead)', ge=0)
+    tight_rotate_angle: float = param(0.5, '[rad] ... and turns on the spot above this heading '
+                                      'error', gt=0)
+    heading_gain: float = param(2.5, '[1/s] in-place turning gain', gt=0)
+    xy_goal_tolerance: float = param(0.15, '[m] goal reached within this distance', gt=0)
+    yaw_goal_tolerance: float = param(0.1, '[rad] ... and this heading error', gt=0)
+
+    def __post_init__(self):
+        validate(self)
+        if self.min_vel_x > self.max_vel_x:
+            raise ParamError('must not exceed max_vel_x (%g m/s)' % self.max_vel_x, 'min_vel_x')
+        if self.lookahead_max < self.lookahead_min:
+            raise ParamError('must be >= lookahead_min (%g m)' % self.lookahead_min,
+                             'lookahead_max')
 
 
 def _ramp(target, current, limit, dt):
@@ -91,20 +107,25 @@ class Controller:
         beyond = np.nonzero(d >= dist)[0]
         return p[beyond[0]] if len(beyond) else p[-1]
 
-    def safe(self, pose, v, w, points, dt):
+    def safe(self, pose, v, w, points, dt, blind=False):
         """True when ``(v, w)`` held for ``dt`` and then braked at ``decel_x`` keeps the footprint
-        (plus ``safety_margin``) clear of ``points``."""
+        (plus ``safety_margin``) clear of ``points``. ``blind`` (the laser saw nothing it could
+        vouch for): no forward motion is safe."""
         if v <= 1e-3:
             return True   # a round base turning on the spot or stopping cannot hit anything new
+        if blind:
+            return False
         horizon = dt + v / self.c.decel_x + 0.1
         poses = arc_poses(pose, v, w, horizon, 0.05)
         near = points[np.hypot(points[:, 0] - pose[0], points[:, 1] - pose[1])
                       < v * horizon + self.c.robot_radius + 0.3] if len(points) else points
         return min_gap(poses[:, :2], near, self.c.robot_radius + self.c.safety_margin) > 0.0
 
-    def command(self, pose, goal, points, dt):
-        """One control step. ``points``: laser hits ``(M, 2)`` in map. Returns
-        ``(v, w, phase)`` with phase ``'follow'``, ``'rotate'``, ``'arrived'`` or ``'blocked'``."""
+    def command(self, pose, goal, points, dt, blind=False):
+        """One control step. ``points``: obstacle points ``(M, 2)`` in map (laser hits and
+        what the collision check must assume); ``blind``: the newest scan had no informative
+        beam, so only turning on the spot is allowed. Returns ``(v, w, phase)`` with phase
+        ``'follow'``, ``'rotate'``, ``'arrived'`` or ``'blocked'``."""
         c = self.c
         x, y, yaw = pose
         dg = math.hypot(goal[0] - x, goal[1] - y)
@@ -147,11 +168,11 @@ class Controller:
         v = _ramp(v_t, self.v, c.acc_lim_x, dt)
         w_t = max(-c.max_vel_theta, min(c.max_vel_theta, k * max(v, c.min_vel_x)))
         w = _ramp(w_t, self.w, c.acc_lim_theta, dt)
-        if not self.safe(pose, v, w, points, dt):
+        if not self.safe(pose, v, w, points, dt, blind):
             # slower, then on the spot towards the plan (a round base cannot hit anything turning)
             for vs in (0.5 * v, 0.25 * v, 0.1, 0.05):
                 vs = min(vs, v)
-                if vs > 0.02 and self.safe(pose, vs, w, points, dt):
+                if vs > 0.02 and self.safe(pose, vs, w, points, dt, blind):
                     self.v, self.w = vs, w
                     return vs, w, 'follow'
             return self._turn(alpha, dt, 'blocked')

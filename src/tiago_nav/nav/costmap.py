@@ -7,25 +7,91 @@ Frames and units: everything is in the ``map`` frame, metres and radians. The gr
 Costs: ``LETHAL`` (254) where the robot centre would overlap an obstacle (within
 ``robot_radius`` of an occupied cell), ``INSCRIBED`` (253) on the boundary, then
 ``252 * exp(-cost_scaling_factor * (d - robot_radius))`` out to ``inflation_radius``, 0 beyond.
-"""
-import numpy as np
-from scipy import ndimage
 
+Laser beams follow REP 117 (:func:`tiago_nav.scan.classify`): a hit marks its cell and clears
+the cells before it, ``+inf`` (no return) clears up to ``raytrace_range``, ``-inf`` (too close)
+marks the cell at ``range_min`` and clears nothing, and an invalid beam (NaN, a finite value
+outside the laser's limits) changes nothing.
+"""
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from tiago_nav.geometry import transform_points
+from tiago_nav.gridmap import distance_to_mask
+from tiago_nav.robot import ROBOT_RADIUS
+from tiago_nav.scan import HIT, INVALID, NO_RETURN, TOO_CLOSE, beam_angles, classify, scan_to_points
 
 LETHAL = 254
 INSCRIBED = 253
 MAX_NON_LETHAL = 252
 
 
+@dataclass(frozen=True)
+class MapScan:
+    """One laser scan placed in the map: the laser's pose ``(x, y, yaw)`` in ``map`` at the
+    scan's stamp, the ranges [m] and the LaserScan's angle and range limits (laser frame, rad
+    and m), and the stamp [s, ROS time]."""
+    laser_pose: tuple
+    ranges: np.ndarray
+    angle_min: float
+    angle_increment: float
+    range_min: float
+    range_max: float
+    stamp: float = 0.0
+
+    @cached_property
+    def kinds(self):
+        """Per beam, :data:`~tiago_nav.scan.HIT`, ``NO_RETURN``, ``TOO_CLOSE`` or ``INVALID``."""
+        return classify(self.ranges, self.range_min, self.range_max)
+
+    def angles(self):
+        """Beam directions [rad] in ``map``."""
+        return self.laser_pose[2] + beam_angles(self.angle_min, self.angle_increment, len(self.ranges))
+
+    def informative(self):
+        """False for an empty scan or one whose every beam is invalid: it says nothing, so the
+        space ahead must be taken as blocked."""
+        return bool(np.any(self.kinds != INVALID))
+
+    @cached_property
+    def obstacles(self):
+        """``(points (M, 2) in map, range [m] of each)``: the hits, plus a point at
+        ``range_min`` along every too-close beam (something is there, nearer than the laser can
+        measure)."""
+        pts, idx = scan_to_points(self.ranges, self.angle_min, self.angle_increment,
+                                  self.range_min, self.range_max)
+        close = np.flatnonzero(self.kinds == TOO_CLOSE)
+        a = self.angle_min + self.angle_increment * close
+        pts = np.vstack((pts, self.range_min * np.column_stack((np.cos(a), np.sin(a)))))
+        r = np.concatenate((np.asarray(self.ranges, dtype=float)[idx],
+                            np.full(len(close), float(self.range_min))))
+        return transform_points(self.laser_pose, pts), r
+
+    def invalid_beam_at(self, xy):
+        """Boolean per ``(N, 2)`` map point: does the point lie in the direction of an invalid
+        beam (the laser cannot vouch for it being free)? Points outside the fan: False."""
+        if len(self.ranges) == 0 or len(xy) == 0:
+            return np.zeros(len(xy), dtype=bool)
+        x, y, yaw = self.laser_pose
+        inc = self.angle_increment or 1.0
+        # angle from the first beam, counted in the scan's direction of rotation, in [0, 2 pi)
+        rel = np.mod((np.arctan2(xy[:, 1] - y, xy[:, 0] - x) - yaw - self.angle_min) * np.sign(inc),
+                     2 * np.pi)
+        i = np.round(rel / abs(inc)).astype(int)
+        inside = (i >= 0) & (i < len(self.ranges))
+        out = np.zeros(len(xy), dtype=bool)
+        out[inside] = self.kinds[i[inside]] == INVALID
+        return out
+
+
 def inflate(occupied, resolution, robot_radius, inflation_radius, cost_scaling_factor):
     """Boolean ``(rows, cols)`` obstacles → ``(cost uint8, distance float [m])``.
 
     ``distance`` is each cell centre's Euclidean distance to the nearest occupied cell centre
-    (scipy's exact distance transform), ``cost`` as in the module docstring."""
-    if occupied.any():
-        dist = ndimage.distance_transform_edt(~occupied) * resolution
-    else:
-        dist = np.full(occupied.shape, np.inf)
+    (:func:`tiago_nav.gridmap.distance_to_mask`), ``cost`` as in the module docstring."""
+    dist = distance_to_mask(occupied, resolution)
     cost = np.zeros(occupied.shape, dtype=np.uint8)
     band = (dist >= robot_radius) & (dist <= inflation_radius)
     cost[band] = np.minimum(
@@ -42,7 +108,7 @@ class Costmap:
     ``raytrace_range`` [m]: beams clear the obstacle layer up to this range (or their hit).
     """
 
-    def __init__(self, grid, robot_radius=0.27, inflation_radius=0.8, cost_scaling_factor=4.0,
+    def __init__(self, grid, robot_radius=ROBOT_RADIUS, inflation_radius=0.8, cost_scaling_factor=4.0,
                  obstacle_range=4.0, raytrace_range=5.0):
         if robot_radius <= 0 or inflation_radius < robot_radius:
             raise ValueError('need 0 < robot_radius <= inflation_radius, got %r, %r'
@@ -66,17 +132,17 @@ class Costmap:
         self.obstacles[:] = False
         self.update()
 
-    def add_scan(self, origin, angles, ranges):
-        """Mark and clear the obstacle layer with one scan.
-
-        ``origin``: ``(x, y)`` of the laser in map [m]; ``angles``: beam directions in map [rad];
-        ``ranges``: [m], ``inf``/NaN for no return. Each beam clears the cells it passes through
-        (up to its hit or ``raytrace_range``), then hits within ``obstacle_range`` are marked.
+    def add_scan(self, scan):
+        """Mark and clear the obstacle layer with one :class:`MapScan` (REP 117, see the module
+        docstring): hit and no-return beams clear the cells they pass through (up to the hit or
+        ``raytrace_range``), then hits within ``obstacle_range`` and too-close beams are marked.
         Does not re-inflate: call :meth:`update`."""
-        angles = np.asarray(angles, dtype=float)
-        r = np.asarray(ranges, dtype=float)
-        ok = np.isfinite(r)
-        reach = np.where(ok, np.minimum(r, self.raytrace_range), self.raytrace_range)
+        r = np.asarray(scan.ranges, dtype=float)
+        kinds = scan.kinds
+        clears = (kinds == HIT) | (kinds == NO_RETURN)
+        reach = np.where(kinds == HIT, np.minimum(r, self.raytrace_range), self.raytrace_range)[clears]
+        angles = scan.angles()[clears]
+        origin = scan.laser_pose
         res = self.resolution
         step = res * 0.5
         n = int(np.ceil(self.raytrace_range / step))
@@ -86,21 +152,34 @@ class Costmap:
         c, sn = np.cos(angles), np.sin(angles)
         px = origin[0] + c[:, None] * s[None, :]
         py = origin[1] + sn[:, None] * s[None, :]
-        rc = self.grid.world_to_cell(np.column_stack((px[keep], py[keep])))
+        self._set(np.column_stack((px[keep], py[keep])), False)
+        pts, ranges = scan.obstacles
+        self._set(pts[ranges <= self.obstacle_range], True)
+
+    def _set(self, xy, value):
+        rc = self.grid.world_to_cell(xy)
         inb = self.grid.in_bounds(rc)
-        self.obstacles[rc[inb, 0], rc[inb, 1]] = False
-        hit = ok & (r <= self.obstacle_range)
-        hx = origin[0] + c[hit] * r[hit]
-        hy = origin[1] + sn[hit] * r[hit]
-        rc = self.grid.world_to_cell(np.column_stack((hx, hy)))
-        inb = self.grid.in_bounds(rc)
-        self.obstacles[rc[inb, 0], rc[inb, 1]] = True
+        self.obstacles[rc[inb, 0], rc[inb, 1]] = value
 
     def update(self):
         """Recompute ``cost`` and ``distance`` from both layers."""
         self.cost, self.distance = inflate(self.static | self.obstacles, self.resolution,
                                            self.robot_radius, self.inflation_radius,
                                            self.cost_scaling_factor)
+
+    def occupied_near(self, xy, radius):
+        """Centres ``(M, 2)`` [m] of the occupied cells (static or laser-marked) within
+        ``radius`` [m] of the point ``xy``."""
+        g = self.grid
+        lo = g.world_to_cell([(xy[0] - radius, xy[1] - radius)])[0]
+        hi = g.world_to_cell([(xy[0] + radius, xy[1] + radius)])[0] + 1
+        r0, c0 = max(lo[0], 0), max(lo[1], 0)
+        r1, c1 = min(hi[0], g.height), min(hi[1], g.width)
+        if r1 <= r0 or c1 <= c0:
+            return np.zeros((0, 2))
+        rc = np.argwhere(self.static[r0:r1, c0:c1] | self.obstacles[r0:r1, c0:c1]) + (r0, c0)
+        pts = g.cell_to_world(rc)
+        return pts[np.hypot(pts[:, 0] - xy[0], pts[:, 1] - xy[1]) <= radius]
 
     def cost_at(self, xy):
         """Costs at ``(N, 2)`` map points; ``LETHAL`` outside the grid."""
@@ -109,6 +188,3 @@ class Costmap:
         out = np.full(len(rc), LETHAL, dtype=np.uint8)
         out[inb] = self.cost[rc[inb, 0], rc[inb, 1]]
         return out
-
-    def lethal(self):
-        return self.cost >= INSCRIBED

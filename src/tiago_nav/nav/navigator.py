@@ -1,42 +1,104 @@
 """The per-goal state machine of the navigation server, free of ROS: costmap updates, planning
 and replanning, control, progress monitoring, recovery behaviours and the terminal outcome.
 
-``nodes/navigation`` feeds it scans and poses (map frame) and sends its commands; the benchmark
-and the unit tests drive it with :class:`tiago_nav.sim.simulator.Simulator` directly.
-Time is whatever clock the caller uses (sim time) [s].
+:class:`tiago_nav.nav.runner.GoalRunner` runs it for one goal (the ``move_base`` node wires that
+to ROS; :mod:`tiago_nav.testing.navigation` to the in-process simulator). Time is whatever clock
+the caller uses (ROS time, simulated under /use_sim_time) [s]; poses are ``(x, y, yaw)`` of
+base_footprint in ``map`` [m, m, rad].
 """
 import math
-from dataclasses import dataclass, field
+from collections import deque
+from dataclasses import dataclass
 
 import numpy as np
 
 from tiago_nav.geometry import wrap_angle
 from tiago_nav.nav.controller import Controller, ControllerConfig
 from tiago_nav.nav.costmap import INSCRIBED, Costmap
+from tiago_nav.scan import INVALID
 from tiago_nav.nav.planner import PlanError, plan
+from tiago_nav.params import ParamError, nested, param, validate
+from tiago_nav.robot import ROBOT_RADIUS
 
 ACTIVE, SUCCEEDED, ABORTED = 'active', 'succeeded', 'aborted'
 
 
-@dataclass
+@dataclass(frozen=True)
 class NavConfig:
-    robot_radius: float = 0.27          # [m]
-    inflation_radius: float = 0.8       # [m]
-    cost_scaling_factor: float = 4.0    # [1/m]
-    cost_weight: float = 1.5            # planner: weight of cost vs distance
-    shortcut_tolerance: float = 40.0    # planner: cost a line-of-sight shortcut may add (0-252)
-    obstacle_range: float = 4.0         # [m]
-    raytrace_range: float = 5.0         # [m]
-    planner_frequency: float = 1.0      # [Hz] periodic replanning (0: only when blocked)
-    planner_patience: float = 3.0       # [s] abort when no plan is found for this long
-    controller_patience: float = 6.0    # [s] no progress for this long -> next recovery
-    progress_distance: float = 0.15     # [m] moving this far counts as progress
-    blocked_lookahead: float = 2.5      # [m] of plan checked against the costmap every cycle
-    recovery_rotate: float = 2 * math.pi  # [rad] in-place turn of the rotate recovery
-    backup_distance: float = 0.3        # [m] of the back-up recovery
-    backup_speed: float = 0.15          # [m/s]
-    goal_timeout: float = 0.0           # [s] abort a goal after this long (0: never)
-    controller: ControllerConfig = field(default_factory=ControllerConfig)
+    """Costmap, planner, progress, recovery and sensor-freshness settings of the navigator."""
+    robot_radius: float = param(ROBOT_RADIUS, '[m] base footprint radius (tiago_nav.robot)', gt=0)
+    inflation_radius: float = param(0.8, '[m] the cost gradient reaches out this far', gt=0)
+    cost_scaling_factor: float = param(4.0, '[1/m] cost = 252 exp(-k (d - robot_radius))', gt=0)
+    cost_weight: float = param(1.5, 'planner: step cost multiplier 1 + cost_weight * cost / 252',
+                               ge=0)
+    shortcut_tolerance: float = param(40.0, 'planner: cost (0-252) a line-of-sight shortcut of '
+                                      'the grid path may add', ge=0)
+    obstacle_range: float = param(4.0, '[m] laser hits are marked up to this range', gt=0)
+    raytrace_range: float = param(5.0, '[m] beams clear the obstacle layer up to this range', gt=0)
+    planner_frequency: float = param(1.0, '[Hz] periodic replanning (0: only when the plan '
+                                     'ahead is blocked)', ge=0)
+    planner_patience: float = param(3.0, '[s] abort when no plan can be found for this long', gt=0)
+    controller_patience: float = param(6.0, '[s] no progress (progress_distance) for this long '
+                                       '-> next recovery (clear, rotate, back up), then abort', gt=0)
+    progress_distance: float = param(0.15, '[m] moving this far counts as progress for '
+                                     'controller_patience', gt=0)
+    blocked_lookahead: float = param(2.5, '[m] of plan checked against the costmap every cycle',
+                                     gt=0)
+    recovery_rotate: float = param(2 * math.pi, '[rad] in-place turn of the rotate recovery', gt=0)
+    backup_distance: float = param(0.3, '[m] of the back-up recovery', ge=0)
+    backup_speed: float = param(0.15, '[m/s] of the back-up recovery', gt=0)
+    goal_timeout: float = param(-1.0, '[s] abort a goal after this long; < 0: derived from the '
+                                'first plan (goal_timeout_factor * length / max_vel_x + '
+                                'goal_timeout_allowance); 0: never')
+    goal_timeout_factor: float = param(3.0, 'derived goal_timeout: multiple of the first '
+                                       "plan's driving time at max_vel_x", gt=0)
+    goal_timeout_allowance: float = param(30.0, '[s] derived goal_timeout: added for turning, '
+                                          'recoveries and detours', ge=0)
+    no_progress_timeout: float = param(40.0, '[s] abort when the path still to go has not '
+                                       'shrunk by no_progress_distance for this long '
+                                       '(oscillation, a blocked goal; 0: never)', ge=0)
+    no_progress_distance: float = param(0.5, '[m] see no_progress_timeout', gt=0)
+    sensor_timeout: float = param(0.5, '[s] stop the base while the newest scan (by its stamp) '
+                                  'or the robot pose is older than this', gt=0)
+    sensor_abort_timeout: float = param(3.0, '[s] abort the goal when a sensor stays that '
+                                        'stale this long', gt=0)
+    controller: ControllerConfig = nested(ControllerConfig)
+
+    def __post_init__(self):
+        validate(self)
+        if self.inflation_radius < self.robot_radius:
+            raise ParamError('must be >= robot_radius (%g m)' % self.robot_radius, 'inflation_radius')
+        if self.controller.robot_radius != self.robot_radius:
+            raise ParamError('differs from the controller\'s (%g, %g m): build both from one '
+                             'value' % (self.robot_radius, self.controller.robot_radius),
+                             'robot_radius')
+        if self.sensor_abort_timeout < self.sensor_timeout:
+            raise ParamError('must be >= sensor_timeout (%g s)' % self.sensor_timeout,
+                             'sensor_abort_timeout')
+
+
+class ProgressWindow:
+    """Is the distance still to go shrinking? Fed ``(t, to_go)`` each cycle, it reports True
+    once a whole ``window`` [s] has passed without ``to_go`` [m] falling ``distance`` below its
+    value at the window's start, which catches a robot swinging back and forth as well as one
+    standing still. ``window`` 0: never."""
+
+    def __init__(self, window, distance):
+        self.window, self.distance = window, distance
+        self.samples = deque()
+
+    def reset(self):
+        self.samples.clear()
+
+    def update(self, t, to_go):
+        if self.window <= 0:
+            return False
+        s = self.samples
+        s.append((t, to_go))
+        while len(s) >= 2 and s[1][0] <= t - self.window:
+            s.popleft()
+        t0, start = s[0]
+        return t - t0 >= self.window and min(v for _, v in s) > start - self.distance
 
 
 class Navigator:
@@ -44,6 +106,7 @@ class Navigator:
     :meth:`start`, per cycle :meth:`add_scan` / :meth:`step`."""
 
     RECOVERIES = ('clear', 'rotate', 'backup')
+    MEMORY_RADIUS = 2.5     # [m] occupied cells this near the laser stand in for invalid beams
 
     def __init__(self, grid, config=NavConfig()):
         self.cfg = config
@@ -51,24 +114,32 @@ class Navigator:
                                config.cost_scaling_factor, config.obstacle_range,
                                config.raytrace_range)
         self.controller = Controller(config.controller)
+        self.window = ProgressWindow(config.no_progress_timeout, config.no_progress_distance)
         self.points = np.zeros((0, 2))
+        self.blind = False          # the newest scan had no informative beam
+        self.scan_stamp = None      # stamp [s] of the newest scan
         self.goal = None
         self.path = None
         self.state = None
         self.reason = ''
 
     # --- sensing ----------------------------------------------------------------------------
-    def add_scan(self, origin, angles, ranges):
-        """One laser scan in map: laser ``origin (x, y)``, beam ``angles`` [rad] in map,
-        ``ranges`` [m] (inf for no return). Updates the obstacle layer and the points the
-        collision check uses."""
-        r = np.asarray(ranges, dtype=float)
-        a = np.asarray(angles, dtype=float)
-        ok = np.isfinite(r)
-        self.points = np.column_stack((origin[0] + r[ok] * np.cos(a[ok]),
-                                       origin[1] + r[ok] * np.sin(a[ok])))
-        self.costmap.add_scan(origin, a, r)
+    def add_scan(self, scan):
+        """One :class:`~tiago_nav.nav.costmap.MapScan`: updates the obstacle layer and the
+        points the collision check uses (the hits, too-close beams at ``range_min``, and the
+        costmap's occupied cells in the directions of invalid beams, which the laser cannot
+        vouch for). An older scan than the newest one is ignored."""
+        if self.scan_stamp is not None and scan.stamp < self.scan_stamp:
+            return
+        self.costmap.add_scan(scan)
         self.costmap.update()
+        points = scan.obstacles[0]
+        if len(scan.ranges) and (scan.kinds == INVALID).any():
+            near = self.costmap.occupied_near(scan.laser_pose[:2], self.MEMORY_RADIUS)
+            points = np.vstack((points, near[scan.invalid_beam_at(near)]))
+        self.points = points
+        self.blind = not scan.informative()
+        self.scan_stamp = scan.stamp
 
     def clear_costmaps(self):
         self.costmap.clear_obstacles()
@@ -100,8 +171,18 @@ class Navigator:
         self.progress_time = t
         self.recovery = 0
         self.recovery_action = None
+        self.window.reset()
+        self.deadline, self.timeout_reason = math.inf, ''
+        if self.cfg.goal_timeout > 0:
+            self.deadline = t + self.cfg.goal_timeout
+            self.timeout_reason = 'timeout: goal not reached in %.0f s' % self.cfg.goal_timeout
         self._replan(pose, t)
         return self.path
+
+    def cancel(self):
+        """Forget the goal (it was preempted or ended outside :meth:`step`)."""
+        self.state = None
+        self.controller.reset()
 
     def _replan(self, pose, t):
         self.last_plan_try = t
@@ -112,7 +193,34 @@ class Navigator:
             return False
         self.controller.set_path(self.path)
         self.last_plan_ok = t
+        self._arc = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(self.path, axis=0).T))))
+        cfg = self.cfg
+        if cfg.goal_timeout < 0 and math.isinf(self.deadline):
+            # derived from the first plan (goal_timeout < 0)
+            length = float(self._arc[-1])
+            limit = cfg.goal_timeout_factor * length / cfg.controller.max_vel_x \
+                + cfg.goal_timeout_allowance
+            self.deadline = self.t0 + limit
+            self.timeout_reason = ('timeout: goal not reached in %.0f s (%g x the %.1f m plan at '
+                                   '%g m/s + %g s)' % (limit, cfg.goal_timeout_factor, length,
+                                                       cfg.controller.max_vel_x,
+                                                       cfg.goal_timeout_allowance))
         return True
+
+    def to_go(self, pose):
+        """Length [m] of the current plan from its point nearest to ``pose`` to the goal, plus
+        the distance to that point; None without a plan."""
+        if self.path is None:
+            return None
+        d = np.hypot(self.path[:, 0] - pose[0], self.path[:, 1] - pose[1])
+        i = int(np.argmin(d))
+        return float(self._arc[-1] - self._arc[i] + d[i])
+
+    def hold(self, t):
+        """The caller stopped the base this cycle instead of stepping (e.g. stale sensors): the
+        controller restarts from rest and the pause does not count against progress."""
+        self.controller.v = self.controller.w = 0.0
+        self.progress_time = t
 
     def _path_blocked(self):
         if self.path is None:
@@ -133,8 +241,13 @@ class Navigator:
         cfg = self.cfg
         if self.state != ACTIVE:
             return 0.0, 0.0, self.state, self.reason
-        if cfg.goal_timeout > 0 and t - self.t0 > cfg.goal_timeout:
-            return self._finish(ABORTED, 'timeout: goal not reached in %.0f s' % cfg.goal_timeout)
+        if t > self.deadline:
+            return self._finish(ABORTED, self.timeout_reason)
+        to_go = self.to_go(pose)
+        if to_go is not None and self.window.update(t, to_go):
+            return self._finish(ABORTED, 'no progress: the path still to go has not shrunk by '
+                                '%.2f m in %.0f s (oscillating or blocked)'
+                                % (cfg.no_progress_distance, cfg.no_progress_timeout))
         dg = math.hypot(self.goal[0] - pose[0], self.goal[1] - pose[1])
         # progress monitor
         if math.hypot(pose[0] - self.progress_pose[0], pose[1] - self.progress_pose[1]) > cfg.progress_distance \
@@ -161,7 +274,7 @@ class Navigator:
                 self.controller.v = self.controller.w = 0.0
                 self.progress_time = t
                 return 0.0, 0.0, ACTIVE, 'planning'
-        v, w, phase = self.controller.command(pose, self.goal, self.points, dt)
+        v, w, phase = self.controller.command(pose, self.goal, self.points, dt, self.blind)
         if phase == 'arrived':
             return self._finish(SUCCEEDED, 'goal reached')
         if t - self.progress_time > cfg.controller_patience:

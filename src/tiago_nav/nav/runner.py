@@ -1,0 +1,177 @@
+"""One move_base goal from acceptance to its end, free of ROS: goal checks, the fixed-rate
+control loop, sensor freshness, preemption, feedback, plan republishing, and a stop command on
+every end.
+
+The runner talks to the outside through an *io* object (the ``move_base`` node wires it to
+actionlib, tf and publishers; :mod:`tiago_nav.testing.navigation` to the in-process simulator;
+the unit tests to fakes):
+
+* ``clock``: a :mod:`tiago_nav.clock` clock (``now`` in ROS time [s]);
+* ``pose()``: ``((x, y, yaw), stamp)`` of base_footprint in ``map`` [m, rad; s], or raises
+  :class:`PoseUnavailable`;
+* ``to_map(frame, pose)``: a pose ``(x, y, yaw)`` in ``frame`` → ``map``, or raises
+  :class:`GoalError`;
+* ``send_cmd(v, w)`` [m/s, rad/s], ``publish_plan(path)`` (``(K, 2)`` in map or None),
+  ``publish_feedback(pose)``;
+* ``preempt_requested()``; ``finish(status, text)`` with status :data:`SUCCEEDED`,
+  :data:`ABORTED` or :data:`PREEMPTED` (called exactly once per goal).
+"""
+import math
+import threading
+from dataclasses import dataclass
+
+from tiago_nav.clock import Ticker
+from tiago_nav.geometry import quaternion_to_yaw
+from tiago_nav.nav.navigator import ABORTED, ACTIVE, SUCCEEDED
+from tiago_nav.nav.planner import PlanError
+
+PREEMPTED = 'preempted'
+
+
+class GoalError(ValueError):
+    """A goal that cannot be used: the message says why."""
+
+
+class PoseUnavailable(RuntimeError):
+    """The robot's pose cannot be had now (no transform); the message says why."""
+
+
+@dataclass
+class Outcome:
+    status: str          # SUCCEEDED, ABORTED or PREEMPTED
+    text: str
+
+
+def goal_pose(position, orientation):
+    """A goal's ``position (x, y, z)`` [m] and ``orientation (x, y, z, w)`` quaternion →
+    ``(x, y, yaw)``. Raises :class:`GoalError` for a non-finite field or a quaternion that
+    cannot be normalised (length about 0)."""
+    names = ('position.x', 'position.y', 'position.z', 'orientation.x', 'orientation.y',
+             'orientation.z', 'orientation.w')
+    values = [float(v) for v in tuple(position) + tuple(orientation)]
+    bad = ['%s=%r' % (n, v) for n, v in zip(names, values) if not math.isfinite(v)]
+    if bad:
+        raise GoalError('goal has a non-finite field (%s)' % ', '.join(bad))
+    q = values[3:]
+    norm = math.sqrt(sum(v * v for v in q))
+    if norm < 1e-3:
+        raise GoalError('goal orientation (%g, %g, %g, %g) cannot be normalised (length %.2g): '
+                        'give a unit quaternion, e.g. w: 1 for yaw 0' % (*q, norm))
+    return values[0], values[1], quaternion_to_yaw(*(v / norm for v in q))
+
+
+def _fmt(pose):
+    return '(%.2f, %.2f, %.0f deg)' % (pose[0], pose[1], math.degrees(pose[2]))
+
+
+class GoalRunner:
+    """Runs goals on a :class:`~tiago_nav.nav.navigator.Navigator` through ``io`` (see the
+    module docstring) at ``period`` [s] of ROS time. ``lock`` guards the navigator against the
+    scan callback; ``log(level, text)`` with level ``'info'`` or ``'warn'``."""
+
+    def __init__(self, nav, io, period, lock=None, log=None):
+        self.nav, self.io, self.period = nav, io, float(period)
+        self.lock = lock or threading.Lock()
+        self.log = log or (lambda level, text: None)
+
+    def run(self, frame, position, orientation):
+        """Run one goal (``frame`` of the pose, ``position``, ``orientation`` quaternion) to its
+        end; returns the :class:`Outcome` it reported through ``io.finish``."""
+        try:
+            return self._run(frame, position, orientation)
+        except Exception as e:         # a bug or a broken io: still stop and say what happened
+            return self._end(ABORTED, 'unexpected error: %s: %s' % (type(e).__name__, e))
+
+    def _end(self, status, text):
+        self.io.send_cmd(0.0, 0.0)
+        with self.lock:
+            self.nav.cancel()
+        self.log('info' if status == SUCCEEDED else 'warn', 'goal %s: %s' % (status, text))
+        self.io.finish(status, text)
+        return Outcome(status, text)
+
+    def _run(self, frame, position, orientation):
+        io, nav = self.io, self.nav
+        clock = io.clock
+        try:
+            target = io.to_map(frame, goal_pose(position, orientation))
+            pose, _ = io.pose()
+            with self.lock:
+                path = nav.start(target, pose, clock.now())
+        except (GoalError, PlanError, PoseUnavailable) as e:
+            return self._end(ABORTED, 'goal rejected: %s' % e)
+        self.log('info', 'goal %s in map' % _fmt(target))
+        io.publish_plan(path)
+        watch = SensorWatch(nav.cfg, clock.now())
+        ticker = Ticker(clock, self.period)
+        while True:
+            if io.preempt_requested():
+                return self._end(PREEMPTED, 'preempted')
+            t = clock.now()
+            try:
+                pose, stamp = io.pose()
+                watch.pose_seen(stamp)
+            except PoseUnavailable as e:
+                pose = None
+                watch.pose_error = str(e)
+            stale, fatal = watch.check(t, nav.scan_stamp)
+            if fatal:
+                return self._end(ABORTED, fatal)
+            if stale:
+                io.send_cmd(0.0, 0.0)
+                with self.lock:
+                    nav.hold(t)
+                if watch.stale_cycles == 1:
+                    self.log('warn', 'base stopped: %s' % stale)
+            else:
+                with self.lock:
+                    v, w, state, reason = nav.step(pose, t, self.period)
+                    new_path = nav.path
+                if state != ACTIVE:
+                    return self._end(state, reason)
+                io.send_cmd(v, w)
+                if new_path is not path:
+                    io.publish_plan(new_path)
+                    path = new_path
+            if pose is not None:
+                io.publish_feedback(pose)
+            if not ticker.tick():
+                return self._end(ABORTED, 'node shutting down' if clock.shutdown() else
+                                 'ROS time stopped advancing (is the simulator or /clock running?)')
+
+
+class SensorWatch:
+    """Freshness of the laser and the pose during one goal (``NavConfig.sensor_timeout`` and
+    ``sensor_abort_timeout``, ROS time [s]). A sensor not seen yet during the goal counts from
+    the goal's start ``t0``."""
+
+    def __init__(self, cfg, t0):
+        self.cfg, self.t0 = cfg, t0
+        self.pose_stamp = None
+        self.pose_error = ''
+        self.stale_cycles = 0
+
+    def pose_seen(self, stamp):
+        self.pose_stamp, self.pose_error = stamp, ''
+
+    def check(self, t, scan_stamp):
+        """``(stale, fatal)``: a sentence when the newest scan or pose is older than
+        ``sensor_timeout`` or the pose is missing now (the base must stop), and one when a
+        sensor has stayed older than ``sensor_abort_timeout`` for two cycles in a row (the goal
+        aborts); '' otherwise."""
+        cfg = self.cfg
+        scan_age = t - (self.t0 if scan_stamp is None else scan_stamp)
+        pose_age = t - (self.t0 if self.pose_stamp is None else self.pose_stamp)
+        items = []
+        if scan_age > cfg.sensor_timeout:
+            items.append(('no laser data for %.1f s' % scan_age, scan_age))
+        if self.pose_error or pose_age > cfg.sensor_timeout:
+            items.append(('no odometry/pose for %.1f s%s' % (
+                pose_age, ' (%s)' % self.pose_error if self.pose_error else ''), pose_age))
+        if not items:
+            self.stale_cycles = 0
+            return '', ''
+        self.stale_cycles += 1
+        fatal = [text for text, age in items if age > cfg.sensor_abort_timeout]
+        return '; '.join(text for text, _ in items), \
+            '; '.join(fatal) if fatal and self.stale_cycles >= 2 else ''

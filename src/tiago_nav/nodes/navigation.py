@@ -1,0 +1,264 @@
+"""The ``move_base`` node (``nodes/navigation``): ROS wiring around
+:class:`tiago_nav.nav.runner.GoalRunner` and :class:`tiago_nav.nav.navigator.Navigator`.
+
+/map (latched) -> static costmap; /scan (placed in map with tf2 at its stamp) -> obstacle layer;
+tf map -> base_footprint -> pose; commands on /mobile_base_controller/cmd_vel. Serves the
+``move_base`` action (move_base_msgs/MoveBaseAction), /move_base_simple/goal, ~plan,
+~make_plan and ~clear_costmaps, all only once /map, a first scan and the robot's transform are
+in (each waited for with a timeout; the node exits 1 naming what is missing).
+"""
+import math
+import sys
+import threading
+from dataclasses import dataclass
+
+import actionlib
+import rospy
+import tf2_ros
+from geometry_msgs.msg import PoseStamped, Twist
+from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseFeedback, MoveBaseResult
+from nav_msgs.msg import OccupancyGrid, Path
+from nav_msgs.srv import GetPlan, GetPlanResponse
+from sensor_msgs.msg import LaserScan
+from std_srvs.srv import Empty, EmptyResponse
+
+from tiago_nav.geometry import compose
+from tiago_nav.nav.costmap import MapScan
+from tiago_nav.nav.navigator import NavConfig, Navigator
+from tiago_nav.nav.planner import PlanError
+from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, GoalRunner,
+                                  PoseUnavailable, goal_pose)
+from tiago_nav.params import ParamError, nested, param, validate
+from tiago_nav.ros.clock import RosClock
+from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, pose_stamped
+from tiago_nav.ros.params import read
+
+
+@dataclass(frozen=True)
+class Params:
+    """Defaults of nodes/navigation (node name move_base). Units: m, rad, s (ROS time unless
+    marked wall), m/s. Algorithms: src/tiago_nav/nav/ (costmap, planner, controller,
+    navigator, runner)."""
+    global_frame: str = param('map', 'frame of the map, plans and goals', nonempty=True)
+    robot_base_frame: str = param('base_footprint', "the robot's base frame", nonempty=True)
+    scan_topic: str = param('/scan', 'sensor_msgs/LaserScan in', nonempty=True)
+    map_topic: str = param('/map', 'nav_msgs/OccupancyGrid in (latched)', nonempty=True)
+    cmd_vel_topic: str = param('/mobile_base_controller/cmd_vel', 'geometry_msgs/Twist out',
+                               nonempty=True)
+    controller_frequency: float = param(10.0, '[Hz] control cycle and feedback rate', gt=0)
+    transform_tolerance: float = param(0.5, '[s wall] wait for a transform of a scan or a goal',
+                                       gt=0)
+    map_timeout: float = param(30.0, '[s wall] wait for /map at start-up', gt=0)
+    ready_timeout: float = param(30.0, '[s wall] then wait for a first scan and the transform '
+                                 'map -> base_footprint before serving goals', gt=0)
+    nav: NavConfig = nested(NavConfig)
+
+    def __post_init__(self):
+        validate(self)
+
+
+class NotReady(RuntimeError):
+    """Something the node needs did not come in time; the message names it."""
+
+
+class ActionIO:
+    """The goal runner's io (see :mod:`tiago_nav.nav.runner`) over an actionlib
+    SimpleActionServer, publishers and a pose source; all ROS time comes from ``clock``, so
+    fakes can stand for every part."""
+
+    def __init__(self, server, cmd_pub, plan_pub, clock, pose, to_map, frame):
+        self.server, self.cmd_pub, self.plan_pub, self.clock = server, cmd_pub, plan_pub, clock
+        self.pose, self.to_map, self.frame = pose, to_map, frame
+
+    def _stamp(self):
+        return rospy.Time.from_sec(max(self.clock.now(), 0.0))
+
+    def send_cmd(self, v, w):
+        cmd = Twist()
+        cmd.linear.x, cmd.angular.z = v, w
+        self.cmd_pub.publish(cmd)
+
+    def publish_plan(self, path):
+        msg = Path()
+        msg.header.frame_id = self.frame
+        msg.header.stamp = self._stamp()
+        if path is not None:
+            for i in range(len(path)):
+                nxt = path[min(i + 1, len(path) - 1)]
+                yaw = math.atan2(nxt[1] - path[i][1], nxt[0] - path[i][0])
+                msg.poses.append(pose_stamped((path[i][0], path[i][1], yaw), self.frame, msg.header.stamp))
+        self.plan_pub.publish(msg)
+
+    def publish_feedback(self, pose):
+        self.server.publish_feedback(MoveBaseFeedback(base_position=pose_stamped(pose, self.frame,
+                                                                                 self._stamp())))
+
+    def preempt_requested(self):
+        return self.server.is_preempt_requested()
+
+    def finish(self, status, text):
+        {SUCCEEDED: self.server.set_succeeded, ABORTED: self.server.set_aborted,
+         PREEMPTED: self.server.set_preempted}[status](MoveBaseResult(), text)
+
+
+class MoveBase:
+    """The node: waits for what it needs, then advertises its action, topic and services."""
+
+    def __init__(self, p):
+        self.p = p
+        self.clock = RosClock()
+        self.lock = threading.Lock()
+        self.tf = tf2_ros.Buffer()
+        self.listener = tf2_ros.TransformListener(self.tf)
+        self.map_frame = p.global_frame
+        self.cmd_pub = rospy.Publisher(p.cmd_vel_topic, Twist, queue_size=1)
+        self.plan_pub = rospy.Publisher('~plan', Path, queue_size=1, latch=True)
+        rospy.loginfo('move_base: waiting for %s', p.map_topic)
+        try:
+            msg = rospy.wait_for_message(p.map_topic, OccupancyGrid, timeout=p.map_timeout)
+        except rospy.ROSException:
+            raise NotReady('no map on %s within %g s (is the simulator or a map server running?)'
+                           % (p.map_topic, p.map_timeout)) from None
+        self.map_frame = msg.header.frame_id.lstrip('/') or self.map_frame
+        self.nav = Navigator(gridmap_from_msg(msg), p.nav)
+        self.scan_problem = 'no message on %s' % p.scan_topic
+        rospy.Subscriber(p.scan_topic, LaserScan, self.on_scan, queue_size=1)
+        self._wait(lambda: self.nav.scan_stamp is not None,
+                   lambda: 'no usable laser scan within %g s: %s' % (p.ready_timeout, self.scan_problem))
+        self._wait(lambda: self.tf.can_transform(self.map_frame, p.robot_base_frame, rospy.Time(0)),
+                   lambda: 'no transform %s -> %s within %g s (is odometry/localisation running?)'
+                   % (self.map_frame, p.robot_base_frame, p.ready_timeout))
+        self.server = actionlib.SimpleActionServer('move_base', MoveBaseAction, self.execute,
+                                                   auto_start=False)
+        io = ActionIO(self.server, self.cmd_pub, self.plan_pub, self.clock, self.pose, self.to_map,
+                      self.map_frame)
+        self.runner = GoalRunner(self.nav, io, 1.0 / p.controller_frequency, self.lock, self._log)
+        self.goal_pub = rospy.Publisher('move_base/goal', MoveBaseActionGoal, queue_size=1)
+        rospy.Subscriber('move_base_simple/goal', PoseStamped, self.on_simple_goal, queue_size=1)
+        rospy.Service('~make_plan', GetPlan, self.on_make_plan)
+        rospy.Service('~clear_costmaps', Empty, self.on_clear)
+        self.server.start()
+        rospy.loginfo('move_base: ready (map %dx%d, %.2f m)', msg.info.width, msg.info.height,
+                      msg.info.resolution)
+
+    @staticmethod
+    def _log(level, text):
+        (rospy.loginfo if level == 'info' else rospy.logwarn)('move_base: %s', text)
+
+    def _wait(self, ready, problem):
+        """Poll ``ready()`` in wall time for ``ready_timeout``; :class:`NotReady` with
+        ``problem()`` otherwise."""
+        t_end = self.clock.wall() + self.p.ready_timeout
+        while not ready():
+            if self.clock.shutdown():
+                raise NotReady('shut down while starting')
+            if self.clock.wall() > t_end:
+                raise NotReady(problem())
+            self.clock.sleep(0.05)
+
+    def _transform(self, source, stamp):
+        """``map <- source`` at ``stamp`` as ``(x, y, yaw)``, waiting up to
+        ``transform_tolerance`` wall seconds (never on ROS time, which may stand still)."""
+        t_end = self.clock.wall() + self.p.transform_tolerance
+        while not self.tf.can_transform(self.map_frame, source, stamp):
+            if self.clock.wall() > t_end or self.clock.shutdown():
+                break
+            self.clock.sleep(0.005)
+        t = self.tf.lookup_transform(self.map_frame, source, stamp)
+        return pose_from_transform(t.transform), t.header.stamp.to_sec()
+
+    # --- inputs -----------------------------------------------------------------------------
+    def on_scan(self, scan):
+        try:
+            lp, _ = self._transform(scan.header.frame_id, scan.header.stamp)
+        except tf2_ros.TransformException as e:
+            self.scan_problem = 'scans cannot be placed in %s: %s' % (self.map_frame, e)
+            rospy.logwarn_throttle(5.0, 'move_base: scan dropped, no transform: %s' % e)
+            return
+        ms = MapScan(lp, scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
+                     scan.range_max, scan.header.stamp.to_sec())
+        with self.lock:
+            self.nav.add_scan(ms)
+
+    def pose(self):
+        """``((x, y, yaw), stamp)`` of the base in map now (newest transform), or
+        :class:`PoseUnavailable`."""
+        try:
+            t = self.tf.lookup_transform(self.map_frame, self.p.robot_base_frame, rospy.Time(0))
+        except tf2_ros.TransformException as e:
+            raise PoseUnavailable('no transform %s -> %s: %s'
+                                  % (self.map_frame, self.p.robot_base_frame, e)) from None
+        return pose_from_transform(t.transform), t.header.stamp.to_sec()
+
+    def to_map(self, frame, pose):
+        """``(x, y, yaw)`` in ``frame`` → map, or :class:`GoalError`."""
+        frame = frame.lstrip('/') or self.map_frame
+        if frame == self.map_frame:
+            return pose
+        try:
+            t, _ = self._transform(frame, rospy.Time(0))
+        except tf2_ros.TransformException as e:
+            raise GoalError('no transform %s -> %s: %s' % (frame, self.map_frame, e)) from None
+        return compose(t, pose)
+
+    def on_simple_goal(self, ps):
+        g = MoveBaseActionGoal()
+        g.header.stamp = rospy.Time.now()
+        g.goal_id.stamp = g.header.stamp
+        g.goal.target_pose = ps
+        self.goal_pub.publish(g)
+
+    def on_make_plan(self, req):
+        resp = GetPlanResponse()
+        resp.plan.header.frame_id = self.map_frame
+        try:
+            if req.start.header.frame_id:
+                start = self.to_map(req.start.header.frame_id, _plain(req.start.pose))
+            else:
+                start = self.pose()[0]
+            goal = self.to_map(req.goal.header.frame_id, _plain(req.goal.pose))
+            with self.lock:
+                path = self.nav.make_plan(start[:2], goal[:2])
+        except (PlanError, GoalError, PoseUnavailable) as e:
+            rospy.logwarn('move_base: make_plan failed: %s', e)
+            return resp
+        stamp = rospy.Time.now()
+        for p in path:
+            resp.plan.poses.append(pose_stamped((p[0], p[1], goal[2]), self.map_frame, stamp))
+        return resp
+
+    def on_clear(self, _):
+        with self.lock:
+            self.nav.clear_costmaps()
+        rospy.loginfo('move_base: obstacle layer cleared')
+        return EmptyResponse()
+
+    def stop(self):
+        self.cmd_pub.publish(Twist())
+
+    # --- the action -------------------------------------------------------------------------
+    def execute(self, goal):
+        p = goal.target_pose
+        self.runner.run(p.header.frame_id, (p.pose.position.x, p.pose.position.y, p.pose.position.z),
+                        (p.pose.orientation.x, p.pose.orientation.y, p.pose.orientation.z,
+                         p.pose.orientation.w))
+
+
+def _plain(pose):
+    """geometry_msgs/Pose → ``(x, y, yaw)`` checked like a goal (:class:`GoalError`)."""
+    o = pose.orientation
+    return goal_pose((pose.position.x, pose.position.y, pose.position.z), (o.x, o.y, o.z, o.w))
+
+
+def main():
+    rospy.init_node('move_base')
+    try:
+        node = MoveBase(read(Params))
+    except ParamError as e:
+        rospy.logfatal('move_base: %s', e)
+        sys.exit(2)
+    except (NotReady, ValueError) as e:
+        rospy.logfatal('move_base: not starting: %s', e)
+        sys.exit(1)
+    rospy.on_shutdown(node.stop)
+    rospy.spin()
