@@ -62,14 +62,14 @@ class Fakes:
         threading.Thread(target=self.scan_loop, daemon=True).start()
 
     def scan_loop(self):
-        """A TIAGo-like scan in base_footprint: two walls at y = +-0.55 m from x = -0.3 to 4 m
+        """A TIAGo-like scan in base_footprint: two walls at y = +-0.55 m from x = -0.3 to 0.8 m
         (a corridor leading along +x), or nothing within range."""
         n, amin, amax = 666, -1.92, 1.92
         a = np.linspace(amin, amax, n)
         s = np.sin(a)
         with np.errstate(divide='ignore', invalid='ignore'):
             r = np.where(np.abs(s) > 1e-6, 0.55 / np.abs(s), np.inf)
-        r = np.where((r * np.cos(a) >= -0.3) & (r * np.cos(a) <= 4.0), r, np.inf)
+        r = np.where((r * np.cos(a) >= -0.3) & (r * np.cos(a) <= 0.8), r, np.inf)
         rate = rospy.Rate(15)
         while not rospy.is_shutdown():
             if self.scan_mode != 'none':
