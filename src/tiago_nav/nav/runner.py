@@ -67,12 +67,20 @@ def _fmt(pose):
 class GoalRunner:
     """Runs goals on a :class:`~tiago_nav.nav.navigator.Navigator` through ``io`` (see the
     module docstring) at ``period`` [s] of ROS time. ``lock`` guards the navigator against the
-    scan callback; ``log(level, text)`` with level ``'info'`` or ``'warn'``."""
+    scan callback; ``log(level, text)`` with level ``'info'`` or ``'warn'``.
 
-    def __init__(self, nav, io, period, lock=None, log=None):
+    ``ticker``: the node's cycle source shared by every goal (a lockstep participant, with
+    ``tick()`` like :class:`~tiago_nav.clock.Ticker`); a goal then starts at its first cycle,
+    so that its plan and first command use that cycle's pose and scans, and each cycle calls
+    ``io.sense()`` (if the io has it) to take them in. None: a :class:`Ticker` per goal,
+    starting at once.
+    """
+
+    def __init__(self, nav, io, period, lock=None, log=None, ticker=None):
         self.nav, self.io, self.period = nav, io, float(period)
         self.lock = lock or threading.Lock()
         self.log = log or (lambda level, text: None)
+        self.ticker = ticker
 
     def run(self, frame, position, orientation):
         """Run one goal (``frame`` of the pose, ``position``, ``orientation`` quaternion) to its
@@ -90,9 +98,21 @@ class GoalRunner:
         self.io.finish(status, text)
         return Outcome(status, text)
 
+    def _tick(self, ticker):
+        """The next cycle; the text of the abort when there is none, else ''."""
+        if ticker.tick():
+            getattr(self.io, 'sense', lambda: None)()
+            return ''
+        return 'node shutting down' if self.io.clock.shutdown() else \
+            'ROS time stopped advancing (is the simulator or /clock running?)'
+
     def _run(self, frame, position, orientation):
         io, nav = self.io, self.nav
         clock = io.clock
+        ticker = self.ticker or Ticker(clock, self.period)
+        stopped = self._tick(ticker) if self.ticker is not None else ''
+        if stopped:
+            return self._end(ABORTED, stopped)
         try:
             target = io.to_map(frame, goal_pose(position, orientation))
             pose, _ = io.pose()
@@ -103,7 +123,6 @@ class GoalRunner:
         self.log('info', 'goal %s in map' % _fmt(target))
         io.publish_plan(path)
         watch = SensorWatch(nav.cfg, clock.now())
-        ticker = Ticker(clock, self.period)
         while True:
             if io.preempt_requested():
                 return self._end(PREEMPTED, 'preempted')
@@ -135,9 +154,9 @@ class GoalRunner:
                     path = new_path
             if pose is not None:
                 io.publish_feedback(pose)
-            if not ticker.tick():
-                return self._end(ABORTED, 'node shutting down' if clock.shutdown() else
-                                 'ROS time stopped advancing (is the simulator or /clock running?)')
+            stopped = self._tick(ticker)
+            if stopped:
+                return self._end(ABORTED, stopped)
 
 
 class SensorWatch:

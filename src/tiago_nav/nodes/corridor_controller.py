@@ -9,6 +9,10 @@ with the reason, PREEMPTED on cancel. The base is told to stop whenever a goal e
 :class:`CorridorServer` holds the decisions of one goal and talks to ROS only through the
 objects it is given (a clock, the action server, the velocity publisher and a small I/O object:
 :class:`RosIO` here, fakes in the unit tests).
+
+Under ``/use_lockstep`` the control loop is a lockstep participant
+(:mod:`tiago_nav.ros.lockstep`): each cycle uses exactly the cycle's scan and the pose at the
+cycle's odometry stamp, and answers with its command (idle: at once, without one).
 """
 import math
 import sys
@@ -30,10 +34,12 @@ from tiago_nav.msg import CorridorAction, CorridorFeedback, CorridorResult
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
+from tiago_nav.ros.lockstep import LockstepParticipant, ScanCache, lookup_at
 from tiago_nav.ros.params import read
 
 NODE = 'corridor_controller'
 STOP_TIMEOUT = 2.0          # [s] after a stop command, wait at most this long for standstill
+LOCKSTEP_WAIT = 0.5         # [s wall] in lockstep, wait this long for a cycle's scan or tf
 
 
 @dataclass(frozen=True)
@@ -99,16 +105,21 @@ class CorridorServer:
         io: ``latest_scan()`` -> the newest :class:`tiago_nav.corridor.Scan` or None;
             ``lookup(parent, child, stamp=None)`` -> pose ``(x, y, yaw)`` of ``child`` in
             ``parent`` at ROS time ``stamp`` [s] (None: the latest), raising ``LookupError``.
+        participant: the lockstep participant (``tick``, ``answer``, ``claim``, ``release``,
+            ``wait_until_still``) that paces the loop; None: a :class:`Ticker` per goal.
     """
 
-    def __init__(self, params, clock, server, cmd_pub, io):
+    def __init__(self, params, clock, server, cmd_pub, io, participant=None):
         self.p, self.clock, self.server, self.cmd_pub, self.io = params, clock, server, cmd_pub, io
+        self.participant = participant
 
     # --- ROS messages -------------------------------------------------------------------------
     def publish(self, v=0.0, omega=0.0):
         twist = Twist()
         twist.linear.x, twist.angular.z = float(v), float(omega)
         self.cmd_pub.publish(twist)
+        if self.participant is not None:
+            self.participant.answer(twist)      # this cycle's command, applied at its stamp
 
     def stop(self):
         self.publish(0.0, 0.0)
@@ -145,9 +156,12 @@ class CorridorServer:
         """End the goal: stop the base, wait until it stands still, then report ``state``
         (SUCCEEDED, ABORTED or PREEMPTED) with ``reason`` as result and status text."""
         self.stop()
-        wait_until_still(self.clock, self.base_pose, self.stop,
-                         MotionMonitor(window=0.2, speed_threshold=0.02, turn_threshold=0.02),
-                         STOP_TIMEOUT, stall=rclock.STALL)
+        monitor = MotionMonitor(window=0.2, speed_threshold=0.02, turn_threshold=0.02)
+        if self.participant is not None:        # stops on cycles (its cmd_vel is ignored)
+            self.participant.wait_until_still(self.base_pose, self.stop, monitor, STOP_TIMEOUT)
+        else:
+            wait_until_still(self.clock, self.base_pose, self.stop, monitor, STOP_TIMEOUT,
+                             stall=rclock.STALL)
         pose = self.base_pose()
         if follower is not None and pose is not None:
             follower.moved_to(pose)             # the braking distance counts too
@@ -159,6 +173,10 @@ class CorridorServer:
         """The execute callback: runs ``goal`` (a CorridorGoal) to its end. An unexpected error
         stops the base and aborts the goal with the error's type and text."""
         follower = None
+        if self.participant is not None:
+            # the goal's cycles are those after its stamp, however late it arrived
+            stamp = self.server.current_goal.get_goal_id().stamp
+            self.participant.claim(min(stamp, rospy.Time.from_sec(self.clock.now())) or None)
         try:
             if not (math.isfinite(goal.max_speed) and goal.max_speed >= 0
                     and math.isfinite(goal.max_distance) and goal.max_distance >= 0):
@@ -171,6 +189,8 @@ class CorridorServer:
             self.crashed(follower, '%s: %s' % (type(e).__name__, e))
         finally:
             self.stop()
+            if self.participant is not None:
+                self.participant.release()
 
     def crashed(self, follower, reason):
         """End the goal after an unexpected error: ABORTED with ``reason``, even when reporting
@@ -194,7 +214,9 @@ class CorridorServer:
         law fails or stays blocked longer than ``blocked_timeout``, and when ROS time stops."""
         p = self.p
         judge = GoalJudge(p.blocked_timeout)
-        ticker = rclock.Ticker(self.clock, 1.0 / p.control_rate)
+        ticker = self.participant or rclock.Ticker(self.clock, 1.0 / p.control_rate)
+        if self.participant is not None and self.participant.enabled and not ticker.tick():
+            return self.stopped()               # lockstep: the goal starts at its first cycle
         start = self.clock.now()
         used, tf_error, no_pose_since = None, '', None
         while True:
@@ -235,24 +257,45 @@ class CorridorServer:
                     self.publish(cmd.v, cmd.omega)
                 self.feedback(follower, cmd)
             if not ticker.tick():
-                return ABORTED, ('node shutting down' if self.clock.shutdown()
-                                 else 'ROS time stopped (no /clock?)')
+                return self.stopped()
+
+    def stopped(self):
+        """``(ABORTED, reason)`` when the loop gets no next cycle."""
+        return ABORTED, ('node shutting down' if self.clock.shutdown()
+                         else 'ROS time stopped (no /clock?)')
+
+
+def _scan(msg):
+    """sensor_msgs/LaserScan -> :class:`tiago_nav.corridor.Scan`."""
+    return Scan(msg.header.stamp.to_sec(), msg.header.frame_id, np.asarray(msg.ranges, float),
+                msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max)
 
 
 class RosIO:
     """The ROS side of :class:`CorridorServer`'s ``io``: the newest scan from ``~scan_topic``
-    and tf lookups (never waiting: a stopped /clock cannot block the loop)."""
+    and tf lookups (never waiting: a stopped /clock cannot block the loop).
 
-    def __init__(self, params):
+    With a ``participant`` in lockstep, during a cycle held by the simulator: the cycle's scan
+    (stamped the tick's ``scan_stamp``), transforms at exactly their stamp and "the latest" pose
+    at the tick's ``odom_stamp``, each waited for up to :data:`LOCKSTEP_WAIT` wall seconds."""
+
+    def __init__(self, params, participant=None):
         self.tf = tf2_ros.Buffer(rospy.Duration(10.0))
         self.listener = tf2_ros.TransformListener(self.tf)
         self.lock = threading.Lock()
         self.scan = None
-        rospy.Subscriber(params.scan_topic, LaserScan, self.on_scan, queue_size=1)
+        self.participant = participant
+        self.cache = None
+        if participant is not None and participant.enabled:
+            self.cache = ScanCache(params.scan_topic, size=8)
+        else:
+            rospy.Subscriber(params.scan_topic, LaserScan, self.on_scan, queue_size=1)
+
+    def _held(self):
+        return self.cache is not None and self.participant.lockstep
 
     def on_scan(self, msg):
-        scan = Scan(msg.header.stamp.to_sec(), msg.header.frame_id, np.asarray(msg.ranges, float),
-                    msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max)
+        scan = _scan(msg)
         with self.lock:
             # the newest by stamp; an older stamp only after ROS time went back (a restart)
             if self.scan is None or scan.stamp >= self.scan.stamp \
@@ -260,13 +303,24 @@ class RosIO:
                 self.scan = scan
 
     def latest_scan(self):
+        if self.cache is not None:
+            msg = self.cache.wait_for_scan(self.participant.scan_stamp, LOCKSTEP_WAIT) \
+                if self._held() else self.cache.latest()
+            return None if msg is None else _scan(msg)
         with self.lock:
             return self.scan
 
     def lookup(self, parent, child, stamp=None):
-        t = rospy.Time(0) if stamp is None else rospy.Time.from_sec(stamp)
+        held = self._held()
+        if held and stamp is None:
+            t = self.participant.odom_stamp
+        else:
+            t = rospy.Time(0) if stamp is None else rospy.Time.from_sec(stamp)
         try:
-            tf = self.tf.lookup_transform(parent, child, t, rospy.Duration(0.0))
+            if held:
+                tf = lookup_at(self.tf, parent, child, t, LOCKSTEP_WAIT)
+            else:
+                tf = self.tf.lookup_transform(parent, child, t, rospy.Duration(0.0))
         except tf2_ros.TransformException as e:
             raise LookupError(str(e)) from None
         return pose_from_transform(tf.transform)
@@ -279,13 +333,14 @@ def main():
     except ParamError as e:
         rospy.logfatal('%s: %s', NODE, e)
         sys.exit(2)
-    io, clock = RosIO(params), RosClock()
+    participant = LockstepParticipant(1.0 / params.control_rate)
+    io, clock = RosIO(params, participant), RosClock()
     missing = wait_ready(params, clock, io, params.startup_timeout)
     if missing:
         rospy.logfatal('%s: %s; not starting the action server', NODE, missing)
         sys.exit(1)
     cmd_pub = rospy.Publisher(params.cmd_vel_topic, Twist, queue_size=1)
-    node = CorridorServer(params, clock, None, cmd_pub, io)
+    node = CorridorServer(params, clock, None, cmd_pub, io, participant)
     node.server = actionlib.SimpleActionServer(NODE, CorridorAction, execute_cb=node.execute,
                                                auto_start=False)
     node.server.start()

@@ -2,7 +2,10 @@
 :class:`tiago_nav.nav.runner.GoalRunner` and :class:`tiago_nav.nav.navigator.Navigator`.
 
 /map (latched) -> static costmap; /scan (placed in map with tf2 at its stamp) -> obstacle layer;
-tf map -> base_footprint -> pose; commands on /mobile_base_controller/cmd_vel. Serves the
+tf map -> base_footprint -> pose; commands on /mobile_base_controller/cmd_vel. Under
+``/use_lockstep`` the control loop is a lockstep participant (:mod:`tiago_nav.ros.lockstep`):
+each cycle takes in every scan up to the cycle's scan stamp (idle too, before each idle
+answer), uses the pose at the cycle's odometry stamp, and answers with its command. Serves the
 ``move_base`` action (move_base_msgs/MoveBaseAction), /move_base_simple/goal, ~plan,
 ~make_plan and ~clear_costmaps, all only once /map, a first scan and the robot's transform are
 in (each waited for with a timeout; the node exits 1 naming what is missing).
@@ -31,6 +34,7 @@ from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, Goal
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, pose_stamped
+from tiago_nav.ros.lockstep import LockstepParticipant, ScanCache, lookup_at
 from tiago_nav.ros.params import read
 
 
@@ -64,11 +68,18 @@ class NotReady(RuntimeError):
 class ActionIO:
     """The goal runner's io (see :mod:`tiago_nav.nav.runner`) over an actionlib
     SimpleActionServer, publishers and a pose source; all ROS time comes from ``clock``, so
-    fakes can stand for every part."""
+    fakes can stand for every part. ``participant``: the lockstep participant whose cycle
+    each command answers, and ``sense()``: take in the cycle's scans (both optional)."""
 
-    def __init__(self, server, cmd_pub, plan_pub, clock, pose, to_map, frame):
+    def __init__(self, server, cmd_pub, plan_pub, clock, pose, to_map, frame, participant=None,
+                 sense=None):
         self.server, self.cmd_pub, self.plan_pub, self.clock = server, cmd_pub, plan_pub, clock
         self.pose, self.to_map, self.frame = pose, to_map, frame
+        self.participant, self._sense = participant, sense
+
+    def sense(self):
+        if self._sense is not None:
+            self._sense()
 
     def _stamp(self):
         return rospy.Time.from_sec(max(self.clock.now(), 0.0))
@@ -77,6 +88,8 @@ class ActionIO:
         cmd = Twist()
         cmd.linear.x, cmd.angular.z = v, w
         self.cmd_pub.publish(cmd)
+        if self.participant is not None:
+            self.participant.answer(cmd)
 
     def publish_plan(self, path):
         msg = Path()
@@ -122,17 +135,25 @@ class MoveBase:
         self.map_frame = msg.header.frame_id.lstrip('/') or self.map_frame
         self.nav = Navigator(gridmap_from_msg(msg), p.nav)
         self.scan_problem = 'no message on %s' % p.scan_topic
-        rospy.Subscriber(p.scan_topic, LaserScan, self.on_scan, queue_size=1)
-        self._wait(lambda: self.nav.scan_stamp is not None,
+        self.intake_lock = threading.Lock()
+        self.last_scan_stamp = None         # rospy.Time of the newest scan taken in (lockstep)
+        self.scans = None
+        self.lockstep = LockstepParticipant(1.0 / p.controller_frequency, ready=self.on_tick)
+        if self.lockstep.enabled:
+            self.scans = ScanCache(p.scan_topic, size=16)
+        else:
+            rospy.Subscriber(p.scan_topic, LaserScan, self.on_scan, queue_size=1)
+        self._wait(self._scan_in,
                    lambda: 'no usable laser scan within %g s: %s' % (p.ready_timeout, self.scan_problem))
         self._wait(lambda: self.tf.can_transform(self.map_frame, p.robot_base_frame, rospy.Time(0)),
                    lambda: 'no transform %s -> %s within %g s (is odometry/localisation running?)'
                    % (self.map_frame, p.robot_base_frame, p.ready_timeout))
         self.server = actionlib.SimpleActionServer('move_base', MoveBaseAction, self.execute,
                                                    auto_start=False)
-        io = ActionIO(self.server, self.cmd_pub, self.plan_pub, self.clock, self.pose, self.to_map,
-                      self.map_frame)
-        self.runner = GoalRunner(self.nav, io, 1.0 / p.controller_frequency, self.lock, self._log)
+        io = ActionIO(self.server, self.cmd_pub, self.plan_pub, self.clock, self.cycle_pose,
+                      self.to_map, self.map_frame, self.lockstep, self.sense)
+        self.runner = GoalRunner(self.nav, io, 1.0 / p.controller_frequency, self.lock, self._log,
+                                 ticker=self.lockstep if self.lockstep.enabled else None)
         self.goal_pub = rospy.Publisher('move_base/goal', MoveBaseActionGoal, queue_size=1)
         rospy.Subscriber('move_base_simple/goal', PoseStamped, self.on_simple_goal, queue_size=1)
         rospy.Service('~make_plan', GetPlan, self.on_make_plan)
@@ -168,6 +189,49 @@ class MoveBase:
         return pose_from_transform(t.transform), t.header.stamp.to_sec()
 
     # --- inputs -----------------------------------------------------------------------------
+    def _scan_in(self):
+        """Start-up: a first scan is in the obstacle layer (in lockstep: taken from the cache
+        if no tick brought one)."""
+        if self.scans is not None and self.nav.scan_stamp is None and self.scans.latest():
+            self.take_in(self.scans.latest().header.stamp)
+        return self.nav.scan_stamp is not None
+
+    def on_tick(self, tick):
+        """Before an idle lockstep answer: the obstacle layer takes in the tick's scans."""
+        self.take_in(tick.scan_stamp)
+
+    def sense(self):
+        """At each control cycle in lockstep: every scan up to the cycle's scan stamp (running
+        free: up to the newest one)."""
+        if self.scans is None:
+            return
+        if self.lockstep.lockstep:
+            self.take_in(self.lockstep.scan_stamp)
+        elif self.scans.latest() is not None:
+            self.take_in(self.scans.latest().header.stamp)
+
+    def take_in(self, upto):
+        """Add to the obstacle layer, in order, every cached scan stamped after the last one
+        taken in and up to ``upto`` (rospy.Time), waiting up to ``transform_tolerance`` wall
+        seconds for that one. The first time only the scan at ``upto``: what the layer holds
+        then does not depend on when the node started."""
+        if upto is None or upto.is_zero():
+            return
+        with self.intake_lock:
+            last = self.last_scan_stamp
+            if last is not None and last > upto:        # ROS time went back: a new simulation
+                last = None
+            if last == upto:
+                return
+            scans = self.scans.scans_after(last, upto, self.p.transform_tolerance)
+            if scans is None:
+                self.scan_problem = 'the scan stamped %.3f s did not arrive' % upto.to_sec()
+                rospy.logwarn_throttle(5.0, 'move_base: %s' % self.scan_problem)
+                return
+            for scan in scans[-1:] if last is None else scans:
+                self.on_scan(scan)
+            self.last_scan_stamp = upto
+
     def on_scan(self, scan):
         try:
             lp, _ = self._transform(scan.header.frame_id, scan.header.stamp)
@@ -180,11 +244,20 @@ class MoveBase:
         with self.lock:
             self.nav.add_scan(ms)
 
-    def pose(self):
-        """``((x, y, yaw), stamp)`` of the base in map now (newest transform), or
+    def cycle_pose(self):
+        """The control loop's pose: at the cycle's odometry stamp in lockstep, else the newest."""
+        return self.pose(self.lockstep.odom_stamp if self.lockstep.lockstep else None)
+
+    def pose(self, stamp=None):
+        """``((x, y, yaw), stamp)`` of the base in map at ``stamp`` (rospy.Time, waiting up to
+        ``transform_tolerance`` wall seconds) or now (None: the newest transform), or
         :class:`PoseUnavailable`."""
         try:
-            t = self.tf.lookup_transform(self.map_frame, self.p.robot_base_frame, rospy.Time(0))
+            if stamp is None:
+                t = self.tf.lookup_transform(self.map_frame, self.p.robot_base_frame, rospy.Time(0))
+            else:
+                t = lookup_at(self.tf, self.map_frame, self.p.robot_base_frame, stamp,
+                              self.p.transform_tolerance)
         except tf2_ros.TransformException as e:
             raise PoseUnavailable('no transform %s -> %s: %s'
                                   % (self.map_frame, self.p.robot_base_frame, e)) from None
@@ -239,9 +312,16 @@ class MoveBase:
     # --- the action -------------------------------------------------------------------------
     def execute(self, goal):
         p = goal.target_pose
-        self.runner.run(p.header.frame_id, (p.pose.position.x, p.pose.position.y, p.pose.position.z),
-                        (p.pose.orientation.x, p.pose.orientation.y, p.pose.orientation.z,
-                         p.pose.orientation.w))
+        # the goal's cycles are those after its stamp, however late it arrived
+        stamp = self.server.current_goal.get_goal_id().stamp
+        self.lockstep.claim(min(stamp, rospy.Time.from_sec(self.clock.now())) or None)
+        try:
+            self.runner.run(p.header.frame_id,
+                            (p.pose.position.x, p.pose.position.y, p.pose.position.z),
+                            (p.pose.orientation.x, p.pose.orientation.y, p.pose.orientation.z,
+                             p.pose.orientation.w))
+        finally:
+            self.lockstep.release()
 
 
 def _plain(pose):

@@ -27,6 +27,7 @@ from tf2_msgs.msg import TFMessage
 from tiago_nav.params import ParamError, nested, param, read_params, validate
 from tiago_nav.ros import conversions
 from tiago_nav.ros.clock import RosClock
+from tiago_nav.ros.lockstep import LockstepHost
 from tiago_nav.sim.faults import FaultError, LaserFaults
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
@@ -69,6 +70,10 @@ class Params:
                                     'map_frame, for tests and benchmarks', nonempty=True)
     laser_fault_topic: str = param('/sim/laser_fault', 'std_msgs/String in: laser fault injection '
                                    'for tests', nonempty=True)
+    lockstep: bool = param(False, "hold simulated time at each lockstep participant's deadline "
+                           'until it answers (needs /use_sim_time)')
+    lockstep_timeout: float = param(1.0, '[s wall] wait this long for a missing lockstep answer, '
+                                    'then go on without that participant', gt=0)
 
     def __post_init__(self):
         validate(self)
@@ -93,6 +98,9 @@ def check_time_source(params, use_sim_time):
         raise ParamError('needs /use_sim_time true', 'real_time_factor',
                          'parameter ~real_time_factor: %g needs /use_sim_time true (without '
                          'simulated time the simulator runs at wall-clock pace)' % params.real_time_factor)
+    if not use_sim_time and params.lockstep:
+        raise ParamError('needs /use_sim_time true', 'lockstep',
+                         'parameter ~lockstep: needs /use_sim_time true')
 
 
 @dataclass
@@ -173,11 +181,13 @@ class SimulatorNode:
         use_sim_time: stamp with simulated time (and publish /clock); otherwise with ``now()``.
         now: the wall-clock ROS time (``rospy.Time.now``), used without ``use_sim_time``.
         log: where warnings and notes go (``rospy`` or anything with ``logwarn``/``loginfo``).
+        lockstep: a :class:`tiago_nav.ros.lockstep.LockstepHost` (``hold``,
+            ``from_participant``, ``schedule``) when ``params.lockstep``; None runs free.
 
     Raises :class:`WorldError`, :class:`ParamError` or ValueError (a start pose in an obstacle).
     """
 
-    def __init__(self, params, outputs, use_sim_time=True, now=None, log=rospy):
+    def __init__(self, params, outputs, use_sim_time=True, now=None, log=rospy, lockstep=None):
         check_time_source(params, use_sim_time)
         self.params, self.out, self.log = params, outputs, log
         self.use_sim_time, self._now = use_sim_time, now or rospy.Time.now
@@ -187,10 +197,15 @@ class SimulatorNode:
         self.faults = LaserFaults(params.sim.laser.num_beams)
         self.published_collisions = None
         self._warned_at = -math.inf
+        self.lockstep = lockstep
+        self.scan_stamp = self.odom_stamp = None     # of the newest /scan and odometry out
 
     # --- inputs ---------------------------------------------------------------------------
     def on_cmd_vel(self, msg):
-        """A geometry_msgs/Twist in the base frame; a non-finite one is ignored (with a warning)."""
+        """A geometry_msgs/Twist in the base frame; a non-finite one is ignored (with a warning),
+        and so is one from a lockstep participant (its commands come in its answers)."""
+        if self.lockstep is not None and self.lockstep.from_participant(msg):
+            return
         with self.lock:
             if not self.sim.command(msg.linear.x, msg.angular.z):
                 self._warn_throttled('ignoring a non-finite velocity command (%g, %g)'
@@ -263,6 +278,7 @@ class SimulatorNode:
             conversions.transform_stamped(odom_pose, p.odom_frame, p.base_frame, stamp)]))
         self.out.ground_truth.publish(odometry_msg(self.sim.pose, velocity, p.map_frame,
                                                    p.base_frame, stamp))
+        self.odom_stamp = stamp
 
     def publish_scan(self, stamp):
         """/scan, unless an injected fault keeps the laser silent."""
@@ -272,6 +288,7 @@ class SimulatorNode:
             self.log.loginfo('t = %.3f s: laser fault %s ended' % (self.sim.time, active.kind))
         if ranges is not None:
             self.out.scan.publish(self.scan_msg(stamp, ranges.tolist()))
+            self.scan_stamp = stamp
 
     def publish_clock(self, stamp):
         if self.use_sim_time:
@@ -316,11 +333,30 @@ class SimulatorNode:
         pacer = Pacer(clock, p.sim.dt, p.real_time_factor, self.sim.steps)
         t0, steps0 = clock.wall(), self.sim.steps
         while not clock.shutdown():
+            if not self.hold():
+                break
             self.step()
             pacer.pace(self.sim.steps)
         elapsed = clock.wall() - t0
         if elapsed > 0 and self.sim.steps > steps0:
             self.log.loginfo('simulated %.1f s in %.1f s of wall time' % (self.sim.time, elapsed))
+        if self.lockstep is not None:
+            s = self.lockstep.schedule.lag_stats()
+            self.log.loginfo('lockstep: %d commands, lag max %.3f s, p95 %.3f s, %d drops'
+                             % (s['count'], s['max'], s['p95'], self.lockstep.schedule.drops))
+
+    def hold(self):
+        """In lockstep, before the next step: wait for every participant's answer due by now and
+        apply their commands (in stamp order). False on shutdown."""
+        if self.lockstep is None:
+            return True
+        commands = self.lockstep.hold(self.stamp(), self.scan_stamp, self.odom_stamp)
+        if commands is None:
+            return False
+        with self.lock:
+            for v, w in commands:
+                self.sim.command(v, w)
+        return True
 
     def close(self):
         self.sim.close()
@@ -342,7 +378,10 @@ def main():
     rospy.init_node('simulator')
     try:
         params, use_sim_time = read_config()
-        node = SimulatorNode(params, ros_outputs(params, use_sim_time), use_sim_time)
+        outputs = ros_outputs(params, use_sim_time)
+        host = LockstepHost(params.sim.rate, params.lockstep_timeout, clock_pub=outputs.clock) \
+            if params.lockstep else None
+        node = SimulatorNode(params, outputs, use_sim_time, lockstep=host)
     except (WorldError, ParamError, ValueError) as e:
         rospy.logfatal('simulator: %s', e)
         sys.exit(2)
