@@ -34,7 +34,7 @@ from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, Goal
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, pose_stamped
-from tiago_nav.ros.lockstep import LockstepParticipant, ScanCache, lookup_at
+from tiago_nav.ros.lockstep import LockstepParticipant, lookup_at
 from tiago_nav.ros.params import read
 
 
@@ -135,15 +135,13 @@ class MoveBase:
         self.map_frame = msg.header.frame_id.lstrip('/') or self.map_frame
         self.nav = Navigator(gridmap_from_msg(msg), p.nav)
         self.scan_problem = 'no message on %s' % p.scan_topic
-        self.intake_lock = threading.Lock()
-        self.last_scan_stamp = None         # rospy.Time of the newest scan taken in (lockstep)
-        self.scans = None
+        self.intake = threading.Condition()
+        self.last_scan_stamp = None         # rospy.Time of the newest scan taken in
         self.lockstep = LockstepParticipant(1.0 / p.controller_frequency, ready=self.on_tick)
-        if self.lockstep.enabled:
-            self.scans = ScanCache(p.scan_topic, size=16)
-        else:
-            rospy.Subscriber(p.scan_topic, LaserScan, self.on_scan, queue_size=1)
-        self._wait(self._scan_in,
+        # in lockstep every scan, in order (the cycle waits for its own); else the newest only
+        rospy.Subscriber(p.scan_topic, LaserScan, self.on_scan, tcp_nodelay=True,
+                         queue_size=None if self.lockstep.enabled else 1)
+        self._wait(lambda: self.nav.scan_stamp is not None,
                    lambda: 'no usable laser scan within %g s: %s' % (p.ready_timeout, self.scan_problem))
         self._wait(lambda: self.tf.can_transform(self.map_frame, p.robot_base_frame, rospy.Time(0)),
                    lambda: 'no transform %s -> %s within %g s (is odometry/localisation running?)'
@@ -189,50 +187,41 @@ class MoveBase:
         return pose_from_transform(t.transform), t.header.stamp.to_sec()
 
     # --- inputs -----------------------------------------------------------------------------
-    def _scan_in(self):
-        """Start-up: a first scan is in the obstacle layer (in lockstep: taken from the cache
-        if no tick brought one)."""
-        if self.scans is not None and self.nav.scan_stamp is None and self.scans.latest():
-            self.take_in(self.scans.latest().header.stamp)
-        return self.nav.scan_stamp is not None
-
     def on_tick(self, tick):
-        """Before an idle lockstep answer: the obstacle layer takes in the tick's scans."""
+        """Before an idle lockstep answer: the obstacle layer holds the tick's scans."""
         self.take_in(tick.scan_stamp)
 
     def sense(self):
-        """At each control cycle in lockstep: every scan up to the cycle's scan stamp (running
-        free: up to the newest one)."""
-        if self.scans is None:
-            return
+        """At each control cycle in lockstep: the obstacle layer holds every scan up to the
+        cycle's scan stamp."""
         if self.lockstep.lockstep:
             self.take_in(self.lockstep.scan_stamp)
-        elif self.scans.latest() is not None:
-            self.take_in(self.scans.latest().header.stamp)
 
     def take_in(self, upto):
-        """Add to the obstacle layer, in order, every cached scan stamped after the last one
-        taken in and up to ``upto`` (rospy.Time), waiting up to ``transform_tolerance`` wall
-        seconds for that one. The first time only the scan at ``upto``: what the layer holds
-        then does not depend on when the node started."""
+        """Wait (up to ``transform_tolerance`` wall seconds) until the scan stamped ``upto``
+        (rospy.Time) and every one before it have been taken in. The scans are taken in as they
+        arrive, in order: in lockstep none after ``upto`` exists before this cycle's answer."""
         if upto is None or upto.is_zero():
             return
-        with self.intake_lock:
-            last = self.last_scan_stamp
-            if last is not None and last > upto:        # ROS time went back: a new simulation
-                last = None
-            if last == upto:
-                return
-            scans = self.scans.scans_after(last, upto, self.p.transform_tolerance)
-            if scans is None:
-                self.scan_problem = 'the scan stamped %.3f s did not arrive' % upto.to_sec()
-                rospy.logwarn_throttle(5.0, 'move_base: %s' % self.scan_problem)
-                return
-            for scan in scans[-1:] if last is None else scans:
-                self.on_scan(scan)
-            self.last_scan_stamp = upto
+        end = self.clock.wall() + self.p.transform_tolerance
+        with self.intake:
+            while self.last_scan_stamp is None or self.last_scan_stamp < upto:
+                left = end - self.clock.wall()
+                if left <= 0 or self.clock.shutdown():
+                    self.scan_problem = 'the scan stamped %.3f s did not arrive' % upto.to_sec()
+                    rospy.logwarn_throttle(5.0, 'move_base: %s' % self.scan_problem)
+                    return
+                self.intake.wait(min(left, 0.1))
 
     def on_scan(self, scan):
+        try:
+            self._add_scan(scan)
+        finally:
+            with self.intake:
+                self.last_scan_stamp = scan.header.stamp
+                self.intake.notify_all()
+
+    def _add_scan(self, scan):
         try:
             lp, _ = self._transform(scan.header.frame_id, scan.header.stamp)
         except tf2_ros.TransformException as e:

@@ -1,0 +1,246 @@
+#!/usr/bin/python3
+"""Lockstep benchmark: the course mission (and a few navigation goals after it) at
+``real_time_factor:=0``, with and without lockstep, on an idle machine and with a busy loop on
+each core.
+
+Each run is a fresh demo.launch (same world, same seed), so that runs can be compared: success,
+collisions, wall time per mission, simulated/wall ratio, the final pose (ground truth and
+odometry, to the last bit) and, with lockstep, the simulator's figures for the lag between a
+command's cycle and its application (its log line ``lockstep: N commands, lag max ...``).
+Writes bench/results/lockstep.json and lockstep.png.
+
+Usage: bench/bench_lockstep.py [--n 20] [--nav 2] [--modes on,off] [--loads idle,busy]
+                               [--task mission|nav] [--out bench/results/lockstep.json]
+"""
+import argparse
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+RESULTS = os.path.join(ROOT, 'bench', 'results')
+WORLD = os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml')
+COURSE = (11.0, 0.0, -45.0)
+TARGET_WALL = 3.0
+LAG_LINE = re.compile(r'lockstep: (\d+) commands, lag max ([\d.]+) s, p95 ([\d.]+) s, (\d+) drops')
+
+
+def nav_goal(client, h, x, y, yaw_deg):
+    """One move_base goal to ``(x, y, yaw_deg)`` in map: its record."""
+    import rospy
+    from actionlib_msgs.msg import GoalStatus
+    from move_base_msgs.msg import MoveBaseGoal
+    from tiago_nav.ros.conversions import pose_stamped
+    c0, t0, s0 = h.collisions or 0, time.monotonic(), rospy.get_time()
+    client.send_goal(MoveBaseGoal(target_pose=pose_stamped((x, y, math.radians(yaw_deg)), 'map',
+                                                           rospy.Time.now())))
+    done = client.wait_for_result(rospy.Duration(120.0))
+    return {'goal': [x, y, yaw_deg], 'succeeded': done and client.get_state() == GoalStatus.SUCCEEDED,
+            'wall_s': time.monotonic() - t0, 'sim_s': rospy.get_time() - s0,
+            'collisions': (h.collisions or 0) - c0, 'text': client.get_goal_status_text()}
+
+
+def run_one(lockstep, nav_goals, seed, task):
+    """Child process: one launch, the course mission (``task`` 'mission') or one move_base goal
+    to pose B ('nav'), then ``nav_goals`` move_base goals; prints ``RESULT <json>`` last."""
+    import actionlib
+    import numpy as np
+    import rospy
+    from move_base_msgs.msg import MoveBaseAction
+    from nav_msgs.msg import Odometry
+    from tiago_nav.sim.world import load_world
+    from tiago_nav.testing.evaluation import sample_goals
+    from tiago_nav.testing.harness import Harness
+
+    h = Harness(WORLD, real_time_factor=0.0,
+                extra_args=['lockstep:=%s' % ('true' if lockstep else 'false')])
+    rec = {'lockstep': lockstep, 'task': task}
+    last = {}
+    try:
+        h.connect(timeout=120.0)
+        for topic in ('/sim/ground_truth', '/mobile_base_controller/odom'):
+            rospy.Subscriber(topic, Odometry, lambda m, t=topic: last.__setitem__(t, m),
+                             queue_size=1)
+        client = actionlib.SimpleActionClient('move_base', MoveBaseAction)
+        client.wait_for_server(rospy.Duration(10.0))
+        if task == 'nav':
+            g = nav_goal(client, h, *COURSE)
+            rec.update(succeeded=g['succeeded'], message=g['text'], wall_s=g['wall_s'],
+                       sim_s=g['sim_s'], collisions=g['collisions'])
+        else:
+            c0, t_sim = h.collisions or 0, rospy.get_time()
+            lines = []
+            code, _, result, wall = h.mission(*COURSE, True, out=lines.append)
+            rec.update(succeeded=code == 0, message=lines[-1] if lines else '', wall_s=wall,
+                       sim_s=rospy.get_time() - t_sim, collisions=(h.collisions or 0) - c0,
+                       obstacles=len(result.obstacles) if result else 0)
+        t_end = time.monotonic() + 5.0          # the newest messages after the mission's end
+        while time.monotonic() < t_end and not all(
+                m.header.stamp.to_sec() >= rospy.get_time() - 0.2 for m in last.values()):
+            time.sleep(0.02)
+        for key, topic in (('truth', '/sim/ground_truth'), ('odom', '/mobile_base_controller/odom')):
+            m = last.get(topic)
+            if m is not None:
+                q = m.pose.pose.orientation
+                rec[key] = [m.pose.pose.position.x, m.pose.pose.position.y,
+                            2 * math.atan2(q.z, q.w)]
+        rng = np.random.default_rng(seed)
+        rec['nav'] = [nav_goal(client, h, *g) for g in
+                      sample_goals(load_world(WORLD), nav_goals, rng, start=COURSE[:2] + (0.0,))]
+    except Exception as e:      # noqa: BLE001  (a broken run is a failed run, with its reason)
+        rec.update(succeeded=rec.get('succeeded', False), error='%s: %s' % (type(e).__name__, e))
+    finally:
+        h.close()
+    with open(h.log_path) as f:
+        found = LAG_LINE.findall(f.read())
+    if found:
+        n, lag_max, p95, drops = found[-1]
+        rec['lag'] = {'commands': int(n), 'max_s': float(lag_max), 'p95_s': float(p95),
+                      'drops': int(drops)}
+    print('RESULT ' + json.dumps(rec), flush=True)
+
+
+def start_hogs(n):
+    """``n`` busy loops (one per core); ended by pid with :func:`stop_hogs`."""
+    return [subprocess.Popen([sys.executable, '-c', 'while True: pass']) for _ in range(n)]
+
+
+def stop_hogs(hogs):
+    for p in hogs:
+        p.terminate()
+        p.wait()
+
+
+def summarise(runs):
+    ok = [r for r in runs if r.get('succeeded')]
+    walls = [r['wall_s'] for r in runs if 'wall_s' in r]
+    ratios = [r['sim_s'] / r['wall_s'] for r in runs if r.get('wall_s')]
+    nav = [g for r in runs for g in r.get('nav', [])]
+    truths = [r['truth'] for r in ok if r.get('truth')]
+    odoms = [tuple(r['odom']) for r in ok if r.get('odom')]
+    spread = None
+    if truths:
+        spread = max(math.hypot(a[0] - b[0], a[1] - b[1]) for a in truths for b in truths)
+    lags = [r['lag'] for r in runs if 'lag' in r]
+    return {'runs': len(runs), 'succeeded': len(ok),
+            'collisions': sum(r.get('collisions', 0) for r in runs),
+            'wall_s_mean': sum(walls) / len(walls) if walls else None,
+            'wall_s_max': max(walls) if walls else None,
+            'sim_per_wall_mean': sum(ratios) / len(ratios) if ratios else None,
+            'final_pose_spread_m': spread,
+            'distinct_final_odometry': len(set(odoms)),
+            'nav_goals': len(nav), 'nav_succeeded': sum(1 for g in nav if g['succeeded']),
+            'nav_collisions': sum(g['collisions'] for g in nav),
+            'lag_max_s': max(x['max_s'] for x in lags) if lags else None,
+            'drops': sum(x['drops'] for x in lags) if lags else None}
+
+
+def fmt(v, f='%.2f'):
+    return '-' if v is None else f % v
+
+
+def plot(report, path):
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(13, 4.5))
+    for k, c in enumerate(report['conditions']):
+        walls = [r.get('wall_s', 0) for r in c['runs']]
+        colors = ['tab:green' if r.get('succeeded') and not r.get('collisions') else 'tab:red'
+                  for r in c['runs']]
+        a1.scatter([k] * len(walls), walls, c=colors, s=18)
+        pts = [r['truth'] for r in c['runs'] if r.get('truth')]
+        if pts:
+            x0, y0 = pts[0][0], pts[0][1]
+            a2.scatter([(p[0] - x0) * 1000 for p in pts], [(p[1] - y0) * 1000 for p in pts],
+                       label=c['label'], s=18)
+    a1.axhline(TARGET_WALL, color='k', ls='--', lw=1, label='target 3 s (idle, lockstep)')
+    a1.set_xticks(range(len(report['conditions'])))
+    a1.set_xticklabels([c['label'] for c in report['conditions']], fontsize=8)
+    a1.set_ylabel('wall time per course mission [s]')
+    a1.set_title('real_time_factor 0: green succeeded without collision, red not', fontsize=9)
+    a1.legend(fontsize=8)
+    a2.set_xlabel('final x - first run\'s final x [mm]')
+    a2.set_ylabel('final y - first run\'s final y [mm]')
+    a2.set_title('final ground-truth pose of each run, same seed', fontsize=9)
+    a2.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument('--n', type=int, default=20, help='course missions per condition')
+    ap.add_argument('--nav', type=int, default=2, help='navigation goals after each mission')
+    ap.add_argument('--seed', type=int, default=7, help='seed of the navigation goals')
+    ap.add_argument('--modes', default='on,off', help='lockstep on and/or off')
+    ap.add_argument('--loads', default='idle,busy', help='idle and/or busy (a busy loop per core)')
+    ap.add_argument('--task', default='mission', choices=('mission', 'nav'),
+                    help='the course mission, or one move_base goal to its pose B')
+    ap.add_argument('--out', default=os.path.join(RESULTS, 'lockstep.json'))
+    ap.add_argument('--run', choices=('on', 'off'), help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.run:
+        run_one(args.run == 'on', args.nav, args.seed, args.task)
+        return 0
+    report = {'task': args.task, 'n': args.n, 'nav_goals_per_run': args.nav, 'seed': args.seed, 'conditions': []}
+    t0 = time.monotonic()
+    for load in args.loads.split(','):
+        for mode in args.modes.split(','):
+            label = '%slockstep %s, %s' % ('' if args.task == 'mission' else 'nav goal, ', mode, load)
+            print('%s: %d course %ss at real_time_factor 0' % (label, args.n, args.task), flush=True)
+            hogs = start_hogs(os.cpu_count() or 2) if load == 'busy' else []
+            runs = []
+            try:
+                for i in range(args.n):
+                    out = subprocess.run([sys.executable, os.path.abspath(__file__), '--run', mode,
+                                          '--nav', str(args.nav), '--seed', str(args.seed),
+                                          '--task', args.task],
+                                         stdout=subprocess.PIPE, text=True).stdout
+                    rec = next((json.loads(l[7:]) for l in out.splitlines()
+                                if l.startswith('RESULT ')), {'succeeded': False, 'error': 'no result'})
+                    runs.append(rec)
+                    print('  #%-2d %-6s wall %5s s  sim %5s s  collisions %d  nav %d/%d  final %s  '
+                          'lag max %s  %s' % (
+                              i, 'ok' if rec.get('succeeded') else 'FAILED',
+                              fmt(rec.get('wall_s')), fmt(rec.get('sim_s')), rec.get('collisions', 0),
+                              sum(g['succeeded'] for g in rec.get('nav', [])), len(rec.get('nav', [])),
+                              rec.get('truth'), fmt(rec.get('lag', {}).get('max_s'), '%.3f'),
+                              rec.get('error', '') or ('' if rec.get('succeeded') else rec.get('message'))),
+                          flush=True)
+            finally:
+                stop_hogs(hogs)
+            s = summarise(runs)
+            report['conditions'].append({'label': label, 'lockstep': mode == 'on', 'load': load,
+                                         'summary': s, 'runs': runs})
+            print('  => %s' % json.dumps(s), flush=True)
+    report['bench_wall_s'] = time.monotonic() - t0
+    os.makedirs(os.path.dirname(args.out), exist_ok=True)
+    with open(args.out, 'w') as f:
+        json.dump(report, f, indent=2)
+    png = os.path.splitext(args.out)[0] + '.png'
+    plot(report, png)
+    print('wrote %s and %s' % (args.out, png))
+    print('| condition | course missions ok | collisions | wall/mission mean (max) | sim/wall | '
+          'final pose spread | distinct final odometry | nav goals ok | lag max | drops |')
+    print('|---|---|---|---|---|---|---|---|---|---|')
+    for c in report['conditions']:
+        s = c['summary']
+        print('| %s | %d/%d | %d | %s (%s) s | %s | %s | %d | %d/%d | %s | %s |' % (
+            c['label'], s['succeeded'], s['runs'], s['collisions'] + s['nav_collisions'],
+            fmt(s['wall_s_mean']), fmt(s['wall_s_max']), fmt(s['sim_per_wall_mean'], '%.1f'),
+            fmt(s['final_pose_spread_m'] and s['final_pose_spread_m'] * 1000, '%.3f mm')
+            if s['final_pose_spread_m'] is not None else '-',
+            s['distinct_final_odometry'], s['nav_succeeded'], s['nav_goals'],
+            fmt(s['lag_max_s'], '%.3f s'), fmt(s['drops'], '%d')))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,182 @@
+"""Lockstep wired into the nodes, without a ROS master: the simulator node holds before each
+step and applies the answers' commands there (and ignores a participant's cmd_vel); the goal
+runner starts a goal at its first cycle, takes in the cycle's sensor data every cycle and
+answers each cycle with its command; the corridor server answers every cycle, claims the goal's
+cycles and releases them at the end."""
+import pytest
+import rospy
+
+from tiago_nav.nav.navigator import NavConfig
+from tiago_nav.params import ParamError, read_params
+from tiago_nav.testing.fakes import FakeClock
+
+from test_nav_runner import Rig
+from test_simulator_node import BOX, Log, fake_outputs, make_node, twist
+
+from tiago_nav.nodes.simulator import Params, SimulatorNode
+
+
+class FakeHost:
+    """The simulator's side of lockstep: records each hold's stamps, returns the commands
+    queued for it; ``participants``: callerids whose cmd_vel must be ignored."""
+
+    def __init__(self, commands=None, participants=('/move_base',)):
+        self.commands = dict(commands or {})       # step number -> [(v, w)]
+        self.participants = participants
+        self.holds = []
+        self.schedule = type('Schedule', (), {'drops': 0, 'lag_stats': lambda self: dict(
+            count=0, max=0.0, p50=0.0, p95=0.0, p99=0.0)})()
+
+    def hold(self, t, scan_stamp, odom_stamp):
+        self.holds.append((t, scan_stamp, odom_stamp))
+        return self.commands.get(len(self.holds) - 1, [])
+
+    def from_participant(self, msg):
+        return msg._connection_header['callerid'] in self.participants
+
+
+def lockstep_node(host):
+    p = read_params(Params, lambda n, d: {'~world': BOX, '~laser_noise': 0.0,
+                                          '~lockstep': True}.get(n, d))
+    return SimulatorNode(p, fake_outputs(), use_sim_time=True, log=Log(), lockstep=host)
+
+
+def from_node(msg, callerid):
+    msg._connection_header = {'callerid': callerid}
+    return msg
+
+
+def test_the_simulator_holds_before_every_step_with_the_newest_scan_and_odometry_stamps():
+    host = FakeHost()
+    node = lockstep_node(host)
+    try:
+        node.start()
+        for _ in range(6):
+            assert node.hold()
+            node.step()
+        stamps = [t.to_sec() for t, _, _ in host.holds]
+        assert stamps == pytest.approx([k / 60.0 for k in range(6)])
+        # odometry every 2 steps, scans every 4 (30 and 15 Hz of 60): the newest at or before t
+        assert [o.to_sec() for _, _, o in host.holds] == pytest.approx([0, 0, 2 / 60, 2 / 60, 4 / 60, 4 / 60])
+        assert [s.to_sec() for _, s, _ in host.holds] == pytest.approx([0, 0, 0, 0, 4 / 60, 4 / 60])
+    finally:
+        node.close()
+
+
+def test_answer_commands_act_from_their_hold_and_participants_cmd_vel_is_ignored():
+    host = FakeHost(commands={3: [(0.4, 0.0)]})
+    node = lockstep_node(host)
+    try:
+        node.start()
+        for _ in range(3):
+            node.on_cmd_vel(from_node(twist(0.5), '/move_base'))    # a participant's copy
+            node.hold()
+            node.step()
+        assert node.sim.velocity[0] == 0.0
+        node.hold()                                                  # the answer's command
+        for _ in range(30):
+            node.step()
+        assert node.sim.velocity[0] == pytest.approx(0.4, abs=1e-6)
+        node.on_cmd_vel(from_node(twist(0.0), '/student'))          # outside nodes still obeyed
+        for _ in range(60):
+            node.step()
+        assert node.sim.velocity[0] == pytest.approx(0.0, abs=1e-6)
+    finally:
+        node.close()
+
+
+def test_a_hold_ended_by_shutdown_ends_the_run():
+    class Stop(FakeHost):
+        def hold(self, *a):
+            super().hold(*a)
+            return None
+    host = Stop()
+    node = lockstep_node(host)
+    try:
+        clock = FakeClock()
+        node.run(clock)                 # returns: the host said "shutting down"
+        assert len(host.holds) == 1 and node.sim.steps == 0
+    finally:
+        node.close()
+
+
+def test_lockstep_needs_sim_time_and_is_refused_naming_it():
+    with pytest.raises(ParamError) as e:
+        make_node(use_sim_time=False, lockstep=True)
+    assert 'lockstep' in str(e.value)
+
+
+class Participant:
+    """A lockstep participant double: cycles every ``period`` of the rig's clock, each
+    answered at most once; records the answers ``(stamp, (v, w))``."""
+
+    def __init__(self, clock, period=0.1):
+        self.clock, self.period = clock, period
+        self.stamp = None
+        self.answers = []
+        self.ticks = 0
+
+    def tick(self):
+        self.clock.sleep(self.period)
+        self.stamp = self.clock.now()
+        self.ticks += 1
+        return True
+
+    def answer(self, cmd=None):
+        if self.answers and self.answers[-1][0] == self.stamp:
+            return None
+        self.answers.append((self.stamp, None if cmd is None else (cmd.linear.x, cmd.angular.z)))
+        return self.answers[-1]
+
+
+def test_goal_runner_starts_at_its_first_cycle_and_answers_every_cycle_with_its_command():
+    rig = Rig(config=NavConfig())
+    part = Participant(rig.clock)
+    sensed = []
+    rig.runner.ticker = part
+    rig.runner.io.participant = part
+    rig.runner.io._sense = lambda: sensed.append(rig.clock.now())
+    out = rig.run(4.0, 2.0)
+    assert out.status == 'succeeded', out.text
+    assert len(sensed) == part.ticks          # the cycle's data taken in at every cycle
+    stamps = [s for s, _ in part.answers]
+    assert stamps == sorted(set(stamps)) and len(stamps) == part.ticks
+    assert stamps[0] == pytest.approx(0.1)    # no command before the first cycle
+    assert part.answers[-1][1] == (0.0, 0.0)  # the stop answers the last cycle
+    assert max(v for _, (v, _) in part.answers) > 0.1
+
+
+class CorridorParticipant(Participant):
+    def __init__(self, clock, period=0.05):
+        super().__init__(clock, period)
+        self.enabled = True
+        self.claims, self.releases = [], 0
+
+    def claim(self, since=None):
+        self.claims.append(since)
+
+    def release(self):
+        self.releases += 1
+
+    def wait_until_still(self, pose, stop, monitor, timeout):
+        for _ in range(3):
+            self.tick()
+            stop()
+        return True
+
+
+def test_corridor_server_claims_the_goal_answers_each_cycle_and_releases():
+    from test_corridor_node import Rig as CorridorRig, msg
+    from tiago_nav.sim.worlds import corridor_world
+    rig = CorridorRig(corridor_world(1.07, 4.0, start=(-0.8, 0.05, 5.0)))
+    part = CorridorParticipant(rig.clock)
+    rig.node.participant = part
+    goal_id = type('GoalId', (), {'stamp': rospy.Time(0)})()
+    rig.server.current_goal = type('Handle', (), {'get_goal_id': lambda self: goal_id})()
+    rig.node.execute(msg.CorridorGoal())
+    assert rig.server.state == 'succeeded', rig.server.text
+    assert part.claims == [None] and part.releases == 1
+    stamps = [s for s, _ in part.answers]
+    assert len(stamps) == part.ticks and stamps == sorted(set(stamps))   # every cycle, once
+    assert part.answers[-1][1] == (0.0, 0.0)
+    assert max(v for _, (v, _) in part.answers) > 0.1
