@@ -39,7 +39,8 @@ from tiago_nav.ros.params import read
 
 NODE = 'corridor_controller'
 STOP_TIMEOUT = 2.0          # [s] after a stop command, wait at most this long for standstill
-LOCKSTEP_WAIT = 0.5         # [s wall] in lockstep, wait this long for a cycle's scan or tf
+LOCKSTEP_WAIT = 2.0         # [s wall] in lockstep, wait this long for a cycle's scan or tf (the
+#                             simulator has published them: only a starved process waits at all)
 
 
 @dataclass(frozen=True)

@@ -35,6 +35,9 @@ from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import LockstepParticipant, lookup_at
+
+LOCKSTEP_WAIT = 2.0     # [s wall] in lockstep, wait this long for a cycle's scans and pose (the
+#                         simulator has published them: only a starved process waits at all)
 from tiago_nav.ros.params import read
 
 
@@ -198,12 +201,12 @@ class MoveBase:
             self.take_in(self.lockstep.scan_stamp)
 
     def take_in(self, upto):
-        """Wait (up to ``transform_tolerance`` wall seconds) until the scan stamped ``upto``
+        """Wait (up to :data:`LOCKSTEP_WAIT` wall seconds) until the scan stamped ``upto``
         (rospy.Time) and every one before it have been taken in. The scans are taken in as they
         arrive, in order: in lockstep none after ``upto`` exists before this cycle's answer."""
         if upto is None or upto.is_zero():
             return
-        end = self.clock.wall() + self.p.transform_tolerance
+        end = self.clock.wall() + LOCKSTEP_WAIT
         with self.intake:
             while self.last_scan_stamp is None or self.last_scan_stamp < upto:
                 left = end - self.clock.wall()
@@ -239,14 +242,14 @@ class MoveBase:
 
     def pose(self, stamp=None):
         """``((x, y, yaw), stamp)`` of the base in map at ``stamp`` (rospy.Time, waiting up to
-        ``transform_tolerance`` wall seconds) or now (None: the newest transform), or
+        :data:`LOCKSTEP_WAIT` wall seconds) or now (None: the newest transform), or
         :class:`PoseUnavailable`."""
         try:
             if stamp is None:
                 t = self.tf.lookup_transform(self.map_frame, self.p.robot_base_frame, rospy.Time(0))
             else:
                 t = lookup_at(self.tf, self.map_frame, self.p.robot_base_frame, stamp,
-                              self.p.transform_tolerance)
+                              LOCKSTEP_WAIT)
         except tf2_ros.TransformException as e:
             raise PoseUnavailable('no transform %s -> %s: %s'
                                   % (self.map_frame, self.p.robot_base_frame, e)) from None
