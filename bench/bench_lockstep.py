@@ -26,22 +26,59 @@ RESULTS = os.path.join(ROOT, 'bench', 'results')
 WORLD = os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml')
 COURSE = (11.0, 0.0, -45.0)
 TARGET_WALL = 3.0
+NAV_START = 60.0    # [s sim] the 'nav' task's goal is sent at the first 0.1 s cycle after this
 LAG_LINE = re.compile(r'lockstep: (\d+) commands, lag max ([\d.]+) s, p95 ([\d.]+) s, (\d+) drops')
 
 
-def nav_goal(client, h, x, y, yaw_deg):
-    """One move_base goal to ``(x, y, yaw_deg)`` in map: its record."""
+def nav_goal(client, h, x, y, yaw_deg, participant=None):
+    """One move_base goal to ``(x, y, yaw_deg)`` in map: its record. With a lockstep
+    ``participant`` (claimed), the goal is sent inside its next cycle, which is answered once
+    move_base has accepted the goal: so the goal starts at the same simulated instant in
+    every run (how an outside controller takes part, see README)."""
     import rospy
     from actionlib_msgs.msg import GoalStatus
     from move_base_msgs.msg import MoveBaseGoal
     from tiago_nav.ros.conversions import pose_stamped
+    if participant is not None and not participant.tick():
+        raise RuntimeError('no lockstep cycle')
     c0, t0, s0 = h.collisions or 0, time.monotonic(), rospy.get_time()
     client.send_goal(MoveBaseGoal(target_pose=pose_stamped((x, y, math.radians(yaw_deg)), 'map',
                                                            rospy.Time.now())))
+    if participant is not None:
+        while client.get_state() == GoalStatus.PENDING and time.monotonic() - t0 < 5.0:
+            time.sleep(0.001)
+        participant.answer()
+        participant.release()
     done = client.wait_for_result(rospy.Duration(120.0))
     return {'goal': [x, y, yaw_deg], 'succeeded': done and client.get_state() == GoalStatus.SUCCEEDED,
             'wall_s': time.monotonic() - t0, 'sim_s': rospy.get_time() - s0,
             'collisions': (h.collisions or 0) - c0, 'text': client.get_goal_status_text()}
+
+
+def _pose(m):
+    q = m.pose.pose.orientation
+    return [m.pose.pose.position.x, m.pose.pose.position.y, 2 * math.atan2(q.z, q.w)]
+
+
+def settle_pose(last, timeout=10.0):
+    """The final pose once the robot is at rest: ground truth ('truth') and odometry ('odom')
+    from the newest messages in ``last`` (topic -> nav_msgs/Odometry), once both stayed
+    exactly the same over 0.5 s of simulated time (``timeout`` [s wall])."""
+    topics = {'truth': '/sim/ground_truth', 'odom': '/mobile_base_controller/odom'}
+    t_end = time.monotonic() + timeout
+    out = {}
+    while time.monotonic() < t_end:
+        if all(t in last for t in topics.values()):
+            before = {k: last[t] for k, t in topics.items()}
+            stamp = max(m.header.stamp.to_sec() for m in before.values())
+            while time.monotonic() < t_end and any(
+                    last[t].header.stamp.to_sec() < stamp + 0.5 for t in topics.values()):
+                time.sleep(0.01)
+            out = {k: _pose(last[t]) for k, t in topics.items()}
+            if all(out[k] == _pose(m) for k, m in before.items()):
+                return out
+        time.sleep(0.01)
+    return out
 
 
 def run_one(lockstep, nav_goals, seed, task):
@@ -68,7 +105,14 @@ def run_one(lockstep, nav_goals, seed, task):
         client = actionlib.SimpleActionClient('move_base', MoveBaseAction)
         client.wait_for_server(rospy.Duration(10.0))
         if task == 'nav':
-            g = nav_goal(client, h, *COURSE)
+            part = None
+            if lockstep:
+                from tiago_nav.ros.lockstep import LockstepParticipant
+                part = LockstepParticipant(0.1, enabled=True)
+                part.claim(rospy.Time(NAV_START))   # its first cycle: the first after NAV_START
+                rec['joined_at_s'] = rospy.get_time()
+            g = nav_goal(client, h, *COURSE, participant=part)
+            rec['goal_stamp_s'] = client.gh.comm_state_machine.action_goal.goal_id.stamp.to_sec()
             rec.update(succeeded=g['succeeded'], message=g['text'], wall_s=g['wall_s'],
                        sim_s=g['sim_s'], collisions=g['collisions'])
         else:
@@ -78,16 +122,7 @@ def run_one(lockstep, nav_goals, seed, task):
             rec.update(succeeded=code == 0, message=lines[-1] if lines else '', wall_s=wall,
                        sim_s=rospy.get_time() - t_sim, collisions=(h.collisions or 0) - c0,
                        obstacles=len(result.obstacles) if result else 0)
-        t_end = time.monotonic() + 5.0          # the newest messages after the mission's end
-        while time.monotonic() < t_end and not all(
-                m.header.stamp.to_sec() >= rospy.get_time() - 0.2 for m in last.values()):
-            time.sleep(0.02)
-        for key, topic in (('truth', '/sim/ground_truth'), ('odom', '/mobile_base_controller/odom')):
-            m = last.get(topic)
-            if m is not None:
-                q = m.pose.pose.orientation
-                rec[key] = [m.pose.pose.position.x, m.pose.pose.position.y,
-                            2 * math.atan2(q.z, q.w)]
+        rec.update(settle_pose(last))
         rng = np.random.default_rng(seed)
         rec['nav'] = [nav_goal(client, h, *g) for g in
                       sample_goals(load_world(WORLD), nav_goals, rng, start=COURSE[:2] + (0.0,))]
@@ -137,6 +172,25 @@ def summarise(runs):
             'nav_collisions': sum(g['collisions'] for g in nav),
             'lag_max_s': max(x['max_s'] for x in lags) if lags else None,
             'drops': sum(x['drops'] for x in lags) if lags else None}
+
+
+def table(report):
+    """The summary as markdown lines, one row per condition."""
+    rows = ['| condition | course %ss ok | collisions | wall/mission mean (max) | sim/wall | '
+            'final pose spread | distinct final odometry | nav goals ok | lag max | drops |'
+            % report['task'], '|---' * 10 + '|']
+    for c in report['conditions']:
+        s = c['summary']
+        spread = s['final_pose_spread_m']
+        cells = [c['label'], '%d/%d' % (s['succeeded'], s['runs']),
+                 str(s['collisions'] + s['nav_collisions']),
+                 '%s (%s) s' % (fmt(s['wall_s_mean']), fmt(s['wall_s_max'])),
+                 fmt(s['sim_per_wall_mean'], '%.1f'),
+                 '-' if spread is None else '%.3f mm' % (spread * 1000),
+                 str(s['distinct_final_odometry']), '%d/%d' % (s['nav_succeeded'], s['nav_goals']),
+                 fmt(s['lag_max_s'], '%.3f s'), fmt(s['drops'], '%d')]
+        rows.append('| ' + ' | '.join(cells) + ' |')
+    return rows
 
 
 def fmt(v, f='%.2f'):
@@ -227,18 +281,7 @@ def main():
     png = os.path.splitext(args.out)[0] + '.png'
     plot(report, png)
     print('wrote %s and %s' % (args.out, png))
-    print('| condition | course missions ok | collisions | wall/mission mean (max) | sim/wall | '
-          'final pose spread | distinct final odometry | nav goals ok | lag max | drops |')
-    print('|---|---|---|---|---|---|---|---|---|---|')
-    for c in report['conditions']:
-        s = c['summary']
-        print('| %s | %d/%d | %d | %s (%s) s | %s | %s | %d | %d/%d | %s | %s |' % (
-            c['label'], s['succeeded'], s['runs'], s['collisions'] + s['nav_collisions'],
-            fmt(s['wall_s_mean']), fmt(s['wall_s_max']), fmt(s['sim_per_wall_mean'], '%.1f'),
-            fmt(s['final_pose_spread_m'] and s['final_pose_spread_m'] * 1000, '%.3f mm')
-            if s['final_pose_spread_m'] is not None else '-',
-            s['distinct_final_odometry'], s['nav_succeeded'], s['nav_goals'],
-            fmt(s['lag_max_s'], '%.3f s'), fmt(s['drops'], '%d')))
+    print('\n'.join(table(report)))
     return 0
 
 
