@@ -62,6 +62,12 @@ def main():
         print('\n'.join(lines))
         collisions = h.collisions
         print('mission wall time %.1f s (target <= 20 s), collisions %s' % (wall, collisions))
+        loc = h.localisation_summary()
+        if loc:
+            print('localisation error over the mission (%d samples): p95 %.1f cm / %.2f deg, '
+                  'max %.1f cm / %.2f deg (bar: p95 <= 5 cm / 2 deg)'
+                  % (loc['samples'], 100 * loc['p95_m'], loc['p95_deg'], 100 * loc['max_m'],
+                     loc['max_deg']))
         os.makedirs(os.path.dirname(os.path.abspath(args.png)), exist_ok=True)
         with h.lock:
             path = [p[:2] for p in h.path]
@@ -76,7 +82,8 @@ def main():
                    'succeeded': code == 0, 'wall_time_s': wall, 'collisions': collisions,
                    'final_pose': list(final) if final else None,
                    'recall': s['recall'], 'false_positives': s['false_positives'],
-                   'rms_error_m': s['rms_error'], 'max_error_m': s['max_error']}
+                   'rms_error_m': s['rms_error'], 'max_error_m': s['max_error'],
+                   'localisation_error': loc}
         with open(os.path.splitext(args.png)[0] + '.json', 'w') as f:
             json.dump(summary, f, indent=2)
         ok = code == 0 and not collisions
