@@ -171,12 +171,13 @@ class MoveBase:
     def on_scan(self, scan):
         try:
             lp, _ = self._transform(scan.header.frame_id, scan.header.stamp)
+            t = self.tf.lookup_transform(self.p.robot_base_frame, scan.header.frame_id, scan.header.stamp)
         except tf2_ros.TransformException as e:
             self.scan_problem = 'scans cannot be placed in %s: %s' % (self.map_frame, e)
             rospy.logwarn_throttle(5.0, 'move_base: scan dropped, no transform: %s' % e)
             return
         ms = MapScan(lp, scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
-                     scan.range_max, scan.header.stamp.to_sec())
+                     scan.range_max, scan.header.stamp.to_sec(), pose_from_transform(t.transform))
         with self.lock:
             self.nav.add_scan(ms)
 

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from tiago_nav.geometry import yaw_to_quaternion
+from tiago_nav.geometry import compose, inverse, yaw_to_quaternion
 from tiago_nav.nav.costmap import MapScan
 from tiago_nav.nav.navigator import NavConfig, Navigator
 from tiago_nav.nav.runner import ABORTED, PREEMPTED, SUCCEEDED, GoalRunner
@@ -116,7 +116,8 @@ class ClosedLoop:
             ranges = self.scan_filter(np.array(ranges, dtype=float))
         self.nav.add_scan(MapScan(self.sim.scene.laser_pose(), ranges, laser.angle_min,
                                   laser.angle_increment, laser.range_min, laser.range_max,
-                                  self.sim.time))
+                                  self.sim.time, compose(inverse(self.sim.pose),
+                                                         self.sim.scene.laser_pose())))
 
     def _on_step(self, scan_due):
         if scan_due:
