@@ -28,7 +28,7 @@ from std_msgs.msg import UInt32
 from tiago_nav.testing.evaluation import score, visible_truth
 from tiago_nav.msg import TiagoTaskFeedback as FB, TiagoTaskGoal
 from tiago_nav.ros.actions import TaskClient
-from tiago_nav.ros.conversions import pose_from_msg, pose_from_transform
+from tiago_nav.ros.conversions import pose_from_msg
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.world import load_world
 

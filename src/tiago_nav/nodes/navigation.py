@@ -41,6 +41,9 @@ class Params:
     navigator, runner)."""
     global_frame: str = param('map', 'frame of the map, plans and goals', nonempty=True)
     robot_base_frame: str = param('base_footprint', "the robot's base frame", nonempty=True)
+    odom_frame: str = param('odom', 'the odometry frame: scans and the robot pose are placed in '
+                            'the map with the newest global_frame -> odom_frame (localisation) '
+                            'and odometry at their own time', nonempty=True)
     scan_topic: str = param('/scan', 'sensor_msgs/LaserScan in', nonempty=True)
     map_topic: str = param('/map', 'nav_msgs/OccupancyGrid in (latched)', nonempty=True)
     cmd_vel_topic: str = param('/mobile_base_controller/cmd_vel', 'geometry_msgs/Twist out',
@@ -167,10 +170,30 @@ class MoveBase:
         t = self.tf.lookup_transform(self.map_frame, source, stamp)
         return pose_from_transform(t.transform), t.header.stamp.to_sec()
 
+    def _in_map(self, source, stamp):
+        """``map <- source`` as ``(x, y, yaw)``: ``odom <- source`` at ``stamp`` (waiting as
+        :meth:`_transform` does) after the newest ``map <- odom``, so that a localisation
+        lagging behind the odometry (a loaded machine) delays nothing; ``map <- source``
+        directly when there is no odom frame."""
+        t_end = self.clock.wall() + self.p.transform_tolerance
+        odom = self.p.odom_frame
+        while not self.tf.can_transform(odom, source, stamp):
+            if self.clock.wall() > t_end or self.clock.shutdown():
+                break
+            self.clock.sleep(0.005)
+        try:
+            m2o = self.tf.lookup_transform(self.map_frame, odom, rospy.Time(0))
+            o2s = self.tf.lookup_transform(odom, source, stamp)
+        except tf2_ros.TransformException:
+            t = self.tf.lookup_transform(self.map_frame, source, stamp)
+            return pose_from_transform(t.transform), t.header.stamp.to_sec()
+        return (compose(pose_from_transform(m2o.transform), pose_from_transform(o2s.transform)),
+                o2s.header.stamp.to_sec())
+
     # --- inputs -----------------------------------------------------------------------------
     def on_scan(self, scan):
         try:
-            lp, _ = self._transform(scan.header.frame_id, scan.header.stamp)
+            lp, _ = self._in_map(scan.header.frame_id, scan.header.stamp)
             t = self.tf.lookup_transform(self.p.robot_base_frame, scan.header.frame_id, scan.header.stamp)
         except tf2_ros.TransformException as e:
             self.scan_problem = 'scans cannot be placed in %s: %s' % (self.map_frame, e)
@@ -182,14 +205,14 @@ class MoveBase:
             self.nav.add_scan(ms)
 
     def pose(self):
-        """``((x, y, yaw), stamp)`` of the base in map now (newest transform), or
-        :class:`PoseUnavailable`."""
+        """``((x, y, yaw), stamp)`` of the base in map now (newest odometry, after the newest
+        map -> odom), or :class:`PoseUnavailable`."""
         try:
-            t = self.tf.lookup_transform(self.map_frame, self.p.robot_base_frame, rospy.Time(0))
+            t = self.tf.lookup_transform(self.p.odom_frame, self.p.robot_base_frame, rospy.Time(0))
+            return self._in_map(self.p.robot_base_frame, t.header.stamp)
         except tf2_ros.TransformException as e:
             raise PoseUnavailable('no transform %s -> %s: %s'
                                   % (self.map_frame, self.p.robot_base_frame, e)) from None
-        return pose_from_transform(t.transform), t.header.stamp.to_sec()
 
     def to_map(self, frame, pose):
         """``(x, y, yaw)`` in ``frame`` → map, or :class:`GoalError`."""
