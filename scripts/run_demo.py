@@ -36,13 +36,16 @@ def main():
     ap.add_argument('--no-corridor', dest='corridor', action='store_false')
     ap.add_argument('--rtf', type=float, default=5.0, help='simulator real_time_factor (0: flat out)')
     ap.add_argument('--laser-noise', type=float, default=0.01)
+    ap.add_argument('--launch-arg', action='append', default=[], metavar='NAME:=VALUE',
+                    help='a further demo.launch argument, e.g. laser_model:=ideal (repeatable)')
     ap.add_argument('--png', default=os.path.join(ROOT, 'bench', 'results', 'demo.png'))
     args = ap.parse_args()
     world = load_world(args.world)
     print('== demo: %s, pose B (%.2f, %.2f, %.0f deg), corridor law %s, simulator at %s'
           % (world.name, args.x, args.y, args.yaw, 'on' if args.corridor else 'off',
              'full speed' if args.rtf == 0 else '%gx real time' % args.rtf), flush=True)
-    h = Harness(args.world, real_time_factor=args.rtf, laser_noise=args.laser_noise)
+    h = Harness(args.world, real_time_factor=args.rtf, laser_noise=args.laser_noise,
+                extra_args=args.launch_arg)
     print('   launch log: %s' % h.log_path, flush=True)
     try:
         try:
