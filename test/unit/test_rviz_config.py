@@ -7,7 +7,7 @@ import yaml
 from conftest import ROOT, WORLDS
 from tiago_nav.sim.world import load_world
 
-DOCK = 330      # [px] the Displays panel left of the 3D view
+DOCK = 425      # [px] the Displays panel left of the 3D view (measured on a screenshot)
 
 
 def config():
@@ -27,7 +27,7 @@ def test_the_initial_view_fits_the_course_map():
     assert view['Class'] == 'rviz/TopDownOrtho' and view['Target Frame'] == 'map'
     bounds = load_world(os.path.join(WORLDS, 'ias_lab_room_full.yaml')).bounds
     x0, y0, x1, y1 = bounds
-    width, height = c['Window Geometry']['Width'] - DOCK, c['Window Geometry']['Height'] - 60
+    width, height = c['Window Geometry']['Width'] - DOCK, c['Window Geometry']['Height'] - 120   # menu and tool bars
     scale = view['Scale']                                   # [px/m]
     # every corner of the map within the 3D view (view centred at X, Y)
     for x in (x0, x1):
