@@ -106,7 +106,11 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
 
     Dropped:
 
-    * the robot's own body: :func:`body_returns` (by geometry, about base_footprint);
+    * the robot's own body: :func:`body_returns` (by geometry, about base_footprint), for the
+      beams pointing backwards from the laser (in base_footprint): the laser sits at the front
+      of the base and sees its body only behind it (TIAGo's self-hits are the fan's ends). A
+      return ahead of the laser is never taken for the body, however close: an obstacle
+      ``margin`` from the front bumper must still stop the robot;
     * veils (mixed pixels), by the rule of ROS laser_filters' ``ScanShadowsFilter``: two
       neighbouring hits form a *grazing step* when the segment between their points makes an
       angle below ``shadow_angle`` with the beam (the pair lies almost along the beam) and
@@ -139,7 +143,10 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
         return r
     angles = beam_angles(angle_min, angle_increment, n)
     hit = hits(r, range_min, range_max)
-    drop = body_returns(r, angles, laser_pose, radius, margin) & hit
+    # the body lies behind the laser (mounted at the front of the base): a return ahead of it is
+    # an obstacle however close, and must stop the robot
+    behind = np.cos(angles + laser_pose[2]) <= 0.0
+    drop = body_returns(r, angles, laser_pose, radius, margin) & hit & behind
     if n > 1:
         c, s = np.cos(angles), np.sin(angles)
         i, j = np.arange(n - 1), np.arange(1, n)

@@ -72,20 +72,31 @@ def test_a_wall_at_grazing_incidence_keeps_its_points():
 def test_rep117_values_keep_their_meaning_and_the_body_goes():
     r = wall_at(3.0)
     r[:5], r[5], r[6], r[-3:] = np.nan, -np.inf, 0.01, 0.15   # 0.01: out of limits (invalid)
-    out = clean(r)
+    backwards = (0.2, 0.0, math.pi / 2)     # the fan's last beams point backwards in the base
+    out = clean(r, laser_pose=backwards)
     assert np.isnan(out[:5]).all() and out[5] == -np.inf and out[6] == 0.01
     assert np.isinf(out[r == np.inf]).all()
-    # the last beams point sideways (+90 deg): 0.15 m from the laser there is inside the body
+    # 0.15 m from the laser along them is inside the body
     assert np.isnan(out[-3:]).all()
-    assert not np.isnan(clean(r, radius=0.0, margin=0.0)[-3:]).any()   # no body: kept
+    assert not np.isnan(clean(r, laser_pose=backwards, radius=0.0, margin=0.0)[-3:]).any()
 
 
 def test_the_body_follows_the_laser_pose_from_tf():
     a = beam_angles(A0, INC, N)
     r = np.full(N, 0.3)
-    # laser at the base centre: 0.3 m is inside the 0.27 + 0.05 m body, 0.6 m outside
-    assert np.array_equal(np.isnan(clean(r, laser_pose=(0.0, 0.0, 0.0))), body_returns(r, a, (0.0, 0.0, 0.0)))
-    assert not np.isnan(clean(r * 2, laser_pose=(0.0, 0.0, 0.0))).any()
+    facing_back = (0.0, 0.0, math.pi)       # every beam points backwards
+    # 0.3 m from the base centre is inside the 0.27 + 0.05 m body, 0.6 m outside
+    inner = slice(1, -1)                    # the +-90 deg beams point exactly sideways
+    assert body_returns(r, a, facing_back).all()
+    assert np.isnan(clean(r, laser_pose=facing_back)[inner]).all()
+    assert not np.isnan(clean(r * 2, laser_pose=facing_back)).any()
+
+
+def test_a_return_ahead_of_the_laser_is_never_the_body():
+    """An obstacle 3 cm from the front bumper (inside the body's margin) must stop the robot."""
+    r = np.full(N, np.inf)
+    r[180] = 0.1                            # straight ahead: 0.3 m from the base centre
+    assert clean(r)[180] == 0.1
 
 
 # --- the consumers with the tiago laser -------------------------------------------------------
