@@ -331,6 +331,8 @@ class Localiser:
         pts, _ = scan_to_points(ranges, angle_min, angle_increment, range_min,
                                 min(range_max, c.max_range))
         pts = transform_points(laser_pose, pts)
+        # near points in any direction say little about the map: dropped (not only the body)
+        pts = pts[np.hypot(pts[:, 0], pts[:, 1]) >= c.self_filter_radius]
         if len(pts) > c.max_points:
             pts = pts[np.linspace(0, len(pts) - 1, c.max_points).round().astype(int)]
         return pts
