@@ -11,7 +11,7 @@ detector's max_range and unoccluded (hit by >= 80 % of the beams its silhouette 
 Latency is one library call (scan ranges -> obstacles in the map frame); the service round trip
 (ROS, the wait for a fresh scan, tf) is measured separately with the node on its own master.
 Writes bench/results/detection.json and detection.png.
-Usage: bench/bench_detection.py [--quick] [--no-service]
+Usage: bench/bench_detection.py [--quick] [--no-service] [--laser-model ideal|tiago]
 """
 import argparse
 import dataclasses
@@ -34,8 +34,9 @@ from tiago_nav.testing.harness import free_port, stop_process  # noqa: E402
 from tiago_nav.detection import METHODS, DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.detection.subtraction import MapDistance, brute_force_distance  # noqa: E402
 from tiago_nav import robot  # noqa: E402
-from tiago_nav.geometry import transform_points, wrap_angle  # noqa: E402
+from tiago_nav.geometry import compose, inverse, transform_points, wrap_angle  # noqa: E402
 from tiago_nav.scan import scan_to_points  # noqa: E402
+from tiago_nav.sim.laser import LaserModel  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.scene import LaserConfig, Scene, noisy  # noqa: E402
 from tiago_nav.sim.world import load_world  # noqa: E402
@@ -122,7 +123,7 @@ def match(found, world, visible):
 
 
 # --- the measurement ----------------------------------------------------------------------
-def evaluate_world(path, n_poses, seed, repeats):
+def evaluate_world(path, n_poses, seed, repeats, laser_model=LaserModel(laser_model='ideal')):
     world = load_world(path)
     grid = rasterise_world(world)
     params = DetectionParams()
@@ -141,8 +142,9 @@ def evaluate_world(path, n_poses, seed, repeats):
     with Scene(world, robot_radius=ROBOT_RADIUS) as scene:
         for k, pose in enumerate(poses):
             clean, ids = scene.cast(pose)
-            ranges = noisy(clean, NOISE, rng, cfg.range_min, cfg.range_max)
+            ranges = laser_model.apply(clean, cfg, NOISE, rng).ranges     # ideal: noisy()
             laser = scene.laser_pose(pose)
+            laser_in_base = compose(inverse(pose), laser)
             visible = scene.visible_obstacles(pose)
             clear = clear_view(world, scene, pose, ids, params.max_range)
             for m in METHODS:
@@ -150,7 +152,8 @@ def evaluate_world(path, n_poses, seed, repeats):
                 for _ in range(repeats):
                     t = time.perf_counter()
                     found = detector.detect(ranges, cfg.angle_min, cfg.angle_increment,
-                                            cfg.range_min, cfg.range_max, laser, m)
+                                            cfg.range_min, cfg.range_max, laser, m,
+                                            laser_in_base=laser_in_base)
                     best = min(best, time.perf_counter() - t)
                 errors, fp, extra = match(found, world, visible)
                 r = res[m]
@@ -405,6 +408,9 @@ def main():
     ap.add_argument('--no-service', action='store_true', help='skip the ROS service round trip')
     ap.add_argument('--poses', type=int, default=None, help='poses per world (default 60, quick 12)')
     ap.add_argument('--seed', type=int, default=0)
+    ap.add_argument('--laser-model', choices=('ideal', 'tiago'), default='ideal',
+                    help="the simulated laser: ideal (exact cast + noise, today's figures) or tiago "
+                         "(self-hits, mixed pixels, dropouts); tiago writes detection_tiago.*")
     ap.add_argument('--service-child', nargs=4, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.service_child:
@@ -420,7 +426,8 @@ def main():
     runs = []
     for j, name in enumerate(WORLDS):
         summary, world, grid, poses, example = evaluate_world(
-            os.path.join(ROOT, 'worlds', name), n, args.seed + j, repeats)
+            os.path.join(ROOT, 'worlds', name), n, args.seed + j, repeats,
+            LaserModel(laser_model=args.laser_model))
         out['worlds'][world.name] = summary
         runs.append((summary, world, grid, poses, example))
         print('\n%s: %d poses with obstacles in view (%d drawn), %d occupied cells, transform '
@@ -494,10 +501,12 @@ def main():
              100 * met['max_error_in_view_m'], met['latency_ms'], met['latency_ms_p95'],
              met['subtraction_speedup']))
     print('targets: ' + ', '.join('%s %s' % (k, 'met' if v else 'MISSED') for k, v in ok.items()))
-    plot(os.path.join(RESULTS, 'detection.png'), runs, rows)
-    with open(os.path.join(RESULTS, 'detection.json'), 'w') as f:
+    stem = 'detection' if args.laser_model == 'ideal' else 'detection_' + args.laser_model
+    out['laser_model'] = args.laser_model
+    plot(os.path.join(RESULTS, stem + '.png'), runs, rows)
+    with open(os.path.join(RESULTS, stem + '.json'), 'w') as f:
         json.dump(out, f, indent=2)
-    print('wrote bench/results/detection.json and detection.png')
+    print('wrote bench/results/%s.json and %s.png' % (stem, stem))
 
 
 if __name__ == '__main__':

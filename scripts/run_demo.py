@@ -36,13 +36,16 @@ def main():
     ap.add_argument('--no-corridor', dest='corridor', action='store_false')
     ap.add_argument('--rtf', type=float, default=5.0, help='simulator real_time_factor (0: flat out)')
     ap.add_argument('--laser-noise', type=float, default=0.01)
+    ap.add_argument('--launch-arg', action='append', default=[], metavar='NAME:=VALUE',
+                    help='a further demo.launch argument, e.g. laser_model:=ideal (repeatable)')
     ap.add_argument('--png', default=os.path.join(ROOT, 'bench', 'results', 'demo.png'))
     args = ap.parse_args()
     world = load_world(args.world)
     print('== demo: %s, pose B (%.2f, %.2f, %.0f deg), corridor law %s, simulator at %s'
           % (world.name, args.x, args.y, args.yaw, 'on' if args.corridor else 'off',
              'full speed' if args.rtf == 0 else '%gx real time' % args.rtf), flush=True)
-    h = Harness(args.world, real_time_factor=args.rtf, laser_noise=args.laser_noise)
+    h = Harness(args.world, real_time_factor=args.rtf, laser_noise=args.laser_noise,
+                extra_args=args.launch_arg)
     print('   launch log: %s' % h.log_path, flush=True)
     try:
         try:
@@ -62,6 +65,12 @@ def main():
         print('\n'.join(lines))
         collisions = h.collisions
         print('mission wall time %.1f s (target <= 20 s), collisions %s' % (wall, collisions))
+        loc = h.localisation_summary()
+        if loc:
+            print('localisation error over the mission (%d samples): p95 %.1f cm / %.2f deg, '
+                  'max %.1f cm / %.2f deg (bar: p95 <= 5 cm / 2 deg)'
+                  % (loc['samples'], 100 * loc['p95_m'], loc['p95_deg'], 100 * loc['max_m'],
+                     loc['max_deg']))
         os.makedirs(os.path.dirname(os.path.abspath(args.png)), exist_ok=True)
         with h.lock:
             path = [p[:2] for p in h.path]
@@ -76,7 +85,8 @@ def main():
                    'succeeded': code == 0, 'wall_time_s': wall, 'collisions': collisions,
                    'final_pose': list(final) if final else None,
                    'recall': s['recall'], 'false_positives': s['false_positives'],
-                   'rms_error_m': s['rms_error'], 'max_error_m': s['max_error']}
+                   'rms_error_m': s['rms_error'], 'max_error_m': s['max_error'],
+                   'localisation_error': loc}
         with open(os.path.splitext(args.png)[0] + '.json', 'w') as f:
             json.dump(summary, f, indent=2)
         ok = code == 0 and not collisions

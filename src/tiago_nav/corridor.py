@@ -57,10 +57,10 @@ from typing import Tuple
 
 import numpy as np
 
-from tiago_nav.geometry import inverse, transform_points, wrap_angle
+from tiago_nav.geometry import compose, inverse, transform_points, wrap_angle
 from tiago_nav.params import param, validate
 from tiago_nav.robot import ROBOT_RADIUS
-from tiago_nav.scan import TOO_CLOSE, classify, informative_fraction, scan_to_points
+from tiago_nav.scan import TOO_CLOSE, classify, informative_fraction, scan_to_points, usable_ranges
 
 
 @dataclass(frozen=True)
@@ -454,8 +454,9 @@ class CorridorFollower:
     # --- perception -----------------------------------------------------------------------
     def update_laser(self, scan, laser_pose, pose_odom):
         """One :class:`Scan`, taken with the laser at ``laser_pose`` and the base at
-        ``pose_odom`` (both in odom), read by REP 117 (:mod:`tiago_nav.scan`): the walls are
-        fitted from its hits only; a too-close beam (-inf) is an obstacle at ``range_min`` along
+        ``pose_odom`` (both in odom), read by REP 117 (:mod:`tiago_nav.scan`) after
+        :func:`tiago_nav.scan.usable_ranges` (no self-hits, no veils): the walls are fitted from
+        its hits only; a too-close beam (-inf) is an obstacle at ``range_min`` along
         it for the front safety check; no-return and invalid beams give no point.
 
         A scan with too few informative beams (:func:`scan_usability`) says nothing: the walls
@@ -464,7 +465,9 @@ class CorridorFollower:
         self.unusable = scan_usability(scan, self.p)
         if self.unusable:
             return None
-        pts, _ = scan_to_points(scan.ranges, scan.angle_min, scan.angle_increment,
+        ranges = usable_ranges(scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
+                               scan.range_max, compose(inverse(pose_odom), laser_pose))
+        pts, _ = scan_to_points(ranges, scan.angle_min, scan.angle_increment,
                                 scan.range_min, scan.range_max)
         close = np.flatnonzero(classify(scan.ranges, scan.range_min, scan.range_max) == TOO_CLOSE)
         a = scan.angle_min + scan.angle_increment * close

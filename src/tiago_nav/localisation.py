@@ -33,7 +33,7 @@ from tiago_nav.geometry import compose, inverse, transform_points, wrap_angle
 from tiago_nav.gridmap import GridMap, distance_to_mask
 from tiago_nav.params import ParamError, param, validate
 from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
-from tiago_nav.scan import scan_to_points
+from tiago_nav.scan import scan_to_points, usable_ranges
 
 # [m] beyond the base's radius, what still counts as the robot's own body for the self-filter
 # (TIAGo's laser sees the base's front corners at both ends of its ±110° fan)
@@ -314,7 +314,8 @@ class Localiser:
     def scan_points(self, ranges, angle_min, angle_increment, range_min, range_max,
                     laser_pose=None):
         """The scan's hits as points [m] in base_footprint, self-hits (closer than
-        ``self_filter_radius`` to base_footprint) and far hits dropped, evenly subsampled to
+        ``self_filter_radius`` to base_footprint), veils (:func:`tiago_nav.scan.usable_ranges`)
+        and far hits dropped, evenly subsampled to
         at most ``max_points``.
 
         Args:
@@ -324,9 +325,13 @@ class Localiser:
                 ahead of base_footprint).
         """
         c = self.config
+        laser_pose = laser_pose or (LASER_OFFSET, 0.0, 0.0)
+        ranges = usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
+                               laser_pose, radius=c.self_filter_radius, margin=0.0)
         pts, _ = scan_to_points(ranges, angle_min, angle_increment, range_min,
                                 min(range_max, c.max_range))
-        pts = transform_points(laser_pose or (LASER_OFFSET, 0.0, 0.0), pts)
+        pts = transform_points(laser_pose, pts)
+        # near points in any direction say little about the map: dropped (not only the body)
         pts = pts[np.hypot(pts[:, 0], pts[:, 1]) >= c.self_filter_radius]
         if len(pts) > c.max_points:
             pts = pts[np.linspace(0, len(pts) - 1, c.max_points).round().astype(int)]

@@ -90,3 +90,78 @@ def body_returns(ranges, angles, laser_pose=(LASER_OFFSET, 0.0, 0.0), radius=ROB
     x = laser_pose[0] + rf * np.cos(a)
     y = laser_pose[1] + rf * np.sin(a)
     return finite & (np.hypot(x, y) <= radius + margin)
+
+
+SHADOW_ANGLE = np.radians(10.0)  # [rad] laser_filters ScanShadowsFilter's usual min_angle
+SHADOW_MIN_JUMP = 0.05           # [m] a veil's depth step: 3.5 sigma of two 0.01 m noisy ranges
+
+
+def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
+                  laser_pose=(LASER_OFFSET, 0.0, 0.0), radius=ROBOT_RADIUS, margin=BODY_MARGIN,
+                  shadow_angle=SHADOW_ANGLE, shadow_min_jump=SHADOW_MIN_JUMP):
+    """The ranges a consumer may use: a copy of the scan's ranges [m] with the beams it must
+    not use set to NaN (REP 117 *invalid*: they mark nothing and clear nothing, and are never
+    read as free space). Every consumer of a scan (costmap, detection, corridor law,
+    localisation) calls this first, then :func:`scan_to_points` / :func:`classify` as before.
+
+    Dropped:
+
+    * the robot's own body: :func:`body_returns` (by geometry, about base_footprint), for the
+      beams pointing backwards from the laser (in base_footprint): the laser sits at the front
+      of the base and sees its body only behind it (TIAGo's self-hits are the fan's ends). A
+      return ahead of the laser is never taken for the body, however close: an obstacle
+      ``margin`` from the front bumper must still stop the robot;
+    * veils (mixed pixels), by the rule of ROS laser_filters' ``ScanShadowsFilter``: two
+      neighbouring hits form a *grazing step* when the segment between their points makes an
+      angle below ``shadow_angle`` with the beam (the pair lies almost along the beam) and
+      their ranges differ by more than ``shadow_min_jump`` (range noise alone never makes
+      one). The farther point of a grazing step is a veil point and dropped, unless the step
+      continues a grazing step in the same direction (a wall seen at grazing incidence is a
+      chain of such steps and keeps its points but the first). At a depth edge the near point
+      is the occluding edge, a real surface, and its other neighbour lies on the same surface;
+      the mixed pixel beyond it is dropped, and so is a cylinder's last point before its
+      tangent. A mixed pixel within ``shadow_min_jump`` of the near surface is kept (it is
+      close to a real surface); the far surface's first point behind it is dropped instead.
+
+    No return (+inf) and too close (-inf) are kept: they still mean what REP 117 says.
+
+    Args:
+        ranges: ``(n,)`` ranges [m] of a scan.
+        angle_min, angle_increment: [rad] the scan's first beam and step, laser frame.
+        range_min, range_max: [m] the scan's limits.
+        laser_pose: ``(x, y, yaw)`` of the laser frame in base_footprint [m, rad] (from tf).
+        radius, margin: [m] the body, as :func:`body_returns` takes them.
+        shadow_angle: [rad] a neighbour's segment closer than this to the beam is a veil.
+        shadow_min_jump: [m] and only if their ranges differ by more than this.
+
+    Returns:
+        ``(n,)`` float array.
+    """
+    r = np.array(ranges, dtype=float)
+    n = r.size
+    if n == 0:
+        return r
+    angles = beam_angles(angle_min, angle_increment, n)
+    hit = hits(r, range_min, range_max)
+    # the body lies behind the laser (mounted at the front of the base): a return ahead of it is
+    # an obstacle however close, and must stop the robot
+    behind = np.cos(angles + laser_pose[2]) <= 0.0
+    drop = body_returns(r, angles, laser_pose, radius, margin) & hit & behind
+    if n > 1:
+        c, s = np.cos(angles), np.sin(angles)
+        i, j = np.arange(n - 1), np.arange(1, n)
+        rh = np.where(hit, r, 0.0)
+        dx, dy = rh[j] * c[j] - rh[i] * c[i], rh[j] * s[j] - rh[i] * s[i]
+        along = np.abs(dx * c[i] + dy * s[i])
+        across = np.abs(dx * s[i] - dy * c[i])
+        step = (hit[i] & hit[j] & (across < np.tan(shadow_angle) * along)
+                & (np.abs(rh[j] - rh[i]) > shadow_min_jump))
+        out = np.concatenate(([False], step & (rh[j] > rh[i]), [False]))  # step k -> k+1 goes away
+        back = np.concatenate(([False], step & (rh[i] > rh[j]), [False]))  # step k+1 -> k goes away
+        # beam k: reached going away from k-1 (out[k]) not continuing out[k-1], or from k+1
+        # (back[k+1]) not continuing back[k+2]
+        k = np.arange(n)
+        drop |= out[k] & ~out[np.maximum(k - 1, 0)]
+        drop |= back[k + 1] & ~back[np.minimum(k + 2, n)]
+    r[drop] = np.nan
+    return r

@@ -1,12 +1,13 @@
 """Shared pieces of the rostests: the set-up of those that run against the simulator (a test
-node, the world file every assertion is checked against, the robot's pose from tf) and
-:func:`distinct_states` for the mission tests."""
+node, the world file every assertion is checked against, the robot's true pose from
+/sim/ground_truth) and :func:`distinct_states` for the mission tests."""
 import unittest
 
 import rospy
 import tf2_ros
+from nav_msgs.msg import Odometry
 
-from tiago_nav.ros.conversions import pose_from_transform
+from tiago_nav.ros.conversions import pose_from_msg
 from tiago_nav.sim.world import load_world
 
 TIMEOUT = 30.0
@@ -22,13 +23,24 @@ class SimTestCase(unittest.TestCase):
         cls.world = load_world(rospy.get_param('~world'))
         cls.tf = tf2_ros.Buffer()
         cls.listener = tf2_ros.TransformListener(cls.tf)
+        cls._truth = None
+        cls._truth_sub = rospy.Subscriber('/sim/ground_truth', Odometry, cls._on_truth, queue_size=1)
         rospy.wait_for_message('/clock', rospy.AnyMsg, timeout=TIMEOUT)
 
     @classmethod
+    def _on_truth(cls, msg):
+        cls._truth = msg
+
+    @classmethod
     def base_pose(cls):
-        """Ground-truth pose ``(x, y, yaw)`` of base_footprint in map, the latest tf has."""
-        t = cls.tf.lookup_transform('map', 'base_footprint', rospy.Time(), rospy.Duration(TIMEOUT))
-        return pose_from_transform(t.transform)
+        """Ground-truth pose ``(x, y, yaw)`` of base_footprint in map: the latest
+        /sim/ground_truth (tf map -> base_footprint is the localisation's estimate)."""
+        deadline = rospy.get_time() + TIMEOUT
+        while cls._truth is None and not rospy.is_shutdown():
+            if rospy.get_time() > deadline:
+                raise AssertionError('no /sim/ground_truth within %g s' % TIMEOUT)
+            rospy.sleep(0.05)
+        return pose_from_msg(cls._truth.pose.pose)
 
 
 def distinct_states(feedbacks):

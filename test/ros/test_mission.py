@@ -22,12 +22,13 @@ import rostest
 import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
 from std_msgs.msg import UInt32
 
 from tiago_nav.testing.evaluation import score, visible_truth
 from tiago_nav.msg import TiagoTaskFeedback as FB, TiagoTaskGoal
 from tiago_nav.ros.actions import TaskClient
-from tiago_nav.ros.conversions import pose_from_msg, pose_from_transform
+from tiago_nav.ros.conversions import pose_from_msg
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.world import load_world
 
@@ -67,8 +68,10 @@ class MissionTest(unittest.TestCase):
 
     # --- helpers ---------------------------------------------------------------------------
     def pose(self):
-        t = self.tf.lookup_transform('map', 'base_footprint', rospy.Time(0), rospy.Duration(10))
-        return pose_from_transform(t.transform)
+        """The true base pose in map (/sim/ground_truth; tf map -> base_footprint is the
+        localisation's estimate)."""
+        msg = rospy.wait_for_message('/sim/ground_truth', Odometry, timeout=10)
+        return pose_from_msg(msg.pose.pose)
 
     def send(self, x, y, yaw, corridor, cancel_when=None, limit=MISSION):
         fbs = []
@@ -130,7 +133,7 @@ class MissionTest(unittest.TestCase):
         self.assertTrue(set(st[len(expected):-3]) <= {FB.MOVING, FB.STOPPED}, st)
         if self.corridor:
             self.assert_corridor_decision(fbs, self.corridor_ahead)
-        # the robot is at pose B (ground truth: the simulator's tf)
+        # the robot is at pose B (ground truth: /sim/ground_truth)
         px, py, pyaw = self.pose()
         self.assertLess(math.hypot(px - x, py - y), 0.3)
         self.assertLess(abs(math.degrees(math.atan2(math.sin(pyaw - math.radians(yaw)),

@@ -44,7 +44,11 @@ def fake_outputs():
 
 
 def make_node(use_sim_time=True, now=None, **kw):
+    """A node on ``BOX`` with the exact laser and odometry unless ``kw`` says otherwise (the
+    node's defaults are the ``tiago`` laser and drifting odometry)."""
     kw.setdefault('world', BOX)
+    kw.setdefault('laser_model', 'ideal')
+    kw.setdefault('odometry_model', 'ideal')
     node = SimulatorNode(read_params(Params, lambda n, d: {'~' + k: v for k, v in kw.items()}.get(n, d)),
                          fake_outputs(), use_sim_time=use_sim_time, now=now, log=Log())
     return node
@@ -143,10 +147,47 @@ def test_static_frames_base_link_and_laser(node):
     (body, laser), = [m.transforms for m in node.out.tf_static.messages]
     assert (body.header.frame_id, body.child_frame_id) == ('base_footprint', 'base_link')
     t = body.transform.translation
-    assert (t.x, t.y, t.z, body.transform.rotation.w) == (0, 0, 0, 1)
+    assert (t.x, t.y, t.z, body.transform.rotation.w) == (0, 0, pytest.approx(0.0985), 1)  # the URDF's
     assert (laser.header.frame_id, laser.child_frame_id) == ('base_link', 'base_laser_link')
     t = laser.transform.translation
-    assert (t.x, t.y, t.z) == pytest.approx((0.2, 0.0, 0.3))
+    assert (t.x, t.y, t.z + 0.0985) == pytest.approx((0.2, 0.0, 0.3))   # 0.3 m above the floor
+
+
+def test_defaults_are_the_tiago_laser_and_drifting_odometry():
+    p = Params(world=BOX)
+    assert (p.sim.laser_model.laser_model, p.sim.odometry.odometry_model) == ('tiago', 'drift')
+    assert p.publish_map_to_odom and p.publish_robot_frames
+
+
+def test_with_drift_map_to_odom_composes_odometry_into_the_truth():
+    node = make_node(odometry_model='drift', seed=3)
+    try:
+        node.start()
+        run(node, 240, cmd=twist(0.4, 0.5))
+        map_odom_tf, odom_tf = node.out.tf.last.transforms
+        assert (map_odom_tf.header.frame_id, map_odom_tf.child_frame_id) == ('map', 'odom')
+        map_odom = pose_from_transform(map_odom_tf.transform)
+        odom = pose_from_msg(node.out.odom.last.pose.pose)
+        truth = pose_from_msg(node.out.ground_truth.last.pose.pose)
+        assert truth == pytest.approx(compose(map_odom, odom), abs=1e-9)
+        assert map_odom != pytest.approx((1.0, 1.5, 0.0), abs=1e-4)          # odometry drifted
+        assert pose_from_transform(odom_tf.transform) == pytest.approx(odom)
+    finally:
+        node.close()
+
+
+def test_map_to_odom_and_robot_frames_can_be_left_to_other_nodes():
+    node = make_node(publish_map_to_odom=False, publish_robot_frames=False)
+    try:
+        node.start()
+        run(node, 30)
+        assert node.out.tf.messages
+        assert all([(t.header.frame_id, t.child_frame_id) for t in m.transforms]
+                   == [('odom', 'base_footprint')] for m in node.out.tf.messages)
+        assert not node.out.tf_static.messages
+        assert node.out.map.messages and node.out.ground_truth.messages
+    finally:
+        node.close()
 
 
 class Recorder(FakePublisher):

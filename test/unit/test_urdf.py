@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
+from tiago_nav.robot import BASE_LINK_HEIGHT, LASER_HEIGHT, LASER_OFFSET, ROBOT_RADIUS
 from tiago_nav.sim.scene import LaserConfig
 
 
@@ -60,3 +60,9 @@ def test_base_is_robot_radius_wide_and_below_the_laser(robot):
     assert 0.25 <= top < LaserConfig().height       # ~0.3 m tall, the laser sees over it
     radii = [float(c.get('radius')) for c in base.findall('visual/geometry/cylinder')]
     assert max(radii) == pytest.approx(ROBOT_RADIUS)
+
+
+def test_base_link_height_is_the_simulators(robot):
+    """The simulator publishes base_link at BASE_LINK_HEIGHT when robot_state_publisher does not."""
+    assert position_in_footprint(robot, 'base_link')[2] == pytest.approx(BASE_LINK_HEIGHT)
+    assert position_in_footprint(robot, 'base_laser_link')[2] == pytest.approx(LASER_HEIGHT)

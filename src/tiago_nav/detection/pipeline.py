@@ -21,7 +21,7 @@ from tiago_nav.detection.clustering import centroid_clusters
 from tiago_nav.detection.subtraction import MapDistance, subtract
 from tiago_nav.geometry import transform_points
 from tiago_nav.params import ParamError, param, validate
-from tiago_nav.scan import scan_to_points
+from tiago_nav.scan import beam_angles, hits, scan_to_points, usable_ranges
 
 METHODS = ('circle_fit', 'centroid', 'discontinuity')
 
@@ -80,23 +80,31 @@ class ObstacleDetector:
         self.distance = MapDistance(grid)
 
     def detect(self, ranges, angle_min, angle_increment, range_min, range_max, laser_pose,
-               method='circle_fit', **overrides):
+               method='circle_fit', laser_in_base=None, **overrides):
         """Obstacles in one scan.
 
         ``ranges`` [m] of beams from ``angle_min`` [rad] in steps of ``angle_increment`` in
         base_laser_link; ``laser_pose`` ``(x, y, yaw)`` is base_laser_link in the map frame at the
-        scan's time. ``overrides`` replace fields of the params for this call (0 or None keeps
-        the default). Returns :class:`Detection` s sorted by distance from the laser.
+        scan's time, ``laser_in_base`` in base_footprint (from tf; None: no body to filter).
+        Only the beams :func:`tiago_nav.scan.usable_ranges` keeps are used (no self-hits, no
+        veils). ``overrides`` replace fields of the params for this call (0 or None keeps the
+        default). Returns :class:`Detection` s sorted by distance from the laser.
         Raises ValueError for an unknown method.
         """
         if method not in METHODS:
             raise ValueError('unknown method %r (expected one of %s)' % (method, ', '.join(METHODS)))
         changed = {k: v for k, v in overrides.items() if v}
         p = replace(self.params, **changed) if changed else self.params
-        r = np.asarray(ranges, dtype=float)
+        body = (dict(radius=0.0, margin=0.0) if laser_in_base is None
+                else dict(laser_pose=tuple(laser_in_base)))
+        raw = np.asarray(ranges, dtype=float)
+        r = usable_ranges(raw, angle_min, angle_increment, range_min, range_max, **body)
         if method == 'discontinuity':
-            found = _discontinuity(r, angle_min, angle_increment, range_min,
-                                   min(range_max, p.max_range), laser_pose, p)
+            # the beams the filter dropped are left out, not read as far (a gap is no edge)
+            keep = ~(np.isnan(r) & ~np.isnan(raw))
+            found = _discontinuity(r[keep], beam_angles(angle_min, angle_increment, len(r))[keep],
+                                   angle_increment, range_min, min(range_max, p.max_range),
+                                   laser_pose, p)
         else:
             found = self._clusters(r, angle_min, angle_increment, range_min, range_max,
                                    min(range_max, p.max_range), laser_pose, method, p)
@@ -187,14 +195,12 @@ def _is_obstacle(c, centre, rad, rms, sensor, p):
     return to_centre > to_points
 
 
-def _discontinuity(r, angle_min, inc, rmin, rmax, laser_pose, p):
-    """Range-jump segmentation of the raw scan (no map)."""
+def _discontinuity(r, ang, inc, rmin, rmax, laser_pose, p):
+    """Range-jump segmentation of the scan (no map): ranges ``r`` [m] of the beams at angles
+    ``ang`` [rad] (consecutive beams of a step ``inc``, some left out)."""
     n = len(r)
-    local, beam = scan_to_points(r, angle_min, inc, rmin, rmax)
-    valid = np.zeros(n, dtype=bool)
-    valid[beam] = True
-    points = np.empty((n, 2))
-    points[beam] = local
+    valid = hits(r, rmin, rmax)
+    points = np.column_stack((r * np.cos(ang), r * np.sin(ang)))
     rr = np.where(valid, r, np.inf)
     # REP 117: -inf is something nearer than range_min (no dip in front of it); NaN and
     # out-of-limit values say nothing and count as far, as +inf (no return) does
@@ -204,7 +210,6 @@ def _discontinuity(r, angle_min, inc, rmin, rmax, laser_pose, p):
         jumps = np.flatnonzero(~(np.abs(np.diff(rr)) <= p.jump)) + 1
     starts = np.concatenate(([0], jumps))
     ends = np.concatenate((jumps, [n]))
-    ang = angle_min + inc * np.arange(n)
     out = []
     for s, e in zip(starts, ends):
         if not valid[s] or e - s < p.min_points:
@@ -215,7 +220,7 @@ def _discontinuity(r, angle_min, inc, rmin, rmax, laser_pose, p):
         near = rr[s:e]
         if not (left > near[0] + p.jump and right > near[-1] + p.jump):
             continue
-        width = 2 * np.min(near) * math.tan((e - s) * inc / 2)
+        width = 2 * np.min(near) * math.tan((ang[e - 1] - ang[s] + inc) / 2)
         if width > p.max_width:
             continue
         k = s + int(np.argmin(near))

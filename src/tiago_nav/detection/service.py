@@ -172,7 +172,7 @@ class DetectionService:
         try:
             found = detector.detect(
                 scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
-                scan.range_max, laser_in_map, method,
+                scan.range_max, laser_in_map, method, laser_in_base=laser_in_robot,
                 scan_minus_map_threshold=scan_minus_map_threshold,
                 cluster_threshold=cluster_threshold)
         except Exception as e:   # never a crash: the caller learns what went wrong

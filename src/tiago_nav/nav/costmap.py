@@ -21,7 +21,8 @@ import numpy as np
 from tiago_nav.geometry import transform_points
 from tiago_nav.gridmap import distance_to_mask
 from tiago_nav.robot import ROBOT_RADIUS
-from tiago_nav.scan import HIT, INVALID, NO_RETURN, TOO_CLOSE, beam_angles, classify, scan_to_points
+from tiago_nav.scan import (HIT, INVALID, NO_RETURN, TOO_CLOSE, beam_angles, classify, scan_to_points,
+                            usable_ranges)
 
 LETHAL = 254
 INSCRIBED = 253
@@ -32,7 +33,8 @@ MAX_NON_LETHAL = 252
 class MapScan:
     """One laser scan placed in the map: the laser's pose ``(x, y, yaw)`` in ``map`` at the
     scan's stamp, the ranges [m] and the LaserScan's angle and range limits (laser frame, rad
-    and m), and the stamp [s, ROS time]."""
+    and m), the stamp [s, ROS time] and the laser's pose ``(x, y, yaw)`` in the base frame.
+    The ranges are stored as :func:`tiago_nav.scan.usable_ranges` leaves them."""
     laser_pose: tuple
     ranges: np.ndarray
     angle_min: float
@@ -40,6 +42,16 @@ class MapScan:
     range_min: float
     range_max: float
     stamp: float = 0.0
+    laser_in_base: tuple = None
+
+    def __post_init__(self):
+        """Keep only the beams the costmap may use (:func:`tiago_nav.scan.usable_ranges`): the
+        robot's own body (when ``laser_in_base``, the laser's pose in the base frame from tf, is
+        given; without it no body is filtered) and veils (mixed pixels) become invalid."""
+        kw = (dict(radius=0.0, margin=0.0) if self.laser_in_base is None
+              else dict(laser_pose=tuple(self.laser_in_base)))
+        object.__setattr__(self, 'ranges', usable_ranges(
+            self.ranges, self.angle_min, self.angle_increment, self.range_min, self.range_max, **kw))
 
     @cached_property
     def kinds(self):

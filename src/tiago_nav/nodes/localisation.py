@@ -12,6 +12,7 @@ and re-sent at ``republish_rate`` stamped now plus ``transform_tolerance`` (as A
 consumers asking for "now" then never extrapolate past the last transform, at the price of
 using an estimate up to ``transform_tolerance`` old.
 """
+import collections
 import math
 import sys
 import threading
@@ -102,7 +103,7 @@ class LocalisationNode:
         self.localiser = None
         self.lock = threading.Lock()
         self.map_to_odom = None
-        self.sent = None
+        self.sent = collections.deque(maxlen=64)    # recent stamps sent (tf refuses repeats)
         self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
         self.listener = tf2_ros.TransformListener(self.tf)
         self.pub_tf = rospy.Publisher(params.tf_topic, TFMessage, queue_size=10)
@@ -175,9 +176,9 @@ class LocalisationNode:
         stamp = stamp + rospy.Duration(self.p.transform_tolerance)
         with self.lock:
             m2o = self.map_to_odom
-            if m2o is None or stamp == self.sent:   # tf refuses a repeated stamp
+            if m2o is None or stamp in self.sent:   # tf refuses a repeated stamp
                 return
-            self.sent = stamp
+            self.sent.append(stamp)
         self.pub_tf.publish(TFMessage([transform_stamped(m2o, self.p.map_frame,
                                                          self.p.odom_frame, stamp)]))
 

@@ -48,6 +48,9 @@ class Params:
     navigator, runner)."""
     global_frame: str = param('map', 'frame of the map, plans and goals', nonempty=True)
     robot_base_frame: str = param('base_footprint', "the robot's base frame", nonempty=True)
+    odom_frame: str = param('odom', 'the odometry frame: scans and the robot pose are placed in '
+                            'the map with the newest global_frame -> odom_frame (localisation) '
+                            'and odometry at their own time', nonempty=True)
     scan_topic: str = param('/scan', 'sensor_msgs/LaserScan in', nonempty=True)
     map_topic: str = param('/map', 'nav_msgs/OccupancyGrid in (latched)', nonempty=True)
     cmd_vel_topic: str = param('/mobile_base_controller/cmd_vel', 'geometry_msgs/Twist out',
@@ -178,16 +181,36 @@ class MoveBase:
                 raise NotReady(problem())
             self.clock.sleep(0.05)
 
-    def _transform(self, source, stamp):
-        """``map <- source`` at ``stamp`` as ``(x, y, yaw)``, waiting up to
+    def _wait_for(self, target, source, stamp):
+        """Wait until tf can give ``target <- source`` at ``stamp``, up to
         ``transform_tolerance`` wall seconds (never on ROS time, which may stand still)."""
         t_end = self.clock.wall() + self.p.transform_tolerance
-        while not self.tf.can_transform(self.map_frame, source, stamp):
+        while not self.tf.can_transform(target, source, stamp):
             if self.clock.wall() > t_end or self.clock.shutdown():
-                break
+                return
             self.clock.sleep(0.005)
+
+    def _transform(self, source, stamp):
+        """``map <- source`` at ``stamp`` as ``(x, y, yaw)`` and its stamp [s] (see
+        :meth:`_wait_for`)."""
+        self._wait_for(self.map_frame, source, stamp)
         t = self.tf.lookup_transform(self.map_frame, source, stamp)
         return pose_from_transform(t.transform), t.header.stamp.to_sec()
+
+    def _in_map(self, source, stamp):
+        """``map <- source`` as ``(x, y, yaw)``: ``odom <- source`` at ``stamp`` (waiting as
+        :meth:`_transform` does) after the newest ``map <- odom``, so that a localisation
+        lagging behind the odometry (a loaded machine) delays nothing; ``map <- source``
+        directly when there is no odom frame."""
+        odom = self.p.odom_frame
+        self._wait_for(odom, source, stamp)
+        try:
+            m2o = self.tf.lookup_transform(self.map_frame, odom, rospy.Time(0))
+            o2s = self.tf.lookup_transform(odom, source, stamp)
+        except tf2_ros.TransformException:
+            return self._transform(source, stamp)
+        return (compose(pose_from_transform(m2o.transform), pose_from_transform(o2s.transform)),
+                o2s.header.stamp.to_sec())
 
     # --- inputs -----------------------------------------------------------------------------
     def on_tick(self, tick):
@@ -226,13 +249,14 @@ class MoveBase:
 
     def _add_scan(self, scan):
         try:
-            lp, _ = self._transform(scan.header.frame_id, scan.header.stamp)
+            lp, _ = self._in_map(scan.header.frame_id, scan.header.stamp)
+            t = self.tf.lookup_transform(self.p.robot_base_frame, scan.header.frame_id, scan.header.stamp)
         except tf2_ros.TransformException as e:
             self.scan_problem = 'scans cannot be placed in %s: %s' % (self.map_frame, e)
             rospy.logwarn_throttle(5.0, 'move_base: scan dropped, no transform: %s' % e)
             return
         ms = MapScan(lp, scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
-                     scan.range_max, scan.header.stamp.to_sec())
+                     scan.range_max, scan.header.stamp.to_sec(), pose_from_transform(t.transform))
         with self.lock:
             self.nav.add_scan(ms)
 
@@ -241,19 +265,19 @@ class MoveBase:
         return self.pose(self.lockstep.odom_stamp if self.lockstep.lockstep else None)
 
     def pose(self, stamp=None):
-        """``((x, y, yaw), stamp)`` of the base in map at ``stamp`` (rospy.Time, waiting up to
-        :data:`LOCKSTEP_WAIT` wall seconds) or now (None: the newest transform), or
-        :class:`PoseUnavailable`."""
+        """``((x, y, yaw), stamp)`` of the base in map: odometry at ``stamp`` (rospy.Time,
+        waiting up to :data:`LOCKSTEP_WAIT` wall seconds) or the newest odometry (None), after
+        the newest map -> odom (:meth:`_in_map`); or :class:`PoseUnavailable`."""
+        base = self.p.robot_base_frame
         try:
             if stamp is None:
-                t = self.tf.lookup_transform(self.map_frame, self.p.robot_base_frame, rospy.Time(0))
+                stamp = self.tf.lookup_transform(self.p.odom_frame, base, rospy.Time(0)).header.stamp
             else:
-                t = lookup_at(self.tf, self.map_frame, self.p.robot_base_frame, stamp,
-                              LOCKSTEP_WAIT)
+                lookup_at(self.tf, self.p.odom_frame, base, stamp, LOCKSTEP_WAIT)
+            return self._in_map(base, stamp)
         except tf2_ros.TransformException as e:
             raise PoseUnavailable('no transform %s -> %s: %s'
                                   % (self.map_frame, self.p.robot_base_frame, e)) from None
-        return pose_from_transform(t.transform), t.header.stamp.to_sec()
 
     def to_map(self, frame, pose):
         """``(x, y, yaw)`` in ``frame`` → map, or :class:`GoalError`."""

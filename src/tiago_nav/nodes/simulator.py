@@ -7,7 +7,9 @@ step, the stamps and frames, pacing against ``real_time_factor``) and publishes 
 publishers it is given, so a unit test drives it with fakes; :func:`main` does the ROS wiring.
 
 Frames: ``map`` → ``odom`` → ``base_footprint`` → ``base_link`` → ``base_laser_link`` (the last
-two fixed, on /tf_static). Everything a consumer needs (the latched map, /tf_static, the first
+two fixed, on /tf_static, unless ``publish_robot_frames`` is false; ``map`` → ``odom`` is the
+ground truth unless ``publish_map_to_odom`` is false). By default the laser is the ``tiago``
+model and odometry drifts (``odometry_model`` drift); /sim/ground_truth is the truth. Everything a consumer needs (the latched map, /tf_static, the first
 odometry, tf and scan) is published before the first /clock; after that /clock leads each step.
 """
 import math
@@ -25,6 +27,7 @@ from std_msgs.msg import String, UInt32
 from tf2_msgs.msg import TFMessage
 
 from tiago_nav.params import ParamError, nested, param, read_params, validate
+from tiago_nav.robot import BASE_LINK_HEIGHT
 from tiago_nav.ros import conversions
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.lockstep import LockstepHost
@@ -49,7 +52,12 @@ class Params:
                                     '!= 1 needs /use_sim_time', ge=0)
     robot_start: list = param([], "[x m, y m, yaw deg] in map overriding the world's robot_start; "
                               "[] = the world's")
-    sim: SimConfig = nested(SimConfig)
+    sim: SimConfig = nested(SimConfig, laser_model='tiago', odometry_model='drift')
+    publish_map_to_odom: bool = param(True, 'publish the ground-truth tf map_frame -> odom_frame '
+                                      '(false when a localisation node publishes it)')
+    publish_robot_frames: bool = param(True, 'publish the fixed base_frame -> base_link_frame -> '
+                                       'laser_frame on /tf_static (false when robot_state_publisher '
+                                       'publishes the URDF)')
     map_frame: str = param('map', 'the world frame (of /map and ground truth)', nonempty=True)
     odom_frame: str = param('odom', 'the odometry frame', nonempty=True)
     base_frame: str = param('base_footprint', "the base's frame, on the floor at its centre",
@@ -245,15 +253,19 @@ class SimulatorNode:
         return s
 
     def publish_static(self, stamp):
-        """The latched map and the fixed transforms base → base_link → laser."""
+        """The latched map and (with ``publish_robot_frames``) the fixed transforms base →
+        base_link (:data:`BASE_LINK_HEIGHT` up, as in urdf/tiago_base.urdf) → laser."""
         p = self.params
         msg = conversions.gridmap_to_msg(rasterise_world(self.world), p.map_frame, stamp)
         self.out.map.publish(msg)
         self.out.map_metadata.publish(msg.info)
+        if not p.publish_robot_frames:
+            return
         body = conversions.transform_stamped((0.0, 0.0, 0.0), p.base_frame, p.base_link_frame, stamp)
+        body.transform.translation.z = BASE_LINK_HEIGHT
         laser = conversions.transform_stamped((p.sim.laser.offset, 0.0, 0.0), p.base_link_frame,
                                               p.laser_frame, stamp)
-        laser.transform.translation.z = p.sim.laser.height
+        laser.transform.translation.z = p.sim.laser.height - BASE_LINK_HEIGHT
         self.out.tf_static.publish(TFMessage([body, laser]))
 
     def publish_collisions(self):
@@ -268,14 +280,18 @@ class SimulatorNode:
                                  % (n, x, y))
 
     def publish_odom(self, stamp):
-        """Odometry (odom → base) and its tf with map → odom, and the ground truth (map → base)."""
+        """Odometry (odom → base, drifting with ``odometry_model`` drift) and its tf, with
+        (``publish_map_to_odom``) the ground-truth map → odom = pose ∘ inverse(odom pose), and
+        the ground truth (map → base) on its own topic."""
         p = self.params
         odom_pose = self.sim.odom_pose
         velocity = self.sim.velocity
         self.out.odom.publish(odometry_msg(odom_pose, velocity, p.odom_frame, p.base_frame, stamp))
-        self.out.tf.publish(TFMessage([
-            conversions.transform_stamped(self.sim.map_to_odom, p.map_frame, p.odom_frame, stamp),
-            conversions.transform_stamped(odom_pose, p.odom_frame, p.base_frame, stamp)]))
+        transforms = [conversions.transform_stamped(odom_pose, p.odom_frame, p.base_frame, stamp)]
+        if p.publish_map_to_odom:
+            transforms.insert(0, conversions.transform_stamped(self.sim.map_to_odom, p.map_frame,
+                                                               p.odom_frame, stamp))
+        self.out.tf.publish(TFMessage(transforms))
         self.out.ground_truth.publish(odometry_msg(self.sim.pose, velocity, p.map_frame,
                                                    p.base_frame, stamp))
         self.odom_stamp = stamp

@@ -32,8 +32,9 @@ from tiago_nav.msg import (CorridorAction, CorridorGoal, TiagoTaskAction, TiagoT
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as ros_params
 from tiago_nav.ros.actions import server_connected
-from tiago_nav.ros.conversions import pose_from_transform, pose_stamped, scan_points
+from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
 from tiago_nav.ros.markers import obstacle_markers
+from tiago_nav.scan import scan_to_points, usable_ranges
 from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
 
 FEEDBACK_HEAD_START = 0.1    # [s wall] between the last feedback and the result
@@ -164,7 +165,10 @@ class RosBackend:
         scan = self._scan[0]
         laser = self._lookup(self.robot_frame, scan.header.frame_id, rospy.Time(0))
         robot = self._lookup(self.global_frame, self.robot_frame, scan.header.stamp)
-        points, _ = scan_points(scan)
+        ranges = usable_ranges(scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
+                               scan.range_max, laser)       # no self-hits, no veils
+        points, _ = scan_to_points(ranges, scan.angle_min, scan.angle_increment, scan.range_min,
+                                   scan.range_max)
         ahead = corridor_ahead(points, laser, robot, goal.pose)
         rospy.loginfo('corridor toward (%.2f, %.2f): %s', goal.x, goal.y,
                       'yes' if ahead else 'no')

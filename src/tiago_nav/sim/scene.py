@@ -16,7 +16,7 @@ import numpy as np
 
 from tiago_nav.geometry import compose
 from tiago_nav.params import ParamError, param, validate
-from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
+from tiago_nav.robot import LASER_HEIGHT, LASER_OFFSET, ROBOT_RADIUS
 from tiago_nav.scan import hits
 
 
@@ -66,7 +66,7 @@ class LaserConfig:
                              name='laser_range_max')
     offset: float = param(LASER_OFFSET, '[m] base_laser_link ahead of the base centre',
                           name='laser_offset')
-    height: float = param(0.3, '[m] base_laser_link above the floor, above the base body',
+    height: float = param(LASER_HEIGHT, '[m] base_laser_link above the floor, above the base body',
                           gt=ROBOT_HEIGHT, lt=WALL_HEIGHT, name='laser_height')
 
     def __post_init__(self):

@@ -1,11 +1,13 @@
 """Running whole missions from a script (scripts/run_demo.py, bench/bench_mission.py): start
-demo.launch on a private master, watch the robot (tf path, last scan, /map, /sim/collisions),
+demo.launch on a private master, watch the robot (true path from /sim/ground_truth, the
+localisation's error against it, last scan, /map, /sim/collisions),
 send TiagoTask goals through the client node's run loop (:func:`tiago_nav.nodes.client.run`),
 shut everything down.
 
 A process can join one ROS master only: use one :class:`Harness` per process. The benchmarks
 use :func:`free_port` and :func:`stop_process` for their own private launches too.
 """
+import math
 import os
 import signal
 import socket
@@ -68,6 +70,8 @@ class Harness:
         self.scan = None
         self.grid = None
         self.collisions = None
+        self.truth = None
+        self.loc_errors = []        # [(position m, |yaw| rad)] of the estimate against the truth
         self.lock = threading.Lock()
         self._node = False
 
@@ -91,7 +95,7 @@ class Harness:
             time.sleep(0.1)
         import rospy
         import tf2_ros
-        from nav_msgs.msg import OccupancyGrid
+        from nav_msgs.msg import OccupancyGrid, Odometry
         from sensor_msgs.msg import LaserScan
         from std_msgs.msg import UInt32
         rospy.init_node('mission_harness', anonymous=True, disable_signals=True)
@@ -101,6 +105,7 @@ class Harness:
         rospy.Subscriber('/scan', LaserScan, self._on_scan, queue_size=1)
         rospy.Subscriber('/map', OccupancyGrid, self._on_map, queue_size=1)
         rospy.Subscriber('/sim/collisions', UInt32, self._on_collisions, queue_size=1)
+        rospy.Subscriber('/sim/ground_truth', Odometry, self._on_truth, queue_size=1)
         self.wait_servers(timeout - (time.monotonic() - t0))
         threading.Thread(target=self._track, daemon=True).start()
 
@@ -125,7 +130,7 @@ class Harness:
             raise HarnessError('no obstacle_detection service (see %s)' % self.log_path) from None
         while self.grid is None or self.pose() is None:
             if time.monotonic() - t0 > timeout:
-                raise HarnessError('no /map or no tf map -> base_footprint (see %s)' % self.log_path)
+                raise HarnessError('no /map or no /sim/ground_truth (see %s)' % self.log_path)
             time.sleep(0.1)
 
     def _check_alive(self):
@@ -143,8 +148,18 @@ class Harness:
     def _on_collisions(self, msg):
         self.collisions = msg.data
 
+    def _on_truth(self, msg):
+        self.truth = msg
+
     def pose(self):
-        """Ground-truth base pose (the simulator's tf is ground truth) or None."""
+        """Ground-truth base pose ``(x, y, yaw)`` in map from /sim/ground_truth, or None (tf
+        map -> base_footprint is the localisation's estimate)."""
+        from tiago_nav.ros.conversions import pose_from_msg
+        msg = self.truth
+        return None if msg is None else pose_from_msg(msg.pose.pose)
+
+    def estimate(self):
+        """The localisation's estimate of the base pose (tf map -> base_footprint) or None."""
         import rospy
         from tiago_nav.ros.conversions import pose_from_transform
         try:
@@ -152,6 +167,34 @@ class Harness:
         except Exception:
             return None
         return pose_from_transform(t.transform)
+
+    def localisation_error(self):
+        """``(position [m], |yaw| [rad])`` of tf map -> base_footprint (the estimate) against
+        the latest /sim/ground_truth at its stamp, or None when either is missing."""
+        import rospy
+        from tiago_nav.geometry import wrap_angle
+        from tiago_nav.ros.conversions import pose_from_msg, pose_from_transform
+        msg = self.truth
+        if msg is None:
+            return None
+        try:
+            t = self.tf.lookup_transform('map', 'base_footprint', msg.header.stamp, rospy.Duration(0.2))
+        except Exception:
+            return None
+        (x, y, yaw), (ex, ey, eyaw) = pose_from_msg(msg.pose.pose), pose_from_transform(t.transform)
+        return math.hypot(ex - x, ey - y), abs(wrap_angle(eyaw - yaw))
+
+    def localisation_summary(self):
+        """p95 / max of :attr:`loc_errors` as ``{'samples', 'p95_m', 'max_m', 'p95_deg',
+        'max_deg'}`` (None without samples)."""
+        with self.lock:
+            e = list(self.loc_errors)
+        if not e:
+            return None
+        d = sorted(v[0] for v in e)
+        a = sorted(math.degrees(v[1]) for v in e)
+        p95 = max(0, int(math.ceil(0.95 * len(e))) - 1)
+        return {'samples': len(e), 'p95_m': d[p95], 'max_m': d[-1], 'p95_deg': a[p95], 'max_deg': a[-1]}
 
     def _track(self):
         import rospy
@@ -161,6 +204,10 @@ class Harness:
                 with self.lock:
                     if not self.path or abs(p[0] - self.path[-1][0]) + abs(p[1] - self.path[-1][1]) > 0.01:
                         self.path.append(p)
+            err = self.localisation_error()
+            if err is not None:
+                with self.lock:
+                    self.loc_errors.append(err)
             time.sleep(0.05)
 
     def scan_points_map(self, timeout=5.0):

@@ -71,7 +71,7 @@ class RouteResult:
 
 
 def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=LocaliserConfig(),
-              seed=0, drift=(0.02, 0.03, 0.01), scan_hook=None, max_time=120.0):
+              seed=0, drift=(0.02, 0.03, 0.01), scan_hook=None, max_time=120.0, laser=None):
     """Drive the simulator along ``route`` and localise at every scan.
 
     Args:
@@ -84,11 +84,13 @@ def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=L
         drift: ``(distance_error, rotation_error, noise)`` of :class:`DriftingOdometry`.
         scan_hook: optional ``f(ranges) -> ranges`` applied to each scan (to damage it).
         max_time: [s] of simulated time at most.
+        laser: the simulator's :class:`tiago_nav.sim.laser.LaserModel` (default ``ideal``).
 
     Returns:
         a :class:`RouteResult`.
     """
-    sim = Simulator(world, SimConfig(seed=seed))
+    sim = Simulator(world, SimConfig(seed=seed) if laser is None
+                    else SimConfig(seed=seed, laser_model=laser))
     try:
         grid = rasterise_world(world)
         las = sim.config.laser

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from tiago_nav.geometry import yaw_to_quaternion
+from tiago_nav.geometry import compose, inverse, yaw_to_quaternion
 from tiago_nav.nav.costmap import MapScan
 from tiago_nav.nav.navigator import NavConfig, Navigator
 from tiago_nav.nav.runner import ABORTED, PREEMPTED, SUCCEEDED, GoalRunner
@@ -91,11 +91,13 @@ class SimIO:
 
 class ClosedLoop:
     """A navigator, its goal runner and the simulator in one world. ``config``: the
-    :class:`NavConfig`; ``period``: control period [s]."""
+    :class:`NavConfig`; ``period``: control period [s]; ``laser``: the simulator's
+    :class:`tiago_nav.sim.laser.LaserModel` (default: the library's, ``ideal``)."""
 
-    def __init__(self, world, config=None, seed=3, start=None, period=0.1):
+    def __init__(self, world, config=None, seed=3, start=None, period=0.1, laser=None):
         self.world = world
-        self.sim = Simulator(world, SimConfig(seed=seed), start_pose=start)
+        sim_config = SimConfig(seed=seed) if laser is None else SimConfig(seed=seed, laser_model=laser)
+        self.sim = Simulator(world, sim_config, start_pose=start)
         self.grid = rasterise_world(world)
         self.nav = Navigator(self.grid, config or NavConfig())
         self.clock = SimClock(self.sim, self._on_step)
@@ -116,7 +118,8 @@ class ClosedLoop:
             ranges = self.scan_filter(np.array(ranges, dtype=float))
         self.nav.add_scan(MapScan(self.sim.scene.laser_pose(), ranges, laser.angle_min,
                                   laser.angle_increment, laser.range_min, laser.range_max,
-                                  self.sim.time))
+                                  self.sim.time, compose(inverse(self.sim.pose),
+                                                         self.sim.scene.laser_pose())))
 
     def _on_step(self, scan_due):
         if scan_due:

@@ -1,0 +1,192 @@
+"""tiago_nav.scan.usable_ranges, the one filter every scan consumer applies, and the consumers
+with the simulator's ``tiago`` laser model (self-hits, mixed pixels, dropouts): the costmap
+marks no body next to the robot, detection invents nothing at cylinder edges, the corridor law
+still centres, localisation still meets its bar."""
+import math
+import os
+
+import numpy as np
+import pytest
+
+from conftest import WORLDS
+from tiago_nav.detection.pipeline import DetectionParams, ObstacleDetector
+from tiago_nav.geometry import compose, inverse
+from tiago_nav.scan import beam_angles, body_returns, usable_ranges
+from tiago_nav.sim.laser import LaserModel
+from tiago_nav.sim.raster import rasterise_world
+from tiago_nav.sim.simulator import SimConfig, Simulator
+from tiago_nav.sim.world import World, load_world
+from tiago_nav.sim.worlds import corridor_world
+from tiago_nav.testing.corridor import run_in_simulator
+from tiago_nav.testing.evaluation import score, visible_truth
+from tiago_nav.testing.localisation import run_route
+from tiago_nav.testing.navigation import ClosedLoop
+
+N, A0, INC = 361, -math.pi / 2, math.pi / 360       # a 180 deg fan, 0.5 deg steps
+LASER = (0.2, 0.0, 0.0)
+POSE_B = (11.0, 0.0, math.radians(-45.0))
+
+
+def clean(r, **kw):
+    kw.setdefault('laser_pose', LASER)
+    return usable_ranges(r, A0, INC, 0.05, 25.0, **kw)
+
+
+def wall_at(x):
+    """Ranges of a wall across the fan ``x`` m ahead of the laser (beams within +-60 deg)."""
+    a = beam_angles(A0, INC, N)
+    return np.where(np.abs(a) < math.radians(60), x / np.cos(a), np.inf)
+
+
+# --- the filter -------------------------------------------------------------------------------
+
+def test_a_mixed_pixel_at_a_depth_edge_is_dropped_and_the_edge_kept():
+    r = wall_at(4.0)
+    r[170:181] = 2.0                        # something 2 m away in front of the wall
+    r[181] = 3.0                            # the beam straddling its edge: half-way
+    out = clean(r)
+    assert np.isnan(out[181])
+    assert np.all(out[170:181] == 2.0)      # the near edge is a real surface
+    assert out[182] == r[182]               # the wall behind it continues the veil: kept
+
+
+def test_range_noise_alone_makes_no_veil():
+    r = wall_at(0.6) + np.random.default_rng(0).normal(0.0, 0.01, N)   # close: beams 5 mm apart
+    out = clean(r)
+    assert np.array_equal(np.isnan(out), np.isnan(r))
+
+
+def test_a_wall_at_grazing_incidence_keeps_its_points():
+    # a wall 0.5 m to the left running ahead, beams every 0.1 deg: beyond 2.9 m along it, the
+    # wall is seen at under 10 deg, a chain of grazing steps
+    inc = math.radians(0.1)
+    a = beam_angles(0.0, inc, 900)
+    with np.errstate(divide='ignore'):
+        r = np.where(a > math.radians(2), 0.5 / np.sin(a), np.inf)
+    r[r > 25.0] = np.inf
+    out = usable_ranges(r, 0.0, inc, 0.05, 25.0, laser_pose=LASER)
+    far = np.isfinite(r) & (r * np.cos(a) > 2.9)
+    assert far.sum() > 50
+    assert np.isnan(out[far]).sum() <= 1    # only where the chain of grazing steps begins
+
+
+def test_rep117_values_keep_their_meaning_and_the_body_goes():
+    r = wall_at(3.0)
+    r[:5], r[5], r[6], r[-3:] = np.nan, -np.inf, 0.01, 0.15   # 0.01: out of limits (invalid)
+    backwards = (0.2, 0.0, math.pi / 2)     # the fan's last beams point backwards in the base
+    out = clean(r, laser_pose=backwards)
+    assert np.isnan(out[:5]).all() and out[5] == -np.inf and out[6] == 0.01
+    assert np.isinf(out[r == np.inf]).all()
+    # 0.15 m from the laser along them is inside the body
+    assert np.isnan(out[-3:]).all()
+    assert not np.isnan(clean(r, laser_pose=backwards, radius=0.0, margin=0.0)[-3:]).any()
+
+
+def test_the_body_follows_the_laser_pose_from_tf():
+    a = beam_angles(A0, INC, N)
+    r = np.full(N, 0.3)
+    facing_back = (0.0, 0.0, math.pi)       # every beam points backwards
+    # 0.3 m from the base centre is inside the 0.27 + 0.05 m body, 0.6 m outside
+    inner = slice(1, -1)                    # the +-90 deg beams point exactly sideways
+    assert body_returns(r, a, facing_back).all()
+    assert np.isnan(clean(r, laser_pose=facing_back)[inner]).all()
+    assert not np.isnan(clean(r * 2, laser_pose=facing_back)).any()
+
+
+def test_a_return_ahead_of_the_laser_is_never_the_body():
+    """An obstacle 3 cm from the front bumper (inside the body's margin) must stop the robot."""
+    r = np.full(N, np.inf)
+    r[180] = 0.1                            # straight ahead: 0.3 m from the base centre
+    assert clean(r)[180] == 0.1
+
+
+# --- the consumers with the tiago laser -------------------------------------------------------
+
+@pytest.fixture(scope='module')
+def course():
+    return load_world(os.path.join(WORLDS, 'ias_lab_room_full.yaml'))
+
+
+def tiago_sim(world, pose, seed=0):
+    return Simulator(world, SimConfig(seed=seed, laser_model=LaserModel()), start_pose=pose)
+
+
+@pytest.mark.parametrize('pose', [None, POSE_B, (5.0, 0.0, 0.0)])
+def test_the_costmap_marks_no_body_next_to_the_robot(course, pose):
+    loop = ClosedLoop(course, start=pose, laser=LaserModel())
+    try:
+        for _ in range(30):
+            loop.scan()
+        cm = loop.nav.costmap
+        centres = np.argwhere(cm.obstacles)
+        xy = cm.grid.cell_to_world(centres)
+        x, y, _ = loop.sim.pose
+        near = np.hypot(xy[:, 0] - x, xy[:, 1] - y) < 0.45     # the corridor's walls: 0.53 m
+        assert not near.any(), xy[near]
+    finally:
+        loop.close()
+
+
+def test_without_the_filter_the_body_would_be_marked(course):
+    """The test above can fail: the tiago laser's self-hits, unfiltered, are marked."""
+    from tiago_nav.nav.costmap import MapScan
+    loop = ClosedLoop(course, laser=LaserModel())
+    try:
+        las = loop.sim.config.laser
+        scan = MapScan(loop.sim.scene.laser_pose(), loop.sim.scan(), las.angle_min,
+                       las.angle_increment, las.range_min, las.range_max)   # no laser_in_base
+        pts, _ = scan.obstacles
+        x, y, _ = loop.sim.pose
+        assert (np.hypot(pts[:, 0] - x, pts[:, 1] - y) < 0.35).sum() >= 30
+    finally:
+        loop.close()
+
+
+def test_detection_finds_no_mixed_pixels_at_cylinder_edges(course):
+    det = ObstacleDetector(rasterise_world(course), DetectionParams())
+    errors, false_positives, mixed = [], 0, 0
+    for seed in range(20):
+        sim = tiago_sim(course, POSE_B, seed)
+        try:
+            las = sim.config.laser
+            r = sim.scan()
+            exact, _ = sim.scene.cast(sim.pose)
+            laser = sim.scene.laser_pose()
+            found = det.detect(r, las.angle_min, las.angle_increment, las.range_min, las.range_max,
+                               laser, laser_in_base=compose(inverse(sim.pose), laser))
+            truth = visible_truth(course, sim.pose)
+        finally:
+            sim.close()
+        ok = np.isfinite(r) & np.isfinite(exact)
+        mixed += int(np.sum(np.abs(r[ok] - exact[ok]) > 0.1))
+        s = score([(tx, ty) for _, tx, ty, _ in truth], [d.center for d in found])
+        assert s['matched'] == len(truth) == 4, (seed, s)
+        false_positives += s['false_positives']
+        errors += [e for _, _, e in s['pairs']]
+    assert mixed >= 40                          # the model made mixed pixels (and self-hits)
+    assert false_positives == 0
+    assert math.sqrt(np.mean(np.square(errors))) <= 0.02
+
+
+def test_the_corridor_law_still_centres_with_the_tiago_laser():
+    sim = Simulator(World.from_dict(corridor_world(1.07, 5.0, start=(-1.5, -0.15, math.radians(-15)))),
+                    SimConfig(seed=7, laser_model=LaserModel()))
+    track = []
+    try:
+        cmd, _ = run_in_simulator(sim, timeout=40.0, on_step=lambda s, c: track.append(s.pose))
+        collisions = sim.collisions
+    finally:
+        sim.close()
+    track = np.array(track)
+    assert cmd.state == 'done', cmd.reason
+    assert collisions == 0
+    assert 5.1 < track[-1, 0] < 5.7 and abs(track[-1, 1]) < 0.05
+    inside = track[(track[:, 0] > 1.0) & (track[:, 0] < 5.0)]
+    assert np.sqrt(np.mean(inside[:, 1] ** 2)) < 0.03
+
+
+def test_localisation_meets_its_bar_with_the_tiago_laser(course):
+    res = run_route(course, route=((2.0, 0.0), (5.5, 0.0), (7.2, -0.3), (8.6, -0.9)), seed=5,
+                    laser=LaserModel())
+    assert res.p95('loc_xy') <= 0.05 and res.p95('loc_yaw') <= math.radians(2.0), \
+        (res.p95('loc_xy'), math.degrees(res.p95('loc_yaw')))
