@@ -60,7 +60,8 @@ import numpy as np
 from tiago_nav.geometry import compose, inverse, transform_points, wrap_angle
 from tiago_nav.params import param, validate
 from tiago_nav.robot import ROBOT_RADIUS
-from tiago_nav.scan import TOO_CLOSE, classify, informative_fraction, scan_to_points, usable_ranges
+from tiago_nav.scan import (TOO_CLOSE, FrozenScanCheck, classify, informative_fraction, scan_to_points,
+                            usable_ranges)
 
 
 @dataclass(frozen=True)
@@ -444,6 +445,7 @@ class CorridorFollower:
         self.points = np.zeros((0, 2))     # last scan's hits, odom frame
         self.too_close = np.zeros((0, 2))  # its too-close beams at range_min, odom frame
         self.unusable = ''                 # why the last scan said nothing, if it did not
+        self.frozen = FrozenScanCheck()
         self.scans = 0
         self.misses = 0
         self.failure = ''
@@ -459,10 +461,13 @@ class CorridorFollower:
         its hits only; a too-close beam (-inf) is an obstacle at ``range_min`` along
         it for the front safety check; no-return and invalid beams give no point.
 
-        A scan with too few informative beams (:func:`scan_usability`) says nothing: the walls
+        A scan with too few informative beams (:func:`scan_usability`), or a repeat of the last
+        one taken while the laser moved (:class:`tiago_nav.scan.FrozenScanCheck`), says nothing: the walls
         are not updated and :meth:`command` answers ``blocked`` until a usable scan arrives.
         Returns the fitted :class:`Walls` (robot frame) or ``None``."""
         self.unusable = scan_usability(scan, self.p)
+        if not self.unusable and self.frozen(scan.ranges, laser_pose):
+            self.unusable = 'blocked: the laser repeats its last scan while the robot moves (a stuck driver?)'
         if self.unusable:
             return None
         ranges = usable_ranges(scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,

@@ -165,3 +165,34 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
         drop |= back[k + 1] & ~back[np.minimum(k + 2, n)]
     r[drop] = np.nan
     return r
+
+
+class FrozenScanCheck:
+    """Tells a stuck laser driver from a live laser: a driver that hangs may go on sending its
+    last ranges with new stamps. Real ranges are noisy (the TiM571's 20 mm, 1 mm steps), so two
+    scans whose every range is bit-identical while the laser moved are one scan sent again.
+
+    Call it with each scan's ranges and the laser's pose ``(x, y, yaw)`` [m, rad] in a fixed
+    frame (map or odom) at the scan's stamp; it returns True for a repeat taken after the laser
+    moved at least ``min_motion`` [m] or turned ``min_turn`` [rad] since the first copy. A
+    standing robot's repeats are not flagged (nothing is gained by driving on them), nor are
+    scans with fewer than ``min_hits`` finite ranges (only measured ranges carry noise: open
+    floor with no return in range looks the same from everywhere). A laser simulated without
+    any noise in a scene that looks the same as the robot moves would be taken for a stuck one.
+    """
+
+    def __init__(self, min_motion=0.02, min_turn=np.radians(1.0), min_hits=10):
+        self.min_motion, self.min_turn, self.min_hits = min_motion, min_turn, min_hits
+        self.ranges = None
+        self.pose = None
+
+    def __call__(self, ranges, laser_pose):
+        r = np.asarray(ranges, dtype=float)
+        if self.ranges is not None and r.shape == self.ranges.shape \
+                and np.array_equal(r, self.ranges, equal_nan=True) \
+                and np.isfinite(r).sum() >= self.min_hits:
+            dx, dy = laser_pose[0] - self.pose[0], laser_pose[1] - self.pose[1]
+            turn = abs((laser_pose[2] - self.pose[2] + np.pi) % (2 * np.pi) - np.pi)
+            return bool(np.hypot(dx, dy) >= self.min_motion or turn >= self.min_turn)
+        self.ranges, self.pose = r.copy(), tuple(laser_pose)
+        return False

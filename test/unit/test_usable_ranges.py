@@ -190,3 +190,36 @@ def test_localisation_meets_its_bar_with_the_tiago_laser(course):
                     laser=LaserModel())
     assert res.p95('loc_xy') <= 0.05 and res.p95('loc_yaw') <= math.radians(2.0), \
         (res.p95('loc_xy'), math.degrees(res.p95('loc_yaw')))
+
+
+def test_a_repeated_scan_is_frozen_only_once_the_laser_moved():
+    from tiago_nav.scan import FrozenScanCheck
+    rng = np.random.default_rng(0)
+    live = FrozenScanCheck()
+    # a live, noisy laser: never frozen, moving or not
+    assert not any(live(5.0 + rng.normal(0, 0.01, 666), (0.01 * k, 0.0, 0.0)) for k in range(20))
+    stuck = FrozenScanCheck()
+    r = 5.0 + rng.normal(0, 0.01, 666)
+    r[::7] = np.nan
+    assert not stuck(r, (0.0, 0.0, 0.0))
+    assert not stuck(r.copy(), (0.0, 0.0, 0.0))          # a standing robot: nothing to gain
+    assert not stuck(r.copy(), (0.01, 0.0, 0.0))         # moved 1 cm: not yet
+    assert stuck(r.copy(), (0.03, 0.0, 0.0))             # moved 3 cm with the same ranges
+    assert stuck(r.copy(), (0.0, 0.0, 0.05))             # or turned 3 deg
+    assert not stuck(r + 0.001, (0.1, 0.0, 0.0))         # a new scan: live again
+
+
+def test_the_corridor_law_blocks_on_a_frozen_laser():
+    from tiago_nav.corridor import CorridorFollower, CorridorParams, Scan
+    rng = np.random.default_rng(1)
+    f = CorridorFollower(CorridorParams())
+    a = np.linspace(-1.92, 1.92, 666)
+    with np.errstate(divide='ignore'):
+        r = np.where(np.abs(np.sin(a)) > 1e-6, 0.55 / np.abs(np.sin(a)), np.inf)
+    r = np.where(r * np.cos(a) < 4.0, r + rng.normal(0, 0.005, 666), np.inf)
+    scan = Scan(0.0, 'base_laser_link', r, a[0], a[1] - a[0], 0.05, 25.0)
+    f.update_laser(scan, (0.2, 0.0, 0.0), (0.0, 0.0, 0.0))
+    assert not f.unusable
+    f.update_laser(scan, (0.3, 0.0, 0.0), (0.1, 0.0, 0.0))          # same ranges 10 cm further on
+    assert 'repeats its last scan' in f.unusable
+    assert f.command((0.1, 0.0, 0.0)).state == 'blocked'

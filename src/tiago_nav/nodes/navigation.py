@@ -27,6 +27,7 @@ from std_srvs.srv import Empty, EmptyResponse
 
 from tiago_nav.geometry import compose
 from tiago_nav.nav.costmap import MapScan
+from tiago_nav.scan import FrozenScanCheck
 from tiago_nav.nav.navigator import NavConfig, Navigator
 from tiago_nav.nav.planner import PlanError
 from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, GoalRunner,
@@ -142,6 +143,7 @@ class MoveBase:
         self.nav = Navigator(gridmap_from_msg(msg), p.nav)
         self.scan_problem = 'no message on %s' % p.scan_topic
         self.intake = threading.Condition()
+        self.frozen = FrozenScanCheck()
         self.last_scan_stamp = None         # rospy.Time of the newest scan taken in
         self.lockstep = LockstepParticipant(1.0 / p.controller_frequency, ready=self.on_tick)
         # in lockstep every scan, in order (the cycle waits for its own); else the newest only
@@ -254,6 +256,10 @@ class MoveBase:
         except tf2_ros.TransformException as e:
             self.scan_problem = 'scans cannot be placed in %s: %s' % (self.map_frame, e)
             rospy.logwarn_throttle(5.0, 'move_base: scan dropped, no transform: %s' % e)
+            return
+        if self.frozen(scan.ranges, lp):
+            self.scan_problem = 'the laser repeats its last scan while the robot moves (a stuck driver?)'
+            rospy.logwarn_throttle(5.0, 'move_base: scan ignored: %s' % self.scan_problem)
             return
         ms = MapScan(lp, scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
                      scan.range_max, scan.header.stamp.to_sec(), pose_from_transform(t.transform))

@@ -86,15 +86,16 @@ class FakeCorridorRobot:
     moving whenever ``clock`` (a FakeClock) advances.
 
     The base reaches the commanded velocities within ``accel`` [m/s^2] (and 2 ``accel`` rad/s^2);
-    an ideal laser (666 beams over +-110 deg, 0.05-25 m, ``LASER_OFFSET`` ahead of the base)
-    scans every ``scan_period`` [s]; ``map`` and ``odom`` coincide. Faults for the tests:
+    a laser (666 beams over +-110 deg, 0.05-25 m, ``LASER_OFFSET`` ahead of the base, an exact
+    cast plus ``noise`` [m] of seeded Gaussian range noise: a live laser is never bit-identical
+    twice) scans every ``scan_period`` [s]; ``map`` and ``odom`` coincide. Faults for the tests:
     ``laser_on`` False stops the scans, ``corrupt(ranges)`` rewrites each scan's ranges,
     ``tf_ok`` False makes every lookup fail. ``track`` records ``(t, x, y, yaw, v_cmd)``.
     """
     FRAMES = ('map', 'odom')
 
     def __init__(self, world, clock, cmd_pub, pose=None, scan_period=1.0 / 15.0, accel=1.0,
-                 corrupt=None):
+                 corrupt=None, noise=0.005, seed=0):
         self.world = world if isinstance(world, World) else World.from_dict(world)
         self.segments = world_segments(self.world)
         self.clock, self.cmd_pub = clock, cmd_pub
@@ -103,6 +104,7 @@ class FakeCorridorRobot:
         self.scan_period, self.accel = scan_period, accel
         self.angles = np.linspace(-math.radians(110.0), math.radians(110.0), 666)
         self.laser_on, self.tf_ok, self.corrupt = True, True, corrupt
+        self.noise, self.rng = noise, np.random.default_rng(seed)
         self.scan = None
         self.history = [(clock.now(), self.pose)]
         self.track = []
@@ -126,6 +128,8 @@ class FakeCorridorRobot:
             self._since_scan = 0.0
             laser = compose(self.pose, (LASER_OFFSET, 0.0, 0.0))
             r = ray_cast(laser, self.angles + laser[2], self.segments, 25.0)
+            finite = np.isfinite(r)
+            r[finite] += self.rng.normal(0.0, self.noise, int(finite.sum()))
             r[r < 0.05] = -np.inf
             if self.corrupt is not None:
                 r = self.corrupt(r)
