@@ -129,13 +129,13 @@ class KillTest(unittest.TestCase):
              '--corridor=%s' % ('true' if corridor else 'false')],
             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
-    def kill_when(self, client, trigger, node, bound_from=None):
+    def kill_when(self, client, trigger, node, bound_from=None, pid=None):
         """Wait for a feedback that ``trigger(fb)`` accepts, then SIGKILL ``node``; then check
         the abort (within :data:`BOUND` of the kill, or of the first feedback ``bound_from``
         accepts if that comes later) and the client's exit; return the result's message."""
         try:
             self.wait_feedback(trigger, 'the feedback to kill %s at' % node)
-            os.kill(node_pid(node), signal.SIGKILL)
+            os.kill(pid or node_pid(node), signal.SIGKILL)
             t_ref = time.monotonic()
             self.watch.wait(lambda: self.watch.result is not None, WAIT, 'the task result')
             if bound_from is not None:
@@ -206,7 +206,8 @@ class SimTest(KillTest):
         c = self.start_client(gx, gy, 0.0, False)
         self.wait_feedback(lambda f: f.state == FB.MOVING, 'MOVING')
         os.kill(pid, signal.SIGSTOP)
-        msg = self.kill_when(c, lambda f: f.state == FB.DETECTING, '/obstacle_detection')
+        msg = self.kill_when(c, lambda f: f.state == FB.DETECTING, '/obstacle_detection',
+                             pid=pid)
         self.assertTrue(msg.startswith('detection failed: the obstacle_detection service '
                                        'failed'), msg)
         self.assert_stopped()
