@@ -26,7 +26,8 @@ ROOT = os.path.dirname(os.path.abspath(os.path.dirname(__file__)))
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 SHIPPED = ['ias_lab_room_full.yaml', 'open_hall.yaml']
 # generated worlds: corridor_world keyword arguments (a closed room whose only way out is the
-# corridor, open floor after it; an unmapped cylinder beyond the corridor for detection)
+# corridor, open floor after it, walled in at the map's bounds; an unmapped cylinder beyond
+# the corridor for detection)
 GENERATED = {
     'gen_straight_0.9': dict(width=0.9, length=4.0, obstacle=(6.0, 1.0, 0.18)),
     'gen_bend_1.2': dict(width=1.2, length=5.0, bend_deg=30.0, bend_at=2.5,
@@ -41,10 +42,25 @@ def world_path(name, tmp):
         return os.path.join(ROOT, 'worlds', name)
     import yaml
     from tiago_nav.sim.worlds import corridor_world
+    world = corridor_world(name=name, **GENERATED[name])
+    world['walls'] += enclosure(world['bounds'])
     path = os.path.join(tmp, name + '.yaml')
     with open(path, 'w') as f:
-        yaml.safe_dump(corridor_world(name=name, **GENERATED[name]), f)
+        yaml.safe_dump(world, f)
     return path
+
+
+def enclosure(bounds, wall=0.15):
+    """Walls (world-file dicts) just inside ``bounds`` [xmin, ymin, xmax, ymax] [m]: the
+    generated worlds' open floor ends at a wall, not at the map's edge (a robot that leaves
+    the map can plan no more)."""
+    x0, y0, x1, y1 = bounds
+    x0, y0, x1, y1 = x0 + wall, y0 + wall, x1 - wall, y1 - wall
+    cx, cy, lx, ly = (x0 + x1) / 2, (y0 + y1) / 2, x1 - x0 + wall, y1 - y0 + wall
+    return [{'x': cx, 'y': y0, 'length': lx, 'width': wall, 'yaw_deg': 0.0},
+            {'x': cx, 'y': y1, 'length': lx, 'width': wall, 'yaw_deg': 0.0},
+            {'x': x0, 'y': cy, 'length': ly, 'width': wall, 'yaw_deg': 90.0},
+            {'x': x1, 'y': cy, 'length': ly, 'width': wall, 'yaw_deg': 90.0}]
 
 
 def run_world(name, n, seed, rtf, limit):
