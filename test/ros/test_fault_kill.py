@@ -8,7 +8,8 @@ A node can be killed only once per launch, so the cases are ordered (test names)
 classes, chosen by the test's argument:
 - ``chain`` (course world, from its start): corridor_controller killed in the corridor; then
   (corridor law off) obstacle_detection killed once the robot has arrived, before DETECTING;
-  then move_base killed while the robot moves.
+  then move_base killed while the robot moves; then the proxy itself (waiting for move_base):
+  the client exits 1 within 6 s.
 - ``sim`` (course world, starting near pose B, ``sim_required:=false``): obstacle_detection
   killed during its call (frozen first, so that the call hangs in it); then the
   simulator killed while the robot moves.
@@ -195,6 +196,23 @@ class ChainTest(KillTest):
         msg = self.kill_when(c, lambda f: f.state == FB.MOVING, '/move_base')
         self.assertTrue(msg.startswith('navigation failed: the move_base server went away'), msg)
         self.assert_stopped()
+
+    def test_4_proxy_killed_the_client_exits_1(self):
+        """move_base is gone (test 3), so the proxy waits for it in NAVIGATING: killed there,
+        the client must not wait forever."""
+        c = self.start_client(11.0, 0.0, -45.0, False)
+        try:
+            self.wait_feedback(lambda f: f.state == FB.NAVIGATING, 'NAVIGATING')
+            os.kill(node_pid('/tiago_controller'), signal.SIGKILL)
+            t_kill = time.monotonic()
+            out, _ = c.communicate(timeout=WAIT)
+        finally:
+            if c.poll() is None:
+                c.kill()
+        self.assertLess(time.monotonic() - t_kill, BOUND + 1.0, out)
+        self.assertEqual(c.returncode, 1, out)
+        self.assertIn('ABORTED: tiago_controller failed: the /tiago_controller action server '
+                      'went away', out)
 
 
 class SimTest(KillTest):
