@@ -226,8 +226,11 @@ class SimTest(KillTest):
         os.kill(pid, signal.SIGSTOP)
         msg = self.kill_when(c, lambda f: f.state == FB.DETECTING, '/obstacle_detection',
                              pid=pid)
-        self.assertTrue(msg.startswith('detection failed: the obstacle_detection service '
-                                       'failed'), msg)
+        # the kill races the proxy's call: in flight, the call fails; not yet made, the
+        # proxy finds the service registered but dead. Either way detection is named, < 5 s.
+        self.assertTrue(msg.startswith('detection failed: the obstacle_detection service failed')
+                        or msg.startswith('detection failed: the /obstacle_detection service '
+                                          'went away'), msg)
         self.assert_stopped()
 
     def test_2_simulator_killed_while_moving(self):

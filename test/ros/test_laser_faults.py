@@ -40,7 +40,7 @@ from tiago_nav.sim.world import load_world
 
 from test_mission import MissionTest
 
-WAIT = 60.0          # [s wall] bound on server waits and on one mission
+WAIT = 90.0          # [s wall] bound on server waits and on one mission
 FAULT = 2.0          # [s simulated] length of a fault burst
 STOPPED = 0.05       # [m/s] stopped below this (ground truth, linear speed)
 SILENT_STOP = 1.0    # [s simulated] move_base's stop command within this of a silent laser
