@@ -31,10 +31,9 @@ TARGET_WALL = 20.0
 def run_world(world_file, n, seed, rtf):
     """Child process: one launch, the world's missions; prints ``RESULT <json>`` last."""
     import numpy as np
-    from tiago_nav.testing.evaluation import sample_goals, score, visible_truth
-    from tiago_nav.testing.harness import Harness
+    from tiago_nav.testing.evaluation import sample_goals
+    from tiago_nav.testing.harness import Harness, mission_record
     from tiago_nav.sim.world import load_world
-    import rospy
 
     path = os.path.join(ROOT, 'worlds', world_file)
     world = load_world(path)
@@ -49,24 +48,12 @@ def run_world(world_file, n, seed, rtf):
     try:
         h.connect(timeout=90.0)
         for x, y, yaw, corridor in goals:
-            c0 = h.collisions or 0
-            t_sim = rospy.get_time()
-            lines = []
-            code, state, result, wall = h.mission(x, y, yaw, corridor, out=lines.append)
-            sim = rospy.get_time() - t_sim
-            final = h.pose()
-            truth = visible_truth(world, final) if final else []
-            found = [(o.center.x, o.center.y) for o in result.obstacles] if result else []
-            s = score([(tx, ty) for _, tx, ty, _ in truth], found)
-            rec = {'world': world.name, 'goal': [x, y, yaw], 'use_corridor_law': corridor,
-                   'succeeded': code == 0, 'message': lines[-1] if code else
-                   (result.message if result else ''), 'wall_s': wall, 'sim_s': sim,
-                   'collisions': (h.collisions or 0) - c0, 'in_view': s['true'], 'found': s['found'],
-                   'matched': s['matched'], 'recall': s['recall'],
-                   'false_positives': s['false_positives'], 'rms_error_m': s['rms_error'],
-                   'max_error_m': s['max_error'],
-                   'errors_m': [e for _, _, e in s['pairs']],
-                   'final_pose': list(final) if final else None}
+            rec = mission_record(h, world, (x, y, yaw), corridor)
+            del rec['lines']
+            code = 0 if rec['succeeded'] else 1
+            wall, sim = rec['wall_s'], rec['sim_s']
+            s = {'matched': rec['matched'], 'true': rec['in_view'],
+                 'false_positives': rec['false_positives'], 'rms_error': rec['rms_error_m']}
             out.append(rec)
             print('  %-18s B=(%6.2f, %6.2f, %5.0f) corridor=%-5s %-9s wall %5.1f s  sim %5.1f s  '
                   'recall %d/%d  FP %d  RMS %s  collisions %d'

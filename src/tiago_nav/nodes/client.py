@@ -16,10 +16,11 @@ from tiago_nav.mission.client import (EXIT_FAILED, EXIT_OK, EXIT_USAGE, SERVER_T
                                       UsageError, feedback_line, obstacle_rows, obstacle_table,
                                       parse_client_args)
 from tiago_nav.mission.sentences import fmt_pose
-from tiago_nav.ros.actions import TaskClient, wait_server
+from tiago_nav.ros.actions import TaskClient, server_connected, wait_server
 from tiago_nav.ros.conversions import pose_from_msg
 
 CANCEL_TIMEOUT = 15.0     # [s wall] after Ctrl-C, wait this long for the server to confirm
+SERVER_LOST = 3.0         # [s wall] a task whose server has been gone this long is lost
 _ACTIVE = (GoalStatus.PENDING, GoalStatus.ACTIVE, GoalStatus.PREEMPTING, GoalStatus.RECALLING)
 _NAMES = {GoalStatus.ABORTED: 'ABORTED', GoalStatus.PREEMPTED: 'PREEMPTED',
           GoalStatus.REJECTED: 'REJECTED', GoalStatus.RECALLED: 'RECALLED',
@@ -58,10 +59,20 @@ def run(goal, out=print, server_timeout=SERVER_TIMEOUT, action='tiago_controller
     out('sending pose B (%.2f, %.2f, %.1f deg), corridor law %s'
         % (g.x, g.y, g.yaw_deg, 'on' if g.use_corridor_law else 'off'))
     client.send_goal(g, feedback_cb=on_feedback)
+    gone_since = None
     try:
         while not client.wait_for_result(0.2):
             if rospy.is_shutdown():
                 raise KeyboardInterrupt
+            now = time.monotonic()
+            if server_connected(client):
+                gone_since = None
+            elif gone_since is None:
+                gone_since = now
+            elif now - gone_since > SERVER_LOST:
+                out('ABORTED: tiago_controller failed: the %s action server went away (gone for '
+                    '%g s)' % (rospy.resolve_name(action), SERVER_LOST))
+                return EXIT_FAILED
     except KeyboardInterrupt:
         out('interrupted: cancelling the task and waiting for the robot to stop...')
         client.cancel_goal()

@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass
 
 import actionlib
+import rosgraph
 import rospy
 import tf2_ros
 from actionlib_msgs.msg import GoalStatus
@@ -38,6 +39,7 @@ from tiago_nav.scan import scan_to_points, usable_ranges
 from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
 
 FEEDBACK_HEAD_START = 0.1    # [s wall] between the last feedback and the result
+SERVICE_PROBE = 0.2          # [s wall] one try to reach the detection service
 SHUTDOWN_FLUSH = 0.3         # [s wall] on shutdown, time for the cancels and the stop to go out
 _TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException,
               tf2_ros.ExtrapolationException)
@@ -216,11 +218,7 @@ class RosBackend:
     # --- detection ---------------------------------------------------------------------------
     def detect(self, timeout):
         name = self.p.detection_service
-        try:
-            rospy.wait_for_service(name, timeout=self.cfg.server_timeout)
-        except rospy.ROSException:
-            raise DetectionError('no %s service after %g s (is it running?)'
-                                 % (rospy.resolve_name(name), self.cfg.server_timeout)) from None
+        self._wait_service(name)
         proxy = rospy.ServiceProxy(name, DetectObstacles)
         box = {}
 
@@ -238,6 +236,37 @@ class RosBackend:
             raise DetectionError('the %s service failed: %s' % (name, box['error']))
         resp = box['response']
         return resp.success, list(resp.obstacles), resp.message
+
+    def _wait_service(self, name):
+        """Wait (wall clock) for the service ``name`` to answer: up to ``server_timeout`` while
+        it is not registered (a node still starting), but only ``server_lost_timeout`` while it
+        is registered and does not answer (its node died: a killed process leaves its
+        registration behind). :class:`DetectionError` saying which otherwise."""
+        resolved = rospy.resolve_name(name)
+        master = rosgraph.Master(rospy.get_name())
+        t0 = time.monotonic()
+        gone_since = None
+        while True:
+            try:
+                rospy.wait_for_service(resolved, timeout=SERVICE_PROBE)
+                return
+            except rospy.ROSException:
+                pass
+            now = time.monotonic()
+            try:
+                master.lookupService(resolved)
+                gone_since = now if gone_since is None else gone_since
+            except (rosgraph.MasterError, OSError):
+                gone_since = None
+            if rospy.is_shutdown():
+                raise DetectionError('node shutting down')
+            if gone_since is not None and now - gone_since > self.cfg.server_lost_timeout:
+                raise DetectionError('the %s service went away: registered but not answering '
+                                     '(gone for %g s; did its node die?)'
+                                     % (resolved, self.cfg.server_lost_timeout))
+            if now - t0 > self.cfg.server_timeout:
+                raise DetectionError('no %s service after %g s (is it running?)'
+                                     % (resolved, self.cfg.server_timeout))
 
     # --- feedback ----------------------------------------------------------------------------
     def publish_feedback(self, state, status, pose):

@@ -19,6 +19,10 @@ import time
 from tiago_nav.geometry import compose, transform_points
 
 
+MISSION_NODES = ('/simulator', '/move_base', '/corridor_controller', '/obstacle_detection',
+                 '/tiago_controller')
+
+
 def free_port():
     """A TCP port on localhost that is free now (for a private ROS master)."""
     with socket.socket() as s:
@@ -228,19 +232,54 @@ class Harness:
         pts, _ = scan_points(scan)
         return transform_points(laser, pts)
 
-    def mission(self, x, y, yaw_deg, use_corridor_law, out=print):
+    def mission(self, x, y, yaw_deg, use_corridor_law, out=print, limit=None):
         """Run one TiagoTask to pose B (``x``, ``y`` [m] in map, ``yaw_deg``) as the client
         does, printing its lines with ``out``; return ``(exit code, GoalStatus, TiagoTaskResult,
-        wall seconds)``."""
+        wall seconds)``. With ``limit`` [s wall]: a task with no terminal state by then is a
+        hang: it is cancelled (every goal of the action) and the exit code is None."""
         from tiago_nav.nodes.client import run
         box = {}
 
         def on_result(state, result):
             box['state'], box['result'] = state, result
+
+        def go():
+            box['code'] = run(goal, out=out, server_timeout=10.0, on_result=on_result)
         goal = {'x': x, 'y': y, 'yaw_deg': yaw_deg, 'use_corridor_law': use_corridor_law}
         t0 = time.monotonic()
-        code = run(goal, out=out, server_timeout=10.0, on_result=on_result)
-        return code, box.get('state'), box.get('result'), time.monotonic() - t0
+        worker = threading.Thread(target=go, daemon=True)
+        worker.start()
+        worker.join(limit)
+        if worker.is_alive():
+            self._cancel_all()
+            worker.join(30.0)
+            return None, box.get('state'), box.get('result'), time.monotonic() - t0
+        return box.get('code'), box.get('state'), box.get('result'), time.monotonic() - t0
+
+    def _cancel_all(self):
+        """Cancel every goal of the tiago_controller action (an empty GoalID)."""
+        import rospy
+        from actionlib_msgs.msg import GoalID
+        pub = rospy.Publisher('/tiago_controller/cancel', GoalID, queue_size=1, latch=True)
+        pub.publish(GoalID())
+
+    def dead_nodes(self, names=MISSION_NODES):
+        """Which of the nodes ``names`` are gone: not registered with the master, or registered
+        but not answering (a crashed process leaves its registration behind)."""
+        import rosgraph
+        import xmlrpc.client
+        master = rosgraph.Master('/mission_harness')
+        dead = []
+        for name in names:
+            try:
+                uri = master.lookupNode(name)
+                proxy = xmlrpc.client.ServerProxy(uri)
+                code, _, _ = proxy.getPid('/mission_harness')
+                if code != 1:
+                    dead.append(name)
+            except Exception:           # unknown to the master, or its process gone
+                dead.append(name)
+        return dead
 
     # --- shutdown ------------------------------------------------------------------------------
     def close(self):
@@ -251,6 +290,47 @@ class Harness:
         for p in (self.launch, self.core):
             stop_process(p)
         self.log.close()
+
+
+def mission_record(h, world, goal, use_corridor_law, limit=None):
+    """Run one mission through the :class:`Harness` ``h`` (connected) and judge it against
+    ``world`` (:class:`tiago_nav.sim.world.World`, ground truth from the simulator's tf).
+
+    Args:
+        h: the harness.
+        world: the world it runs.
+        goal: pose B ``(x, y, yaw_deg)`` [m, m, deg] in map.
+        use_corridor_law: the goal's flag.
+        limit: [s wall] a mission without a terminal state by then is a hang (None: no bound).
+
+    Returns a dict: goal, ``succeeded``, ``hang``, ``message`` (the client's last line on
+    failure, else the result's message), wall and simulated seconds, ``collisions`` during the
+    mission, detection figures (``in_view``, ``found``, ``matched``, ``recall``,
+    ``false_positives``, ``rms_error_m``, ``max_error_m``, ``errors_m``), ``final_pose`` and
+    ``lines`` (everything the client printed).
+    """
+    import rospy
+    from tiago_nav.testing.evaluation import score, visible_truth
+    x, y, yaw = goal
+    c0 = h.collisions or 0
+    t_sim = rospy.get_time()
+    lines = []
+    code, state, result, wall = h.mission(x, y, yaw, use_corridor_law, out=lines.append,
+                                          limit=limit)
+    sim = rospy.get_time() - t_sim
+    final = h.pose()
+    truth = visible_truth(world, final) if final else []
+    found = [(o.center.x, o.center.y) for o in result.obstacles] if result else []
+    s = score([(tx, ty) for _, tx, ty, _ in truth], found)
+    message = (result.message if result else '') if code == 0 else (lines[-1] if lines else '')
+    return {'world': world.name, 'goal': [x, y, yaw], 'use_corridor_law': use_corridor_law,
+            'succeeded': code == 0, 'hang': code is None, 'message': message,
+            'wall_s': wall, 'sim_s': sim, 'collisions': (h.collisions or 0) - c0,
+            'in_view': s['true'], 'found': s['found'], 'matched': s['matched'],
+            'recall': s['recall'], 'false_positives': s['false_positives'],
+            'rms_error_m': s['rms_error'], 'max_error_m': s['max_error'],
+            'errors_m': [e for _, _, e in s['pairs']],
+            'final_pose': list(final) if final else None, 'lines': lines}
 
 
 def stop_process(proc):
