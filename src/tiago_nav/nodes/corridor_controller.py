@@ -35,7 +35,7 @@ from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import LockstepParticipant, ScanCache, lookup_at
-from tiago_nav.ros.params import read
+from tiago_nav.ros.params import read_or_exit
 
 NODE = 'corridor_controller'
 STOP_TIMEOUT = 2.0          # [s] after a stop command, wait at most this long for standstill
@@ -329,11 +329,7 @@ class RosIO:
 
 def main():
     rospy.init_node(NODE)
-    try:
-        params = read(Params)
-    except ParamError as e:
-        rospy.logfatal('%s: %s', NODE, e)
-        sys.exit(2)
+    params = read_or_exit(Params, NODE)
     participant = LockstepParticipant(1.0 / params.control_rate)
     io, clock = RosIO(params, participant), RosClock()
     missing = wait_ready(params, clock, io, params.startup_timeout)

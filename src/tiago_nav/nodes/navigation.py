@@ -32,14 +32,14 @@ from tiago_nav.nav.navigator import NavConfig, Navigator
 from tiago_nav.nav.planner import PlanError
 from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, GoalRunner,
                                   PoseUnavailable, goal_pose)
-from tiago_nav.params import ParamError, nested, param, validate
+from tiago_nav.params import nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import LockstepParticipant, lookup_at
 
 LOCKSTEP_WAIT = 2.0     # [s wall] in lockstep, wait this long for a cycle's scans and pose (the
 #                         simulator has published them: only a starved process waits at all)
-from tiago_nav.ros.params import read
+from tiago_nav.ros.params import read_or_exit
 
 
 @dataclass(frozen=True)
@@ -354,11 +354,9 @@ def _plain(pose):
 
 def main():
     rospy.init_node('move_base')
+    params = read_or_exit(Params, 'move_base')
     try:
-        node = MoveBase(read(Params))
-    except ParamError as e:
-        rospy.logfatal('move_base: %s', e)
-        sys.exit(2)
+        node = MoveBase(params)
     except (NotReady, ValueError) as e:
         rospy.logfatal('move_base: not starting: %s', e)
         sys.exit(1)

@@ -25,10 +25,10 @@ from visualization_msgs.msg import MarkerArray
 from tiago_nav.detection import METHODS, DetectionParams
 from tiago_nav.detection.service import DetectionService, Scan
 from tiago_nav.msg import Obstacle
-from tiago_nav.params import ParamError, nested, param, validate
+from tiago_nav.params import nested, param, validate
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform
 from tiago_nav.ros.markers import obstacle_markers
-from tiago_nav.ros.params import read
+from tiago_nav.ros.params import read_or_exit
 from tiago_nav.srv import DetectObstacles, DetectObstaclesResponse
 
 
@@ -162,11 +162,7 @@ class DetectionNode:
 
 def main():
     rospy.init_node('obstacle_detection')
-    try:
-        node = DetectionNode(read(Params))
-    except ParamError as e:
-        rospy.logfatal('obstacle_detection: %s', e)
-        sys.exit(2)
+    node = DetectionNode(read_or_exit(Params, 'obstacle_detection'))
     if not node.advertise_when_ready():
         if rospy.is_shutdown():
             return

@@ -9,7 +9,6 @@ commands a stop on ``cmd_vel_topic`` whenever a goal ends. On shutdown (Ctrl-C, 
 it cancels its corridor and move_base goals and stops the base.
 """
 import math
-import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -30,7 +29,7 @@ from tiago_nav.mission import DetectionError, Goal, MissionConfig, MissionRunner
 from tiago_nav.mission.entrance import corridor_ahead
 from tiago_nav.msg import (CorridorAction, CorridorGoal, TiagoTaskAction, TiagoTaskFeedback,
                            TiagoTaskResult)
-from tiago_nav.params import ParamError, nested, param, validate
+from tiago_nav.params import nested, param, validate
 from tiago_nav.ros import params as ros_params
 from tiago_nav.ros.actions import server_connected
 from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
@@ -347,9 +346,5 @@ class TiagoController:
 
 def main():
     rospy.init_node('tiago_controller')
-    try:
-        TiagoController(ros_params.read(Params))
-    except ParamError as e:
-        rospy.logfatal('tiago_controller: %s', e)
-        sys.exit(2)
+    TiagoController(ros_params.read_or_exit(Params, 'tiago_controller'))
     rospy.spin()
