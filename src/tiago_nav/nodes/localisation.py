@@ -27,12 +27,14 @@ from sensor_msgs.msg import LaserScan
 from tf2_msgs.msg import TFMessage
 
 from tiago_nav.clock import Ticker
+from tiago_nav.geometry import compose
 from tiago_nav.localisation import Localiser, LocaliserConfig
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as rosparams
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import (gridmap_from_msg, pose_from_msg, pose_from_transform,
                                        pose_msg, transform_stamped)
+from tiago_nav.scan import FrozenScanCheck
 from tiago_nav.sim.world import WorldError, load_world
 
 # indices of x, y, yaw in a row-major 6 × 6 ROS pose covariance (x, y, z, roll, pitch, yaw)
@@ -102,6 +104,7 @@ class LocalisationNode:
         self.pose = start_pose(params)
         self.localiser = None
         self.lock = threading.Lock()
+        self.frozen = FrozenScanCheck()
         self.map_to_odom = None
         self.sent = collections.deque(maxlen=64)    # recent stamps sent (tf refuses repeats)
         self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
@@ -157,8 +160,11 @@ class LocalisationNode:
             if self.localiser is None:
                 rospy.logwarn_throttle(5.0, 'localisation: no %s yet', self.p.map_topic)
                 return
-            pts = self.localiser.scan_points(msg.ranges, msg.angle_min, msg.angle_increment,
-                                             msg.range_min, msg.range_max, laser)
+            if self.frozen(msg.ranges, compose(odom, laser)):
+                pts = ()                    # a stuck driver's repeat: follow odometry
+            else:
+                pts = self.localiser.scan_points(msg.ranges, msg.angle_min, msg.angle_increment,
+                                                 msg.range_min, msg.range_max, laser)
             up = self.localiser.update(odom, pts, laser[:2])
             self.map_to_odom = up.map_to_odom
         if not up.corrected:

@@ -15,7 +15,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 
 from tiago_nav import motion
-from tiago_nav.clock import NAP, Ticker
+from tiago_nav.clock import NAP, STALL, Ticker
 from tiago_nav.lockstep import Ack, Gate, ParticipantCore, Schedule, Tick
 from tiago_nav.msg import LockstepAck, LockstepTick
 from tiago_nav.ros.clock import RosClock
@@ -23,8 +23,8 @@ from tiago_nav.ros.clock import RosClock
 ACK_TOPIC = '/sim/lockstep/ack'
 TICK_TOPIC = '/sim/lockstep/tick'
 USE_LOCKSTEP = '/use_lockstep'      # bool: the participants take part (set by sim.launch)
-TIMEOUT = 1.0     # [s wall] the simulator's default wait for a missing answer (< clock.STALL)
-STALL = 5.0       # [s wall] a participant gives up when ROS time stands longer (> TIMEOUT)
+TIMEOUT = 1.0     # [s wall] the simulator's default wait for a missing answer; below clock.STALL,
+                  # after which a participant takes ROS time standing still for a dead simulator
 
 
 def _log(level, text):
