@@ -154,18 +154,26 @@ class RosBackend:
     # --- is there a corridor toward pose B? ------------------------------------------------
     def corridor_ahead(self, goal):
         """Whether a corridor ahead leads toward pose B, judged on a scan that arrived after
-        this call (within ``server_timeout`` wall seconds); :class:`StageError` of the corridor
-        stage when there is no scan or no tf to judge it."""
+        this call and the robot's pose at its stamp; :class:`StageError` of the corridor stage
+        when no such scan can be placed within ``server_timeout`` wall seconds (a newer scan is
+        tried while waiting: tf may not reach back to the first one, e.g. a localisation that
+        started late)."""
         t0 = time.monotonic()
-        while self._scan[1] < t0:
+        while True:
+            scan, seen = self._scan
+            if seen >= t0:
+                try:
+                    laser = self._pose(self.robot_frame, scan.header.frame_id, rospy.Time(0))
+                    robot = self._pose(self.global_frame, self.robot_frame, scan.header.stamp)
+                    break
+                except _TF_ERRORS as e:
+                    why = 'no transform to place the scan and judge the corridor: %s' % e
+            else:
+                why = 'no laser scan on %s within %g s: cannot tell whether a corridor leads ' \
+                      'toward pose B' % (rospy.resolve_name(self.p.scan_topic), self.cfg.server_timeout)
             if rospy.is_shutdown() or time.monotonic() - t0 > self.cfg.server_timeout:
-                raise StageError('corridor', 'no laser scan on %s within %g s: cannot tell '
-                                 'whether a corridor leads toward pose B'
-                                 % (rospy.resolve_name(self.p.scan_topic), self.cfg.server_timeout))
+                raise StageError('corridor', why)
             time.sleep(self.cfg.poll_period)
-        scan = self._scan[0]
-        laser = self._lookup(self.robot_frame, scan.header.frame_id, rospy.Time(0))
-        robot = self._lookup(self.global_frame, self.robot_frame, scan.header.stamp)
         ranges = usable_ranges(scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
                                scan.range_max, laser)       # no self-hits, no veils
         points, _ = scan_to_points(ranges, scan.angle_min, scan.angle_increment, scan.range_min,
@@ -175,18 +183,9 @@ class RosBackend:
                       'yes' if ahead else 'no')
         return ahead
 
-    def _lookup(self, target, source, stamp):
-        """The pose of ``source`` in ``target`` at ``stamp`` from tf, waiting (wall clock, so
-        a stopped /clock cannot hang it) up to ``server_timeout``."""
-        t0 = time.monotonic()
-        while True:
-            try:
-                return pose_from_transform(self.tf.lookup_transform(target, source, stamp).transform)
-            except _TF_ERRORS as e:
-                if rospy.is_shutdown() or time.monotonic() - t0 > self.cfg.server_timeout:
-                    raise StageError('corridor', 'no transform %s -> %s to judge the corridor: %s'
-                                     % (target, source, e)) from None
-            time.sleep(self.cfg.poll_period)
+    def _pose(self, target, source, stamp):
+        """The pose of ``source`` in ``target`` at ``stamp`` from tf (raises tf's errors)."""
+        return pose_from_transform(self.tf.lookup_transform(target, source, stamp).transform)
 
     # --- actions -----------------------------------------------------------------------------
     def server_ready(self, stage):
