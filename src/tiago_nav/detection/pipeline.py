@@ -87,7 +87,7 @@ class ObstacleDetector:
         base_laser_link; ``laser_pose`` ``(x, y, yaw)`` is base_laser_link in the map frame at the
         scan's time, ``laser_in_base`` in base_footprint (from tf; None: no body to filter).
         Only the beams :func:`tiago_nav.scan.usable_ranges` keeps are used (no self-hits, no
-        veils). ``overrides`` replace fields of the params for this call (0 or None keeps the
+        veils; the classic ``discontinuity`` method keeps the veils: it reads the raw scan). ``overrides`` replace fields of the params for this call (0 or None keeps the
         default). Returns :class:`Detection` s sorted by distance from the laser.
         Raises ValueError for an unknown method.
         """
@@ -98,6 +98,9 @@ class ObstacleDetector:
         body = (dict(radius=0.0, margin=0.0) if laser_in_base is None
                 else dict(laser_pose=tuple(laser_in_base)))
         raw = np.asarray(ranges, dtype=float)
+        if method == 'discontinuity':
+            # the classic pipeline reads the raw scan, less the robot's own body (no veil filter)
+            body['shadow_angle'] = 0.0
         r = usable_ranges(raw, angle_min, angle_increment, range_min, range_max, **body)
         if method == 'discontinuity':
             # the beams the filter dropped are left out, not read as far (a gap is no edge)

@@ -40,6 +40,8 @@ from tiago_nav.sim.world import WorldError, load_world
 # indices of x, y, yaw in a row-major 6 × 6 ROS pose covariance (x, y, z, roll, pitch, yaw)
 COV_INDEX = (0, 1, 5)
 
+REPUBLISH_OFFSET = rospy.Duration(0, 100000)   # 0.1 ms
+
 
 @dataclass(frozen=True)
 class Params:
@@ -192,7 +194,10 @@ class LocalisationNode:
         ticker = Ticker(RosClock(), 1.0 / self.p.republish_rate)
         while not rospy.is_shutdown():
             if ticker.tick():
-                self.send_transform(rospy.Time.now())
+                # offset off the scans' stamps: tf keeps the first transform of a stamp, and a
+                # republish must not take the stamp a scan being processed needs for its newer
+                # estimate
+                self.send_transform(rospy.Time.now() + REPUBLISH_OFFSET)
 
 
 def main():
