@@ -44,6 +44,7 @@ from tiago_nav.sim.world import load_world
 from test_mission import MissionTest
 
 BOUND = 5.0          # [s wall] kill -> the proxy's ABORTED result
+CLIENT_BOUND = 10.0  # [s wall] the proxy killed -> the client has exited
 WAIT = 60.0          # [s wall] bound on waits for servers, states and the client's exit
 STOPPED = 0.05       # [m/s] the base counts as stopped below this (ground truth)
 STOP_BOUND = 3.0     # [s wall] after the result, the base is stopped within this
@@ -199,7 +200,9 @@ class ChainTest(KillTest):
 
     def test_4_proxy_killed_the_client_exits_1(self):
         """move_base is gone (test 3), so the proxy waits for it in NAVIGATING: killed there,
-        the client must not wait forever."""
+        the client must not wait forever. It notices after 3 s (the server "gone for 3 s"); the
+        bound leaves room for a process that must also shut itself down on a saturated machine
+        (the issue's 5 s is for the proxy's answer to a dead child, tests 1-3)."""
         c = self.start_client(11.0, 0.0, -45.0, False)
         try:
             self.wait_feedback(lambda f: f.state == FB.NAVIGATING, 'NAVIGATING')
@@ -209,7 +212,7 @@ class ChainTest(KillTest):
         finally:
             if c.poll() is None:
                 c.kill()
-        self.assertLess(time.monotonic() - t_kill, BOUND + 1.0, out)
+        self.assertLess(time.monotonic() - t_kill, CLIENT_BOUND, out)
         self.assertEqual(c.returncode, 1, out)
         self.assertIn('ABORTED: tiago_controller failed: the /tiago_controller action server '
                       'went away', out)
