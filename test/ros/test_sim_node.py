@@ -180,7 +180,11 @@ class SimulatorNodeTest(SimTestCase):
             with lock:
                 nan = [t for t, r in scans if np.isnan(r).all()]
                 first_nan = nan[0]
-            self.assertAlmostEqual(nan[-1] - nan[0], 1.0 - 1 / 15.0, delta=1 / 15.0 + 1e-6)
+                healthy_after = [t for t, r in scans if t > first_nan and not np.isnan(r).any()]
+            # 1 s of NaN scans: none healthy within it, none NaN after it (a publisher under load
+            # may drop scans, so the test does not count them)
+            self.assertLessEqual(nan[-1] - first_nan, 1.0 + 1e-6)
+            self.assertGreaterEqual(healthy_after[0] - first_nan, 1.0 - 1 / 15.0 - 1e-6)
 
             faults.publish(String('dead'))
             # no scan for 1 s of simulated time (one already on its way may still come)
