@@ -110,8 +110,12 @@ class SimulatorNodeTest(SimTestCase):
         sub = rospy.Subscriber('/scan', LaserScan, lambda m: stamps.append(m.header.stamp.to_sec()))
         rospy.sleep(2.0)
         sub.unregister()
-        self.assertGreater(len(stamps), 20)
-        self.assertAlmostEqual(float(np.median(np.diff(stamps))), 1 / 15.0, delta=0.005)
+        # every scan on the 1/15 s grid of simulated time, one period apart where none was
+        # dropped on the way (a loaded machine may drop some)
+        self.assertGreater(len(stamps), 5)
+        steps = np.diff(stamps) * 15.0
+        self.assertTrue(np.allclose(steps, np.round(steps), atol=0.01), steps)
+        self.assertAlmostEqual(float(steps.min()), 1.0, delta=0.01)
 
     def test_4_cmd_vel_moves_the_robot(self):
         before = self.base_pose()
