@@ -73,3 +73,17 @@ def test_executables_are_doors():
             lines = f.read().splitlines()
         assert len(lines) <= 15, '%s has %d lines' % (name, len(lines))
         assert any('tiago_nav.nodes' in line for line in lines), name
+
+
+def test_nodes_run_one_blas_thread():
+    """Importing the nodes' package before numpy pins BLAS to one thread (spinning BLAS
+    workers cost whole cores), and keeps a value the user set."""
+    import subprocess
+    import sys
+    code = ('import os, tiago_nav.nodes, numpy; '
+            'print(os.environ["OPENBLAS_NUM_THREADS"], os.environ["OMP_NUM_THREADS"])')
+    env = {k: v for k, v in os.environ.items() if k not in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS')}
+    env['PYTHONPATH'] = os.path.join(ROOT, 'src') + os.pathsep + env.get('PYTHONPATH', '')
+    assert subprocess.check_output([sys.executable, '-c', code], env=env, text=True).split() == ['1', '1']
+    env['OMP_NUM_THREADS'] = '2'
+    assert subprocess.check_output([sys.executable, '-c', code], env=env, text=True).split() == ['1', '2']
