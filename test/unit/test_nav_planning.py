@@ -30,6 +30,24 @@ def test_inflation_values_follow_distance():
     assert np.all(np.diff(row) <= 0)                  # decreasing away from the obstacle
 
 
+def test_costmap_inflates_once_per_read_after_scans(monkeypatch):
+    """Scans taken in between two reads cost one inflation (the full-grid EDT), and a read
+    after a scan sees that scan's obstacle."""
+    import tiago_nav.nav.costmap as costmap_module
+    calls = []
+    real = costmap_module.inflate
+    monkeypatch.setattr(costmap_module, 'inflate', lambda *a: calls.append(1) or real(*a))
+    cm = Costmap(empty(60, 60))
+    assert cm.cost_at([(1.0, 1.5)])[0] == 0
+    for _ in range(5):
+        cm.add_scan(beam((0.5, 1.5), 1.0))
+        cm.update()
+    assert calls == [1]                               # nothing read yet: no inflation
+    assert cm.cost_at([(1.5, 1.5)])[0] == LETHAL      # the beam's hit, 1 m ahead
+    assert cm.distance[30, 30] == pytest.approx(0.0)
+    assert calls == [1, 1]
+
+
 def beam(origin, r, angle=0.0, range_min=0.05, range_max=25.0):
     """A one-beam scan from a laser at ``origin`` pointing along ``angle``."""
     return MapScan((origin[0], origin[1], angle), np.array([r], dtype=float), 0.0, 0.01,

@@ -114,7 +114,8 @@ def inflate(occupied, resolution, robot_radius, inflation_radius, cost_scaling_f
 
 
 class Costmap:
-    """Static layer + obstacle layer, inflated on :meth:`update` (cheap: one EDT).
+    """Static layer + obstacle layer, inflated when ``cost``/``distance`` are read after an
+    :meth:`update` (one EDT).
 
     ``obstacle_range`` [m]: laser returns farther than this are not marked;
     ``raytrace_range`` [m]: beams clear the obstacle layer up to this range (or their hit).
@@ -174,10 +175,27 @@ class Costmap:
         self.obstacles[rc[inb, 0], rc[inb, 1]] = value
 
     def update(self):
-        """Recompute ``cost`` and ``distance`` from both layers."""
-        self.cost, self.distance = inflate(self.static | self.obstacles, self.resolution,
-                                           self.robot_radius, self.inflation_radius,
-                                           self.cost_scaling_factor)
+        """Both layers changed: ``cost`` and ``distance`` are recomputed from them when next
+        read. (One inflation is a full-grid EDT, the costliest part of taking in a scan; scans
+        that arrive between two reads, e.g. while no goal is active, then cost none.)"""
+        self._inflated = None
+
+    def _inflation(self):
+        if self._inflated is None:
+            self._inflated = inflate(self.static | self.obstacles, self.resolution,
+                                     self.robot_radius, self.inflation_radius,
+                                     self.cost_scaling_factor)
+        return self._inflated
+
+    @property
+    def cost(self):
+        """``(rows, cols)`` uint8 costs of both layers (module docstring)."""
+        return self._inflation()[0]
+
+    @property
+    def distance(self):
+        """``(rows, cols)`` [m] distance of each cell centre to the nearest occupied cell."""
+        return self._inflation()[1]
 
     def occupied_near(self, xy, radius):
         """Centres ``(M, 2)`` [m] of the occupied cells (static or laser-marked) within
