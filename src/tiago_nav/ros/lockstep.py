@@ -8,6 +8,7 @@ the exact scan and transform of a cycle (ROS time stands still while the simulat
 import collections
 import threading
 import time
+import warnings
 
 import rospy
 from geometry_msgs.msg import Twist
@@ -25,6 +26,16 @@ TICK_TOPIC = '/sim/lockstep/tick'
 USE_LOCKSTEP = '/use_lockstep'      # bool: the participants take part (set by sim.launch)
 TIMEOUT = 1.0     # [s wall] the simulator's default wait for a missing answer; below clock.STALL,
                   # after which a participant takes ROS time standing still for a dead simulator
+
+
+def direct_publisher(topic, msg_class, **kwargs):
+    """A rospy.Publisher that writes in the caller's thread (``queue_size=None``): no queue
+    thread per subscriber, whose hand-over (rospy yields the processor after queueing) adds a
+    thread switch to every message. For the small messages of a lockstep round trip (ticks,
+    answers, /clock), where each hop's latency holds the whole simulation."""
+    with warnings.catch_warnings():     # rospy warns about a missing queue_size: it is meant
+        warnings.simplefilter('ignore')
+        return rospy.Publisher(topic, msg_class, queue_size=None, **kwargs)
 
 
 def _log(level, text):
@@ -51,7 +62,7 @@ class LockstepHost:
     def __init__(self, rate, timeout=TIMEOUT, clock_pub=None):
         self.clock_pub = clock_pub
         self.gate = Gate(Schedule(rate, timeout, _log), time.monotonic, rospy.is_shutdown)
-        self.pub = rospy.Publisher(TICK_TOPIC, LockstepTick, queue_size=10)
+        self.pub = direct_publisher(TICK_TOPIC, LockstepTick)
         self.sub = rospy.Subscriber(ACK_TOPIC, LockstepAck, self.on_ack, queue_size=None,
                                     tcp_nodelay=True)
 
@@ -175,8 +186,7 @@ class LockstepParticipant:
         self._msgs = {}          # tick stamp [s] -> LockstepTick, for the newest tick
         self._answered = True
         self._left = False
-        self.pub = rospy.Publisher(ACK_TOPIC, LockstepAck, queue_size=100,
-                                   subscriber_listener=_Join(self))
+        self.pub = direct_publisher(ACK_TOPIC, LockstepAck, subscriber_listener=_Join(self))
         self.sub = rospy.Subscriber(TICK_TOPIC, LockstepTick, self.on_tick, queue_size=10,
                                     tcp_nodelay=True)
         rospy.on_shutdown(self.leave)
