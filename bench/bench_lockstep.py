@@ -161,7 +161,9 @@ def summarise(runs):
     if truths:
         spread = max(math.hypot(a[0] - b[0], a[1] - b[1]) for a in truths for b in truths)
     lags = [r['lag'] for r in runs if 'lag' in r]
+    loads = [r['loadavg_1min'] for r in runs if 'loadavg_1min' in r]
     return {'runs': len(runs), 'succeeded': len(ok),
+            'loadavg_1min_mean': sum(loads) / len(loads) if loads else None,
             'collisions': sum(r.get('collisions', 0) for r in runs),
             'wall_s_mean': sum(walls) / len(walls) if walls else None,
             'wall_s_max': max(walls) if walls else None,
@@ -177,8 +179,8 @@ def summarise(runs):
 def table(report):
     """The summary as markdown lines, one row per condition."""
     rows = ['| condition | course %ss ok | collisions | wall/mission mean (max) | sim/wall | '
-            'final pose spread | distinct final odometry | nav goals ok | lag max | drops |'
-            % report['task'], '|---' * 10 + '|']
+            'final pose spread | distinct final odometry | nav goals ok | lag max | drops | '
+            'load average |' % report['task'], '|---' * 11 + '|']
     for c in report['conditions']:
         s = c['summary']
         spread = s['final_pose_spread_m']
@@ -188,7 +190,8 @@ def table(report):
                  fmt(s['sim_per_wall_mean'], '%.1f'),
                  '-' if spread is None else '%.3f mm' % (spread * 1000),
                  str(s['distinct_final_odometry']), '%d/%d' % (s['nav_succeeded'], s['nav_goals']),
-                 fmt(s['lag_max_s'], '%.3f s'), fmt(s['drops'], '%d')]
+                 fmt(s['lag_max_s'], '%.3f s'), fmt(s['drops'], '%d'),
+                 fmt(s.get('loadavg_1min_mean'), '%.1f')]
         rows.append('| ' + ' | '.join(cells) + ' |')
     return rows
 
@@ -234,7 +237,9 @@ def main():
     ap.add_argument('--nav', type=int, default=2, help='navigation goals after each mission')
     ap.add_argument('--seed', type=int, default=7, help='seed of the navigation goals')
     ap.add_argument('--modes', default='on,off', help='lockstep on and/or off')
-    ap.add_argument('--loads', default='idle,busy', help='idle and/or busy (a busy loop per core)')
+    ap.add_argument('--loads', default='idle,busy',
+                    help='idle and/or busy (a busy loop per core), or loaded (no busy loops of '
+                         'its own: the machine is loaded by other work, whose load is recorded)')
     ap.add_argument('--task', default='mission', choices=('mission', 'nav'),
                     help='the course mission, or one move_base goal to its pose B')
     ap.add_argument('--out', default=os.path.join(RESULTS, 'lockstep.json'))
@@ -259,6 +264,7 @@ def main():
                                          stdout=subprocess.PIPE, text=True).stdout
                     rec = next((json.loads(l[7:]) for l in out.splitlines()
                                 if l.startswith('RESULT ')), {'succeeded': False, 'error': 'no result'})
+                    rec['loadavg_1min'] = os.getloadavg()[0]
                     runs.append(rec)
                     print('  #%-2d %-6s wall %5s s  sim %5s s  collisions %d  nav %d/%d  final %s  '
                           'lag max %s  %s' % (
