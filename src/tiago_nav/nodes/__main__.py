@@ -9,8 +9,9 @@ CONFIG = os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '..', '.
 
 if __name__ == '__main__':
     names = sys.argv[1:] or list(CONFIG_FILES)
-    for name in names:
+    texts = {name: config_text(name) for name in names}    # all of them before writing any:
+    for name in names:                                     # a failing import leaves no file empty
         path = os.path.normpath(os.path.join(CONFIG, CONFIG_FILES[name]))
         with open(path, 'w') as f:
-            f.write(config_text(name))
+            f.write(texts[name])
         print('wrote', path)
