@@ -31,8 +31,8 @@ TIMEOUT = 1.0     # [s wall] the simulator's default wait for a missing answer; 
 def direct_publisher(topic, msg_class, **kwargs):
     """A rospy.Publisher that writes in the caller's thread (``queue_size=None``): no queue
     thread per subscriber, whose hand-over (rospy yields the processor after queueing) adds a
-    thread switch to every message. For the small messages of a lockstep round trip (ticks,
-    answers, /clock), where each hop's latency holds the whole simulation."""
+    thread switch to every message. For the small messages of a lockstep round trip (ticks and
+    answers), where each hop's latency holds the whole simulation."""
     with warnings.catch_warnings():     # rospy warns about a missing queue_size: it is meant
         warnings.simplefilter('ignore')
         return rospy.Publisher(topic, msg_class, queue_size=None, **kwargs)
