@@ -14,6 +14,7 @@ Angles are in the laser's frame (``base_laser_link``), radians; ranges and point
 """
 import numpy as np
 
+from tiago_nav.geometry import wrap_angle
 from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
 
 HIT, NO_RETURN, TOO_CLOSE, INVALID = 0, 1, 2, 3
@@ -192,7 +193,7 @@ class FrozenScanCheck:
                 and np.array_equal(r, self.ranges, equal_nan=True) \
                 and np.isfinite(r).sum() >= self.min_hits:
             dx, dy = laser_pose[0] - self.pose[0], laser_pose[1] - self.pose[1]
-            turn = abs((laser_pose[2] - self.pose[2] + np.pi) % (2 * np.pi) - np.pi)
+            turn = abs(wrap_angle(laser_pose[2] - self.pose[2]))
             return bool(np.hypot(dx, dy) >= self.min_motion or turn >= self.min_turn)
         self.ranges, self.pose = r.copy(), tuple(laser_pose)
         return False

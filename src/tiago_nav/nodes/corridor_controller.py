@@ -34,13 +34,12 @@ from tiago_nav.msg import CorridorAction, CorridorFeedback, CorridorResult
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
-from tiago_nav.ros.lockstep import LockstepParticipant, ScanCache, lookup_at
+from tiago_nav.ros.lockstep import (CYCLE_WAIT, LockstepParticipant, ScanCache, goal_since,
+                                    lookup_at)
 from tiago_nav.ros.params import read_or_exit
 
 NODE = 'corridor_controller'
 STOP_TIMEOUT = 2.0          # [s] after a stop command, wait at most this long for standstill
-LOCKSTEP_WAIT = 2.0         # [s wall] in lockstep, wait this long for a cycle's scan or tf (the
-#                             simulator has published them: only a starved process waits at all)
 
 
 @dataclass(frozen=True)
@@ -176,8 +175,8 @@ class CorridorServer:
         follower = None
         if self.participant is not None:
             # the goal's cycles are those after its stamp, however late it arrived
-            stamp = self.server.current_goal.get_goal_id().stamp
-            self.participant.claim(min(stamp, rospy.Time.from_sec(self.clock.now())) or None)
+            self.participant.claim(goal_since(self.server.current_goal.get_goal_id().stamp,
+                                              rospy.Time.from_sec(self.clock.now())))
         try:
             if not (math.isfinite(goal.max_speed) and goal.max_speed >= 0
                     and math.isfinite(goal.max_distance) and goal.max_distance >= 0):
@@ -278,7 +277,7 @@ class RosIO:
 
     With a ``participant`` in lockstep, during a cycle held by the simulator: the cycle's scan
     (stamped the tick's ``scan_stamp``), transforms at exactly their stamp and "the latest" pose
-    at the tick's ``odom_stamp``, each waited for up to :data:`LOCKSTEP_WAIT` wall seconds."""
+    at the tick's ``odom_stamp``, each waited for up to :data:`CYCLE_WAIT` wall seconds."""
 
     def __init__(self, params, participant=None):
         self.tf = tf2_ros.Buffer(rospy.Duration(10.0))
@@ -305,7 +304,7 @@ class RosIO:
 
     def latest_scan(self):
         if self.cache is not None:
-            msg = self.cache.wait_for_scan(self.participant.scan_stamp, LOCKSTEP_WAIT) \
+            msg = self.cache.wait_for_scan(self.participant.scan_stamp, CYCLE_WAIT) \
                 if self._held() else self.cache.latest()
             return None if msg is None else _scan(msg)
         with self.lock:
@@ -319,7 +318,7 @@ class RosIO:
             t = rospy.Time(0) if stamp is None else rospy.Time.from_sec(stamp)
         try:
             if held:
-                tf = lookup_at(self.tf, parent, child, t, LOCKSTEP_WAIT)
+                tf = lookup_at(self.tf, parent, child, t, CYCLE_WAIT)
             else:
                 tf = self.tf.lookup_transform(parent, child, t, rospy.Duration(0.0))
         except tf2_ros.TransformException as e:

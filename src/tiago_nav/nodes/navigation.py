@@ -27,7 +27,6 @@ from std_srvs.srv import Empty, EmptyResponse
 
 from tiago_nav.geometry import compose
 from tiago_nav.nav.costmap import MapScan
-from tiago_nav.scan import FrozenScanCheck
 from tiago_nav.nav.navigator import NavConfig, Navigator
 from tiago_nav.nav.planner import PlanError
 from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, GoalRunner,
@@ -35,11 +34,9 @@ from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, Goal
 from tiago_nav.params import nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, pose_stamped
-from tiago_nav.ros.lockstep import LockstepParticipant, lookup_at
-
-LOCKSTEP_WAIT = 2.0     # [s wall] in lockstep, wait this long for a cycle's scans and pose (the
-#                         simulator has published them: only a starved process waits at all)
+from tiago_nav.ros.lockstep import CYCLE_WAIT, LockstepParticipant, goal_since, lookup_at
 from tiago_nav.ros.params import read_or_exit
+from tiago_nav.scan import FrozenScanCheck
 
 
 @dataclass(frozen=True)
@@ -226,12 +223,12 @@ class MoveBase:
             self.take_in(self.lockstep.scan_stamp)
 
     def take_in(self, upto):
-        """Wait (up to :data:`LOCKSTEP_WAIT` wall seconds) until the scan stamped ``upto``
+        """Wait (up to :data:`CYCLE_WAIT` wall seconds) until the scan stamped ``upto``
         (rospy.Time) and every one before it have been taken in. The scans are taken in as they
         arrive, in order: in lockstep none after ``upto`` exists before this cycle's answer."""
         if upto is None or upto.is_zero():
             return
-        end = self.clock.wall() + LOCKSTEP_WAIT
+        end = self.clock.wall() + CYCLE_WAIT
         with self.intake:
             while self.last_scan_stamp is None or self.last_scan_stamp < upto:
                 left = end - self.clock.wall()
@@ -272,14 +269,14 @@ class MoveBase:
 
     def pose(self, stamp=None):
         """``((x, y, yaw), stamp)`` of the base in map: odometry at ``stamp`` (rospy.Time,
-        waiting up to :data:`LOCKSTEP_WAIT` wall seconds) or the newest odometry (None), after
+        waiting up to :data:`CYCLE_WAIT` wall seconds) or the newest odometry (None), after
         the newest map -> odom (:meth:`_in_map`); or :class:`PoseUnavailable`."""
         base = self.p.robot_base_frame
         try:
             if stamp is None:
                 stamp = self.tf.lookup_transform(self.p.odom_frame, base, rospy.Time(0)).header.stamp
             else:
-                lookup_at(self.tf, self.p.odom_frame, base, stamp, LOCKSTEP_WAIT)
+                lookup_at(self.tf, self.p.odom_frame, base, stamp, CYCLE_WAIT)
             return self._in_map(base, stamp)
         except tf2_ros.TransformException as e:
             raise PoseUnavailable('no transform %s -> %s: %s'
@@ -335,8 +332,8 @@ class MoveBase:
     def execute(self, goal):
         p = goal.target_pose
         # the goal's cycles are those after its stamp, however late it arrived
-        stamp = self.server.current_goal.get_goal_id().stamp
-        self.lockstep.claim(min(stamp, rospy.Time.from_sec(self.clock.now())) or None)
+        self.lockstep.claim(goal_since(self.server.current_goal.get_goal_id().stamp,
+                                       rospy.Time.from_sec(self.clock.now())))
         try:
             self.runner.run(p.header.frame_id,
                             (p.pose.position.x, p.pose.position.y, p.pose.position.z),

@@ -26,6 +26,8 @@ TICK_TOPIC = '/sim/lockstep/tick'
 USE_LOCKSTEP = '/use_lockstep'      # bool: the participants take part (set by sim.launch)
 TIMEOUT = 1.0     # [s wall] the simulator's default wait for a missing answer; below clock.STALL,
                   # after which a participant takes ROS time standing still for a dead simulator
+CYCLE_WAIT = 2.0  # [s wall] in a held cycle, the longest wait for its scan, tf or pose: the
+                  # simulator has published them, so only a starved process waits at all
 
 
 def direct_publisher(topic, msg_class, **kwargs):
@@ -134,6 +136,13 @@ class ScanCache:
                 if left <= 0 or rospy.is_shutdown():
                     return None
                 self.cond.wait(min(left, 0.1))
+
+
+def goal_since(goal_stamp, now):
+    """The time after which a goal's cycles are its own (rospy.Time, for
+    :meth:`LockstepParticipant.claim`): its stamp, however late the goal arrived, but not after
+    ``now``; None (claim from now) for a zero stamp."""
+    return min(goal_stamp, now) or None
 
 
 def lookup_at(buffer, target, source, stamp, timeout):
