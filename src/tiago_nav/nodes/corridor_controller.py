@@ -37,6 +37,7 @@ from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, LockstepParticipant, ScanCache, goal_since,
                                     lookup_at)
 from tiago_nav.ros.params import read_or_exit
+from tiago_nav.ros.topics import Subscription
 
 NODE = 'corridor_controller'
 STOP_TIMEOUT = 2.0          # [s] after a stop command, wait at most this long for standstill
@@ -289,7 +290,7 @@ class RosIO:
         if participant is not None and participant.enabled:
             self.cache = ScanCache(params.scan_topic, size=8)
         else:
-            rospy.Subscriber(params.scan_topic, LaserScan, self.on_scan, queue_size=1)
+            Subscription(params.scan_topic, LaserScan, self.on_scan, queue_size=1)
 
     def _held(self):
         return self.cache is not None and self.participant.lockstep

@@ -34,6 +34,7 @@ from tiago_nav.ros import params as rosparams
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import (gridmap_from_msg, pose_from_msg, pose_from_transform,
                                        pose_msg, transform_stamped)
+from tiago_nav.ros.topics import Subscription
 from tiago_nav.scan import FrozenScanCheck
 from tiago_nav.sim.world import WorldError, load_world
 
@@ -113,11 +114,11 @@ class LocalisationNode:
         self.listener = tf2_ros.TransformListener(self.tf)
         self.pub_tf = rospy.Publisher(params.tf_topic, TFMessage, queue_size=10)
         self.pub_pose = rospy.Publisher(params.pose_topic, PoseWithCovarianceStamped, queue_size=5)
-        rospy.Subscriber(params.map_topic, OccupancyGrid, self.on_map, queue_size=1)
+        Subscription(params.map_topic, OccupancyGrid, self.on_map, queue_size=1)
         rospy.Subscriber(params.initialpose_topic, PoseWithCovarianceStamped, self.on_initialpose,
                          queue_size=1)
-        rospy.Subscriber(params.scan_topic, LaserScan, self.on_scan, queue_size=1,
-                         buff_size=2 ** 20)
+        Subscription(params.scan_topic, LaserScan, self.on_scan, queue_size=1,
+                     buff_size=2 ** 20)
 
     def on_map(self, msg):
         try:

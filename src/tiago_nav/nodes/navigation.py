@@ -36,6 +36,7 @@ from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import CYCLE_WAIT, LockstepParticipant, goal_since, lookup_at
 from tiago_nav.ros.params import read_or_exit
+from tiago_nav.ros.topics import Subscription, wait_for_message
 from tiago_nav.scan import FrozenScanCheck
 
 
@@ -132,7 +133,7 @@ class MoveBase:
         self.plan_pub = rospy.Publisher('~plan', Path, queue_size=1, latch=True)
         rospy.loginfo('move_base: waiting for %s', p.map_topic)
         try:
-            msg = rospy.wait_for_message(p.map_topic, OccupancyGrid, timeout=p.map_timeout)
+            msg = wait_for_message(p.map_topic, OccupancyGrid, p.map_timeout)
         except rospy.ROSException:
             raise NotReady('no map on %s within %g s (is the simulator or a map server running?)'
                            % (p.map_topic, p.map_timeout)) from None
@@ -144,8 +145,8 @@ class MoveBase:
         self.last_scan_stamp = None         # rospy.Time of the newest scan taken in
         self.lockstep = LockstepParticipant(1.0 / p.controller_frequency, ready=self.on_tick)
         # in lockstep every scan, in order (the cycle waits for its own); else the newest only
-        rospy.Subscriber(p.scan_topic, LaserScan, self.on_scan, tcp_nodelay=True,
-                         queue_size=None if self.lockstep.enabled else 1)
+        Subscription(p.scan_topic, LaserScan, self.on_scan, tcp_nodelay=True,
+                     queue_size=None if self.lockstep.enabled else 1)
         self._wait(lambda: self.nav.scan_stamp is not None,
                    lambda: 'no usable laser scan within %g s: %s' % (p.ready_timeout, self.scan_problem))
         self._wait(lambda: self.tf.can_transform(self.map_frame, p.robot_base_frame, rospy.Time(0)),

@@ -29,6 +29,7 @@ from tiago_nav.params import nested, param, validate
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform
 from tiago_nav.ros.markers import obstacle_markers
 from tiago_nav.ros.params import read_or_exit
+from tiago_nav.ros.topics import Subscription
 from tiago_nav.srv import DetectObstacles, DetectObstaclesResponse
 
 
@@ -80,7 +81,7 @@ class RosSensors:
         self.cond = threading.Condition()
         self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
         self.listener = tf2_ros.TransformListener(self.tf)
-        rospy.Subscriber(scan_topic, LaserScan, self.on_scan, queue_size=1)
+        Subscription(scan_topic, LaserScan, self.on_scan, queue_size=1)
 
     def on_scan(self, msg):
         with self.cond:
@@ -125,7 +126,7 @@ class DetectionNode:
         self.map_ready = threading.Event()
         self.sensors = RosSensors(params.scan_topic)
         self.markers = rospy.Publisher('~obstacles', MarkerArray, queue_size=1, latch=True)
-        rospy.Subscriber(params.map_topic, OccupancyGrid, self.on_map, queue_size=1)
+        Subscription(params.map_topic, OccupancyGrid, self.on_map, queue_size=1)
         self.service = None
 
     def on_map(self, msg):

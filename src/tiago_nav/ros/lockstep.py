@@ -20,6 +20,7 @@ from tiago_nav.clock import NAP, STALL, Ticker
 from tiago_nav.lockstep import Ack, Gate, ParticipantCore, Schedule, Tick
 from tiago_nav.msg import LockstepAck, LockstepTick
 from tiago_nav.ros.clock import RosClock
+from tiago_nav.ros.topics import Subscription
 
 ACK_TOPIC = '/sim/lockstep/ack'
 TICK_TOPIC = '/sim/lockstep/tick'
@@ -101,8 +102,8 @@ class ScanCache:
     def __init__(self, topic='/scan', size=8):
         self.cond = threading.Condition()
         self.scans = collections.deque(maxlen=size)
-        self.sub = rospy.Subscriber(topic, LaserScan, self.on_scan, queue_size=size,
-                                    tcp_nodelay=True)
+        self.sub = Subscription(topic, LaserScan, self.on_scan, queue_size=size,
+                                tcp_nodelay=True)
 
     def on_scan(self, msg):
         with self.cond:
@@ -196,8 +197,8 @@ class LockstepParticipant:
         self._answered = True
         self._left = False
         self.pub = direct_publisher(ACK_TOPIC, LockstepAck, subscriber_listener=_Join(self))
-        self.sub = rospy.Subscriber(TICK_TOPIC, LockstepTick, self.on_tick, queue_size=10,
-                                    tcp_nodelay=True)
+        self.sub = Subscription(TICK_TOPIC, LockstepTick, self.on_tick, queue_size=10,
+                                tcp_nodelay=True)
         rospy.on_shutdown(self.leave)
 
     # --- what the cycle saw -------------------------------------------------------------------

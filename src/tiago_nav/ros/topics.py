@@ -1,0 +1,111 @@
+"""Subscriptions that find their publisher even when rospy's start-up registration misses it.
+
+rospy (ros_comm 1.16) learns a topic's publishers twice when it subscribes: from the master's
+reply to ``registerSubscriber`` and from the master's ``publisherUpdate`` call when a publisher
+registers. Its registration thread keeps only the update that reached it *last*
+(``rospy.impl.registration.RegManager.run``). When a publisher registers while a subscriber is
+registering, the reply (computed before the publisher was known, so without it) can arrive
+after the ``publisherUpdate`` (with it), and the subscriber never connects. It is rare, and more
+likely on a loaded machine where nodes start together, as in a launch file. A node that waits
+for a latched map then waits for ever. :class:`Subscription` notices this state: no connection
+while the master lists a publisher. It then subscribes again, and the new registration gets the
+current list.
+"""
+import threading
+import time
+
+import rosgraph
+import rospy
+
+CHECK_PERIOD = 1.0      # [s wall] how often a subscription without a connection asks the master
+MAX_BACKOFF = 30.0      # [s wall] the longest wait between two subscriptions again
+
+
+def listed_publishers(topic, master=None):
+    """The nodes the master lists as publishing ``topic`` (a resolved name); [] when the master
+    cannot be reached."""
+    try:
+        pubs, _, _ = (master or rosgraph.Master(rospy.get_name())).getSystemState()
+    except (rosgraph.MasterError, OSError):
+        return []
+    return next((nodes for name, nodes in pubs if name == topic), [])
+
+
+def orphaned(connections, publishers, own_name):
+    """True when a subscriber with ``connections`` connections has missed its publishers: the
+    master lists ``publishers`` (node names) other than ``own_name`` (a node that publishes and
+    subscribes one topic, e.g. /tf, counts no connection to itself)."""
+    return connections == 0 and any(p != own_name for p in publishers)
+
+
+class Subscription:
+    """A ``rospy.Subscriber(name, data_class, callback, **kwargs)`` that subscribes again when
+    it has no connection while the master lists a publisher (see the module's docstring).
+
+    A wall-time thread checks every ``period`` seconds. The master is asked only while there
+    is no connection. After subscribing again it waits twice as long before the next try (up
+    to 30 s): a publisher killed without unregistering stays listed until it is replaced. This relies on this process having no other Subscriber on ``name``:
+    rospy shares one registration between them, so unregistering one would not make a new
+    registration."""
+
+    def __init__(self, name, data_class, callback, period=CHECK_PERIOD, **kwargs):
+        self.name = rospy.resolve_name(name)
+        self._make = lambda: rospy.Subscriber(name, data_class, callback, **kwargs)
+        self.period = period
+        self.resubscribed = 0
+        self.sub = self._make()
+        self._stop = threading.Event()
+        threading.Thread(target=self._watch, name='subscription ' + self.name, daemon=True).start()
+
+    def check(self, publishers=None):
+        """Subscribe again if the subscriber is orphaned. ``publishers`` overrides the master's
+        list (tests). True when it subscribed again."""
+        if self.sub.get_num_connections() > 0:
+            return False
+        if publishers is None:
+            publishers = listed_publishers(self.name)
+        if not orphaned(self.sub.get_num_connections(), publishers, rospy.get_name()):
+            return False
+        rospy.logwarn('%s: no connection to %s, which the master lists as published by %s: '
+                      'subscribing again', rospy.get_name(), self.name, ', '.join(publishers))
+        self.sub.unregister()
+        self.sub = self._make()
+        self.resubscribed += 1
+        return True
+
+    def unregister(self):
+        self._stop.set()
+        self.sub.unregister()
+
+    def _watch(self):
+        wait = self.period
+        while not self._stop.wait(wait) and not rospy.is_shutdown():
+            try:
+                # a publisher that was killed stays listed until it is replaced: back off
+                wait = min(2 * wait, MAX_BACKOFF) if self.check() else self.period
+            except Exception as e:          # noqa: BLE001 - a watchdog must not die
+                rospy.logwarn_throttle(10.0, '%s: checking %s: %s', rospy.get_name(), self.name, e)
+
+
+def wait_for_message(name, data_class, timeout):
+    """Like ``rospy.wait_for_message`` with ``timeout`` [s wall], but through a
+    :class:`Subscription`: the first message, or ``rospy.ROSException`` after ``timeout``."""
+    got = []
+    done = threading.Event()
+
+    def on_msg(msg):
+        if not got:
+            got.append(msg)
+            done.set()
+    sub = Subscription(name, data_class, on_msg)
+    try:
+        end = time.monotonic() + timeout
+        while not done.wait(min(0.1, max(0.0, end - time.monotonic()))):
+            if rospy.is_shutdown():
+                raise rospy.ROSInterruptException('shutdown while waiting for %s' % sub.name)
+            if time.monotonic() >= end:
+                raise rospy.ROSException('timeout exceeded while waiting for a message on %s'
+                                         % sub.name)
+        return got[0]
+    finally:
+        sub.unregister()

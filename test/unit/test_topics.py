@@ -1,0 +1,79 @@
+"""Subscription: a subscriber that rospy's registration race left without its publisher (no
+connection while the master lists one) subscribes again; one that is connected, or whose
+topic nobody publishes, or that only hears itself, is left alone. Without a ROS master:
+rospy.Subscriber is replaced by a recorder."""
+import time
+
+import pytest
+import rospy
+
+from tiago_nav.ros import topics
+from tiago_nav.ros.topics import Subscription, orphaned
+
+
+class FakeSubscriber:
+    made = []
+
+    def __init__(self, name, data_class, callback, **kwargs):
+        self.name, self.callback, self.kwargs = name, callback, kwargs
+        self.connections = 0
+        self.unregistered = False
+        FakeSubscriber.made.append(self)
+
+    def get_num_connections(self):
+        return self.connections
+
+    def unregister(self):
+        self.unregistered = True
+
+
+@pytest.fixture
+def fake_rospy(monkeypatch):
+    FakeSubscriber.made = []
+    monkeypatch.setattr(rospy, 'Subscriber', FakeSubscriber)
+    monkeypatch.setattr(rospy, 'get_name', lambda: '/localisation')
+    monkeypatch.setattr(topics, 'listed_publishers', lambda name: [])
+    return FakeSubscriber
+
+
+def test_orphaned_needs_no_connection_and_a_listed_publisher_other_than_itself():
+    assert orphaned(0, ['/simulator'], '/localisation')
+    assert not orphaned(1, ['/simulator'], '/localisation')
+    assert not orphaned(0, [], '/localisation')
+    assert not orphaned(0, ['/localisation'], '/localisation')
+
+
+def test_an_orphaned_subscription_subscribes_again_with_the_same_arguments(fake_rospy):
+    def cb(msg):
+        return msg
+    s = Subscription('/map', object, cb, period=3600, queue_size=1)
+    first = s.sub
+    assert s.check(publishers=['/simulator'])
+    assert first.unregistered and s.sub is not first
+    assert (s.sub.name, s.sub.callback, s.sub.kwargs) == ('/map', cb, {'queue_size': 1})
+    assert s.resubscribed == 1
+    s.unregister()
+
+
+def test_a_connected_or_unpublished_subscription_is_left_alone(fake_rospy):
+    s = Subscription('/map', object, lambda m: None, period=3600)
+    first = s.sub
+    assert not s.check(publishers=[])                  # nobody publishes it yet
+    first.connections = 1
+    assert not s.check(publishers=['/simulator'])      # connected
+    assert s.sub is first and not first.unregistered and len(fake_rospy.made) == 1
+    s.unregister()
+
+
+def test_the_watch_thread_repairs_an_orphaned_subscription(fake_rospy, monkeypatch):
+    monkeypatch.setattr(topics, 'listed_publishers', lambda name: ['/simulator'])
+    s = Subscription('/scan', object, lambda m: None, period=0.01)
+    try:
+        first = s.sub
+        deadline = 200
+        while s.sub is first and deadline:
+            time.sleep(0.01)
+            deadline -= 1
+        assert first.unregistered and s.resubscribed >= 1
+    finally:
+        s.unregister()
