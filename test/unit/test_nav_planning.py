@@ -181,3 +181,28 @@ def test_controller_stops_before_an_obstacle():
             base.step(v, w, dt / 6)
         assert 2.0 - base.pose[0] > 0.27             # never touches
     assert abs(base.v) < 0.05                         # and has stopped
+
+
+def test_a_scan_clears_marked_cells_before_its_hits_and_keeps_those_behind():
+    """A 666-beam fan facing a wall 2 m away (every beam hits it): marks left in front of the
+    wall (an obstacle that moved away) are cleared, except within one cell of the wall; marks
+    behind the wall and outside the fan are kept."""
+    cm = Costmap(empty(120, 120), obstacle_range=4.0, raytrace_range=5.0)
+    x0, y0 = 1.0, 3.0
+    n = 666
+    angles = np.linspace(-1.0, 1.0, n)
+    ranges = 2.0 / np.cos(angles)                      # the wall x = x0 + 2
+    rng = np.random.default_rng(3)
+    cm.obstacles[:] = rng.random(cm.obstacles.shape) < 0.05
+    before = cm.obstacles.copy()
+    cm.add_scan(MapScan((x0, y0, 0.0), ranges, -1.0, 2.0 / (n - 1), 0.05, 25.0))
+    centres = cm.grid.cell_to_world(np.argwhere(before))
+    rc = np.argwhere(before)
+    dx, dy = centres[:, 0] - x0, centres[:, 1] - y0
+    bearing = np.arctan2(dy, dx)
+    inside = (np.abs(bearing) < 0.98) & (np.hypot(dx, dy) > 0.1)
+    ahead = inside & (dx < 2.0 - 0.08)                 # clearly in front of the wall
+    behind = dx > 2.0 + 0.05
+    kept = cm.obstacles[rc[:, 0], rc[:, 1]]
+    assert ahead.sum() > 100 and not kept[ahead].any()
+    assert kept[behind].all() and kept[np.abs(bearing) > 1.1].all()

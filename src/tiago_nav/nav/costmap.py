@@ -18,7 +18,7 @@ from functools import cached_property
 
 import numpy as np
 
-from tiago_nav.geometry import transform_points
+from tiago_nav.geometry import transform_points, wrap_angle
 from tiago_nav.gridmap import distance_to_mask
 from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.scan import (HIT, INVALID, NO_RETURN, TOO_CLOSE, beam_angles, classify, scan_to_points,
@@ -147,27 +147,56 @@ class Costmap:
 
     def add_scan(self, scan):
         """Mark and clear the obstacle layer with one :class:`MapScan` (REP 117, see the module
-        docstring): hit and no-return beams clear the cells they pass through (up to the hit or
-        ``raytrace_range``), then hits within ``obstacle_range`` and too-close beams are marked.
-        Does not re-inflate: call :meth:`update`."""
-        r = np.asarray(scan.ranges, dtype=float)
-        kinds = scan.kinds
-        clears = (kinds == HIT) | (kinds == NO_RETURN)
-        reach = np.where(kinds == HIT, np.minimum(r, self.raytrace_range), self.raytrace_range)[clears]
-        angles = scan.angles()[clears]
-        origin = scan.laser_pose
-        res = self.resolution
-        step = res * 0.5
-        n = int(np.ceil(self.raytrace_range / step))
-        s = np.arange(1, n + 1) * step                                  # (n,)
-        # sample along each beam, stopping one cell short of its hit
-        keep = s[None, :] < (reach[:, None] - res)                       # (B, n)
-        c, sn = np.cos(angles), np.sin(angles)
-        px = origin[0] + c[:, None] * s[None, :]
-        py = origin[1] + sn[:, None] * s[None, :]
-        self._set(np.column_stack((px[keep], py[keep])), False)
+        docstring): hit and no-return beams clear the marked cells they pass through, up to one
+        cell short of the hit (or up to ``raytrace_range``), then hits within ``obstacle_range``
+        and too-close beams are marked. Does not re-inflate: call :meth:`update`."""
+        self._clear(scan)
         pts, ranges = scan.obstacles
         self._set(pts[ranges <= self.obstacle_range], True)
+
+    def _clear(self, scan):
+        """Clear the marked cells within ``raytrace_range`` of the laser that a clearing beam
+        passes through (a beam within the cell's half-width of its centre) with its centre at
+        least one cell short of the beam's reach. Only marked cells can change, so only they are
+        tested: O(marked cells + beams) instead of sampling every beam."""
+        n = len(scan.ranges)
+        if n == 0 or not self.obstacles.any():
+            return
+        kinds = scan.kinds
+        reach = np.where(kinds == HIT, np.minimum(np.asarray(scan.ranges, dtype=float),
+                                                  self.raytrace_range), self.raytrace_range)
+        reach[(kinds != HIT) & (kinds != NO_RETURN)] = -np.inf
+        reach = np.append(reach, -np.inf)              # a sentinel for reduceat's last bound
+        g, res = self.grid, self.resolution
+        x, y, yaw = scan.laser_pose
+        rng = self.raytrace_range
+        lo = g.world_to_cell([(x - rng, y - rng)])[0]
+        hi = g.world_to_cell([(x + rng, y + rng)])[0] + 1
+        r0, c0 = max(lo[0], 0), max(lo[1], 0)
+        r1, c1 = min(hi[0], g.height), min(hi[1], g.width)
+        if r1 <= r0 or c1 <= c0:
+            return
+        rc = np.argwhere(self.obstacles[r0:r1, c0:c1]) + (r0, c0)
+        if len(rc) == 0:
+            return
+        centres = g.cell_to_world(rc)
+        dx, dy = centres[:, 0] - x, centres[:, 1] - y
+        d = np.hypot(dx, dy)
+        inc = abs(scan.angle_increment) or 1.0
+        sign = -1.0 if scan.angle_increment < 0 else 1.0
+        # each cell's bearing as a (fractional) beam index, and the beams within its half-width
+        mid = scan.angle_min + scan.angle_increment * (n - 1) / 2
+        rel = wrap_angle(np.arctan2(dy, dx) - yaw - mid) * sign + inc * (n - 1) / 2
+        half = np.arcsin(np.minimum(1.0, 0.5 * res / np.maximum(d, 1e-9)))
+        i_lo = np.maximum(np.ceil((rel - half) / inc), 0).astype(int)
+        i_hi = np.minimum(np.floor((rel + half) / inc), n - 1).astype(int)
+        hit = (i_lo <= i_hi) & (d <= rng)
+        if not hit.any():
+            return
+        bounds = np.column_stack((i_lo[hit], i_hi[hit] + 1)).ravel()
+        longest = np.maximum.reduceat(reach, bounds)[::2]      # the longest reach among them
+        cleared = np.flatnonzero(hit)[longest > d[hit] + res]
+        self.obstacles[rc[cleared, 0], rc[cleared, 1]] = False
 
     def _set(self, xy, value):
         rc = self.grid.world_to_cell(xy)
