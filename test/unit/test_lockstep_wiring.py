@@ -24,6 +24,7 @@ class FakeHost:
         self.commands = dict(commands or {})       # step number -> [(v, w)]
         self.participants = participants
         self.holds = []
+        self.clocks = []                            # /clock stamps sent through the host
         self.schedule = type('Schedule', (), {'drops': 0, 'lag_stats': lambda self: dict(
             count=0, max=0.0, p50=0.0, p95=0.0, p99=0.0)})()
 
@@ -33,6 +34,9 @@ class FakeHost:
 
     def from_participant(self, msg):
         return msg._connection_header['callerid'] in self.participants
+
+    def publish_clock(self, t):
+        self.clocks.append(t)
 
 
 def lockstep_node(host):
@@ -180,3 +184,61 @@ def test_corridor_server_claims_the_goal_answers_each_cycle_and_releases():
     assert len(stamps) == part.ticks and stamps == sorted(set(stamps))   # every cycle, once
     assert part.answers[-1][1] == (0.0, 0.0)
     assert max(v for _, (v, _) in part.answers) > 0.1
+
+
+def test_in_lockstep_clock_goes_out_with_the_sensor_data_only():
+    """/clock to every node at every physics step was half of a mission's messages: in
+    lockstep the simulator sends it at the steps with odometry or a scan (30 Hz of 60), through
+    the host (which sends it before a tick when needed)."""
+    host = FakeHost()
+    node = lockstep_node(host)
+    try:
+        node.start()
+        for _ in range(6):
+            node.hold()
+            node.step()
+        assert [t.to_sec() for t in host.clocks] == pytest.approx([0, 2 / 60, 4 / 60, 6 / 60])
+    finally:
+        node.close()
+
+
+def test_the_host_sends_clock_before_a_tick_unless_it_was_the_last_sent_and_again_on_a_retick(
+        monkeypatch):
+    import threading
+    import time
+
+    from tiago_nav.msg import LockstepAck
+    from tiago_nav.ros import lockstep as roslockstep
+
+    sent = []
+
+    class Pub:
+        def __init__(self, kind):
+            self.kind = kind
+
+        def publish(self, msg):
+            sent.append((self.kind, msg.clock.to_sec() if self.kind == 'clock' else msg.stamp.to_sec()))
+
+    monkeypatch.setattr(roslockstep, 'direct_publisher', lambda topic, cls, **kw: Pub('tick'))
+    monkeypatch.setattr(rospy, 'Subscriber', lambda *a, **kw: None)
+    host = roslockstep.LockstepHost(60.0, timeout=5.0, clock_pub=Pub('clock'))
+    host.gate.retick = 0.05
+    host.on_ack(LockstepAck(node='/move_base', stamp=rospy.Time(0), period=rospy.Duration(0.1)))
+
+    def answer(t):
+        host.on_ack(LockstepAck(node='/move_base', stamp=rospy.Time.from_sec(t),
+                                period=rospy.Duration(0.1)))
+
+    # 0.1 s: /clock for it already went out with the odometry, so the first tick goes alone
+    host.publish_clock(rospy.Time.from_sec(0.1))
+    del sent[:]
+    threading.Timer(0.02, answer, (0.1,)).start()
+    assert host.hold(rospy.Time.from_sec(0.1), None, None) == []
+    assert sent == [('tick', pytest.approx(0.1))]
+    # 0.2 s without /clock for it: /clock first; the answer is late, so tick and /clock again
+    del sent[:]
+    threading.Timer(0.12, answer, (0.2,)).start()
+    t0 = time.monotonic()
+    assert host.hold(rospy.Time.from_sec(0.2), None, None) == []
+    assert time.monotonic() - t0 >= 0.1
+    assert sent[:4] == [('clock', pytest.approx(0.2)), ('tick', pytest.approx(0.2))] * 2

@@ -57,13 +57,15 @@ class LockstepHost:
     Args:
         rate: physics rate [Hz].
         timeout: [s wall] wait for a missing answer before dropping its participant.
-        clock_pub: the simulator's /clock publisher: each tick is preceded by /clock for the
-            held time again, so that a participant whose /clock subscription connected after
-            that time was published still sees ROS time reach its cycle.
+        clock_pub: the simulator's /clock publisher: a tick is preceded by /clock for the
+            held time when that was not the last /clock sent, and a repeated tick by /clock
+            again, so that a participant whose /clock subscription connected after that time
+            was published still sees ROS time reach its cycle.
     """
 
     def __init__(self, rate, timeout=TIMEOUT, clock_pub=None):
         self.clock_pub = clock_pub
+        self.clock_stamp = None     # the newest /clock sent (rospy.Time)
         self.gate = Gate(Schedule(rate, timeout, _log), time.monotonic, rospy.is_shutdown)
         self.pub = direct_publisher(TICK_TOPIC, LockstepTick)
         self.sub = rospy.Subscriber(ACK_TOPIC, LockstepAck, self.on_ack, queue_size=None,
@@ -87,13 +89,22 @@ class LockstepHost:
         answers (ticks published as needed). Returns the commands ``(v, w)`` to apply now, in
         order, or None on shutdown. ``scan_stamp``/``odom_stamp``: rospy.Time of the newest
         scan and odometry published at or before ``t``."""
+        ticks = []
+
         def tick(_, waiting):
-            if self.clock_pub is not None:
-                self.clock_pub.publish(Clock(t))
+            if ticks or self.clock_stamp != t:
+                self.publish_clock(t)
+            ticks.append(t)
             self.pub.publish(LockstepTick(stamp=t, scan_stamp=scan_stamp or rospy.Time(),
                                           odom_stamp=odom_stamp or rospy.Time(),
                                           waiting_for=waiting))
         return self.gate.hold(t.to_sec(), tick)
+
+    def publish_clock(self, t):
+        """/clock for ``t`` (rospy.Time), the simulator's only way to send it in lockstep."""
+        if self.clock_pub is not None:
+            self.clock_pub.publish(Clock(t))
+            self.clock_stamp = t
 
 
 class ScanCache:
