@@ -21,6 +21,11 @@ GRID_SLACK = 1e-3   # [steps] a stamp this close to a step is on it (ns stamps a
 RESTART = 1.0       # [s] a tick this long before a participant's last answer: time went back
 
 
+IDLE_PERIOD = 0.1   # [s] an idle participant answers for all its deadlines up to the next
+#                     multiple of this (a 20 Hz controller holds the simulator at 10 Hz while
+#                     idle; the mission proxy, move_base and the localisation run at 10 Hz)
+
+
 def grid_after(t, period):
     """The first multiple of ``period`` [s] strictly after time ``t`` [s]."""
     return (math.floor(t / period + EPS) + 1) * period
@@ -239,12 +244,17 @@ class ParticipantCore:
     simulator's tick for that time has arrived; running free when ROS time has gone past the
     deadline without one (the simulator is not holding for this participant: no lockstep, or
     not registered yet). While not claimed by a control loop the participant is *idle*: every
-    tick due to it is answered at once with no command (:meth:`idle_answer`)."""
+    tick due to it is answered at once with no command (:meth:`idle_answer`), and the answer
+    covers its deadlines up to the next multiple of ``idle_period`` [s] (:meth:`cover`). A
+    goal's first cycle is the first deadline after both its ``since`` and that coverage: the
+    same instant whether the goal arrived before or after the idle answer, as long as goals
+    start on the ``idle_period`` grid (the mission proxy sends them in its 0.1 s cycles)."""
 
-    def __init__(self, period, now):
+    def __init__(self, period, now, idle_period=IDLE_PERIOD):
         if not (period > 0 and math.isfinite(period)):
             raise ValueError('period must be > 0 s, got %r' % (period,))
         self.period = float(period)
+        self.idle_period = float(idle_period or period)
         self.last = float(now)    # [s] stamp of the last answer (or the start)
         self.since = -math.inf    # [s] the control loop owns cycles after this time
         self.claimed = False
@@ -296,3 +306,12 @@ class ParticipantCore:
         if self.claimed and t.stamp > self.since + EPS:
             return None
         return t.stamp
+
+    def cover(self, stamp):
+        """The stamp [s] an idle answer to the tick at ``stamp`` carries: its last deadline
+        before the next multiple of ``idle_period`` (``stamp`` itself when the period is not
+        shorter), so that the simulator does not hold for an idle participant in between."""
+        if self.idle_period <= self.period + EPS:
+            return stamp
+        k = round((grid_after(stamp, self.idle_period) - stamp) / self.period - 1)
+        return stamp + max(k, 0) * self.period

@@ -262,6 +262,34 @@ def test_claimed_cycle_is_the_first_deadline_after_the_goal_whoever_answered_bef
         assert core.deadline() == pytest.approx(0.3)
 
 
+def test_an_idle_20hz_participant_covers_its_deadlines_up_to_the_idle_grid():
+    """Idle, a 20 Hz participant's answer to the tick at 0.1 covers 0.15 too (the 0.1 s idle
+    grid), so the simulator holds for it at 10 Hz; a goal stamped 0.1 then starts at 0.2,
+    whether it arrived before or after that answer; once released it covers again."""
+    for tick_first in (True, False):
+        core = ParticipantCore(0.05, now=0.0)
+        core.on_tick(Tick(0.1))
+        if not tick_first:
+            core.claim(since=0.1)
+        due = core.idle_answer()
+        assert due == pytest.approx(0.1) and core.cover(due) == pytest.approx(0.15)
+        core.answered(core.cover(due))
+        if tick_first:
+            core.claim(since=0.1)
+        assert core.deadline() == pytest.approx(0.2)
+        core.on_tick(Tick(0.2))
+        assert core.idle_answer() is None and core.next_cycle(0.2)[0] == pytest.approx(0.2)
+        core.answered(0.2)
+        core.on_tick(Tick(0.25))
+        assert core.next_cycle(0.25)[0] == pytest.approx(0.25)    # claimed: every 0.05 s
+        core.answered(0.25)
+        core.release()
+        core.on_tick(Tick(0.3))
+        assert core.cover(core.idle_answer()) == pytest.approx(0.35)
+    # a 10 Hz participant's idle answers cover only their own tick
+    assert ParticipantCore(0.1, now=0.0).cover(0.3) == 0.3
+
+
 def test_participant_starts_again_when_time_goes_back():
     core = ParticipantCore(0.1, now=20.0)
     core.claim(since=20.0)

@@ -41,6 +41,12 @@ def direct_publisher(topic, msg_class, **kwargs):
         return rospy.Publisher(topic, msg_class, queue_size=None, **kwargs)
 
 
+def _on_grid(stamp, seconds):
+    """``stamp`` (rospy.Time) + ``seconds`` rounded to whole nanoseconds (a stamp on the
+    physics grid stays on it)."""
+    return rospy.Time(nsecs=stamp.to_nsec() + int(round(seconds * 1e9)))
+
+
 def _log(level, text):
     (rospy.logwarn if level == 'warn' else rospy.loginfo)(text)
 
@@ -263,8 +269,9 @@ class LockstepParticipant:
             self.ready(msg)
         with self.cond:
             if self.core.idle_answer() == due:
-                self._ack(msg.stamp)
-                self.core.answered(due)
+                upto = self.core.cover(due)
+                self._ack(msg.stamp if upto == due else _on_grid(msg.stamp, upto - due))
+                self.core.answered(upto)
 
     def claim(self, since=None):
         """A control loop takes the cycles after ``since`` (rospy.Time, default now; give the
