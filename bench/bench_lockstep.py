@@ -55,6 +55,36 @@ def nav_goal(client, h, x, y, yaw_deg, participant=None):
             'collisions': (h.collisions or 0) - c0, 'text': client.get_goal_status_text()}
 
 
+def mission_in_cycle(h, x, y, yaw_deg):
+    """The course mission sent as a lockstep participant inside its cycle at the first 0.1 s
+    deadline after :data:`NAV_START` (answered once the proxy has accepted the goal), so that
+    the mission starts at the same simulated instant in every run; its record."""
+    import rospy
+    from actionlib_msgs.msg import GoalStatus
+    from tiago_nav.msg import TiagoTaskGoal
+    from tiago_nav.ros.actions import TaskClient
+    from tiago_nav.ros.lockstep import LockstepParticipant
+    client = TaskClient('tiago_controller')
+    if not client.wait_for_server(10.0):
+        raise RuntimeError('no tiago_controller server')
+    part = LockstepParticipant(0.1, enabled=True)
+    part.claim(rospy.Time(NAV_START))
+    if not part.tick():
+        raise RuntimeError('no lockstep cycle')
+    c0, t0, s0 = h.collisions or 0, time.monotonic(), rospy.get_time()
+    client.send_goal(TiagoTaskGoal(x=x, y=y, yaw_deg=yaw_deg, use_corridor_law=True))
+    while client.get_state() == GoalStatus.PENDING and time.monotonic() - t0 < 5.0:
+        time.sleep(0.001)
+    part.answer()
+    part.release()
+    done = client.wait_for_result(180.0)
+    result = client.get_result()
+    return {'succeeded': bool(done) and client.get_state() == GoalStatus.SUCCEEDED,
+            'message': client.get_goal_status_text(), 'wall_s': time.monotonic() - t0,
+            'sim_s': rospy.get_time() - s0, 'collisions': (h.collisions or 0) - c0,
+            'obstacles': len(result.obstacles) if result else 0, 'mission_start_s': s0}
+
+
 def _pose(m):
     q = m.pose.pose.orientation
     return [m.pose.pose.position.x, m.pose.pose.position.y, 2 * math.atan2(q.z, q.w)]
@@ -81,7 +111,7 @@ def settle_pose(last, timeout=10.0):
     return out
 
 
-def run_one(lockstep, nav_goals, seed, task):
+def run_one(lockstep, nav_goals, seed, task, launch_args=()):
     """Child process: one launch, the course mission (``task`` 'mission') or one move_base goal
     to pose B ('nav'), then ``nav_goals`` move_base goals; prints ``RESULT <json>`` last."""
     import actionlib
@@ -94,7 +124,7 @@ def run_one(lockstep, nav_goals, seed, task):
     from tiago_nav.testing.harness import Harness
 
     h = Harness(WORLD, real_time_factor=0.0,
-                extra_args=['lockstep:=%s' % ('true' if lockstep else 'false')])
+                extra_args=['lockstep:=%s' % ('true' if lockstep else 'false')] + list(launch_args))
     rec = {'lockstep': lockstep, 'task': task}
     last = {}
     try:
@@ -115,6 +145,8 @@ def run_one(lockstep, nav_goals, seed, task):
             rec['goal_stamp_s'] = client.gh.comm_state_machine.action_goal.goal_id.stamp.to_sec()
             rec.update(succeeded=g['succeeded'], message=g['text'], wall_s=g['wall_s'],
                        sim_s=g['sim_s'], collisions=g['collisions'])
+        elif lockstep:
+            rec.update(mission_in_cycle(h, *COURSE))
         else:
             c0, t_sim = h.collisions or 0, rospy.get_time()
             lines = []
@@ -243,10 +275,12 @@ def main():
     ap.add_argument('--task', default='mission', choices=('mission', 'nav'),
                     help='the course mission, or one move_base goal to its pose B')
     ap.add_argument('--out', default=os.path.join(RESULTS, 'lockstep.json'))
+    ap.add_argument('--launch-args', default='', help='more demo.launch arguments, e.g. '
+                    '"localisation:=ground_truth odometry_model:=ideal"')
     ap.add_argument('--run', choices=('on', 'off'), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.run:
-        run_one(args.run == 'on', args.nav, args.seed, args.task)
+        run_one(args.run == 'on', args.nav, args.seed, args.task, args.launch_args.split())
         return 0
     report = {'task': args.task, 'n': args.n, 'nav_goals_per_run': args.nav, 'seed': args.seed, 'conditions': []}
     t0 = time.monotonic()
@@ -260,7 +294,7 @@ def main():
                 for i in range(args.n):
                     out = subprocess.run([sys.executable, os.path.abspath(__file__), '--run', mode,
                                           '--nav', str(args.nav), '--seed', str(args.seed),
-                                          '--task', args.task],
+                                          '--task', args.task, '--launch-args', args.launch_args],
                                          stdout=subprocess.PIPE, text=True).stdout
                     rec = next((json.loads(l[7:]) for l in out.splitlines()
                                 if l.startswith('RESULT ')), {'succeeded': False, 'error': 'no result'})

@@ -242,3 +242,35 @@ def test_the_host_sends_clock_before_a_tick_unless_it_was_the_last_sent_and_agai
     assert host.hold(rospy.Time.from_sec(0.2), None, None) == []
     assert time.monotonic() - t0 >= 0.1
     assert sent[:4] == [('clock', pytest.approx(0.2)), ('tick', pytest.approx(0.2))] * 2
+
+
+def test_peers_tell_what_a_server_did_up_to_a_cycle(monkeypatch):
+    """The mission proxy's view of its servers (Peers): inside its cycle at t it needs each
+    server's answer for that server's last deadline at or before t; an idle 20 Hz server's
+    answer covering past t counts; a node that never answered, or left, is no participant."""
+    import threading
+
+    from tiago_nav.msg import LockstepAck
+    from tiago_nav.ros import lockstep as roslockstep
+
+    monkeypatch.setattr(rospy, 'Subscriber', lambda *a, **kw: None)
+    peers = roslockstep.Peers()
+
+    def ack(node, stamp, period, command=False, leave=False):
+        peers.on_ack(LockstepAck(node=node, stamp=rospy.Time.from_sec(stamp),
+                                 period=rospy.Duration.from_sec(period), has_command=command,
+                                 leave=leave))
+
+    t = rospy.Time.from_sec(1.0)
+    assert peers.covering('/move_base', t, 0.0) is None             # never answered
+    ack('/move_base', 0.9, 0.1, command=True)
+    assert peers.covering('/move_base', t, 0.05) is None            # its 1.0 answer is missing
+    threading.Timer(0.02, ack, ('/move_base', 1.0, 0.1, True)).start()
+    got = peers.covering('/move_base', t, 2.0)                      # waits for it
+    assert got.stamp.to_sec() == pytest.approx(1.0) and got.has_command
+    ack('/move_base', 0.9, 0.1)                                     # a stale answer: ignored
+    assert peers.covering('/move_base', t, 0.0).has_command
+    ack('/corridor_controller', 1.05, 0.05)                         # idle, covering 1.05
+    assert not peers.covering('/corridor_controller', t, 0.0).has_command
+    ack('/move_base', 1.0, 0.1, leave=True)
+    assert peers.covering('/move_base', t, 0.0) is None             # left

@@ -19,7 +19,6 @@ import sys
 import threading
 from dataclasses import dataclass
 
-import actionlib
 import numpy as np
 import rospy
 import tf2_ros
@@ -34,8 +33,8 @@ from tiago_nav.msg import CorridorAction, CorridorFeedback, CorridorResult
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
-from tiago_nav.ros.lockstep import (CYCLE_WAIT, LockstepParticipant, ScanCache, goal_since,
-                                    lookup_at)
+from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant,
+                                    ScanCache, goal_since, lookup_at)
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.topics import Subscription
 
@@ -338,8 +337,7 @@ def main():
         sys.exit(1)
     cmd_pub = rospy.Publisher(params.cmd_vel_topic, Twist, queue_size=1)
     node = CorridorServer(params, clock, None, cmd_pub, io, participant)
-    node.server = actionlib.SimpleActionServer(NODE, CorridorAction, execute_cb=node.execute,
-                                               auto_start=False)
+    node.server = ClaimingActionServer(NODE, CorridorAction, node.execute, participant)
     node.server.start()
     rospy.loginfo('%s ready (max_speed %.2f m/s, look-ahead %.1f m)', NODE,
                   params.law.max_speed, params.law.look_ahead)

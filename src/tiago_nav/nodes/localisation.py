@@ -16,6 +16,7 @@ import collections
 import math
 import sys
 import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +33,7 @@ from tiago_nav.localisation import Localiser, LocaliserConfig
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as rosparams
 from tiago_nav.ros.clock import RosClock
+from tiago_nav.ros.lockstep import CYCLE_WAIT, LockstepParticipant, lookup_at
 from tiago_nav.ros.conversions import (gridmap_from_msg, pose_from_msg, pose_from_transform,
                                        pose_msg, transform_stamped)
 from tiago_nav.ros.topics import Subscription
@@ -117,8 +119,14 @@ class LocalisationNode:
         Subscription(params.map_topic, OccupancyGrid, self.on_map, queue_size=1)
         rospy.Subscriber(params.initialpose_topic, PoseWithCovarianceStamped, self.on_initialpose,
                          queue_size=1)
-        Subscription(params.scan_topic, LaserScan, self.on_scan, queue_size=1,
-                     buff_size=2 ** 20)
+        # lockstep: an idle participant that answers a tick once the scans up to it are taken
+        # in and their corrections sent (so move_base's cycle at that tick finds them); every
+        # scan is taken in, in order, and the between-scan republishes happen at the ticks
+        self.intake = threading.Condition()
+        self.last_scan_stamp = None
+        self.lockstep = LockstepParticipant(1.0 / params.republish_rate, ready=self.on_tick)
+        Subscription(params.scan_topic, LaserScan, self.on_scan,
+                     queue_size=None if self.lockstep.enabled else 1, buff_size=2 ** 20)
 
     def on_map(self, msg):
         try:
@@ -147,15 +155,36 @@ class LocalisationNode:
         rospy.loginfo('localisation: reset to (%.2f, %.2f, %.1f deg)', pose[0], pose[1],
                       math.degrees(pose[2]))
 
+    def on_tick(self, tick):
+        """Before an idle lockstep answer: every scan up to the tick's is taken in; then the
+        latest estimate is re-sent, stamped at the tick."""
+        upto = tick.scan_stamp
+        if upto is not None and not upto.is_zero():
+            deadline = time.monotonic() + CYCLE_WAIT    # wall time: ROS time stands still here
+            with self.intake:
+                while (self.last_scan_stamp is None or self.last_scan_stamp < upto) \
+                        and time.monotonic() < deadline and not rospy.is_shutdown():
+                    self.intake.wait(0.1)
+        self.send_transform(tick.stamp + REPUBLISH_OFFSET)
+
     def on_scan(self, msg):
+        try:
+            self._on_scan(msg)
+        finally:
+            with self.intake:
+                self.last_scan_stamp = msg.header.stamp
+                self.intake.notify_all()
+
+    def _lookup(self, target, source, stamp):
+        if self.lockstep.enabled:
+            return lookup_at(self.tf, target, source, stamp, CYCLE_WAIT)
+        return self.tf.lookup_transform(target, source, stamp, rospy.Duration(self.p.tf_timeout))
+
+    def _on_scan(self, msg):
         stamp = msg.header.stamp
         try:
-            odom = pose_from_transform(self.tf.lookup_transform(
-                self.p.odom_frame, self.p.base_frame, stamp,
-                rospy.Duration(self.p.tf_timeout)).transform)
-            laser = pose_from_transform(self.tf.lookup_transform(
-                self.p.base_frame, msg.header.frame_id, stamp,
-                rospy.Duration(self.p.tf_timeout)).transform)
+            odom = pose_from_transform(self._lookup(self.p.odom_frame, self.p.base_frame, stamp).transform)
+            laser = pose_from_transform(self._lookup(self.p.base_frame, msg.header.frame_id, stamp).transform)
         except tf2_ros.TransformException as e:
             rospy.logwarn_throttle(5.0, 'localisation: scan at %.3f skipped: %s', stamp.to_sec(), e)
             return
@@ -193,6 +222,9 @@ class LocalisationNode:
 
     def run(self):
         ticker = Ticker(RosClock(), 1.0 / self.p.republish_rate)
+        if self.lockstep.enabled:
+            rospy.spin()            # republishes happen at the ticks
+            return
         while not rospy.is_shutdown():
             if ticker.tick():
                 # offset off the scans' stamps: tf keeps the first transform of a stamp, and a

@@ -15,7 +15,6 @@ import sys
 import threading
 from dataclasses import dataclass
 
-import actionlib
 import rospy
 import tf2_ros
 from geometry_msgs.msg import PoseStamped, Twist
@@ -34,7 +33,8 @@ from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, Goal
 from tiago_nav.params import nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, pose_stamped
-from tiago_nav.ros.lockstep import CYCLE_WAIT, LockstepParticipant, goal_since, lookup_at
+from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant,
+                                    goal_since, lookup_at)
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.topics import Subscription, wait_for_message
 from tiago_nav.scan import FrozenScanCheck
@@ -152,8 +152,8 @@ class MoveBase:
         self._wait(lambda: self.tf.can_transform(self.map_frame, p.robot_base_frame, rospy.Time(0)),
                    lambda: 'no transform %s -> %s within %g s (is odometry/localisation running?)'
                    % (self.map_frame, p.robot_base_frame, p.ready_timeout))
-        self.server = actionlib.SimpleActionServer('move_base', MoveBaseAction, self.execute,
-                                                   auto_start=False)
+        self.server = ClaimingActionServer('move_base', MoveBaseAction, self.execute,
+                                           self.lockstep)
         io = ActionIO(self.server, self.cmd_pub, self.plan_pub, self.clock, self.cycle_pose,
                       self.to_map, self.map_frame, self.lockstep, self.sense)
         self.runner = GoalRunner(self.nav, io, 1.0 / p.controller_frequency, self.lock, self._log,
@@ -206,6 +206,14 @@ class MoveBase:
         self._wait_for(odom, source, stamp)
         try:
             m2o = self.tf.lookup_transform(self.map_frame, odom, rospy.Time(0))
+            if self.lockstep.enabled and not stamp.is_zero():
+                # lockstep: map -> odom at exactly this stamp (which is the newest depends on
+                # timing); waiting only for a stamp newer than what tf holds (older ones, e.g.
+                # before the localisation's first correction, take the newest)
+                if stamp > m2o.header.stamp:
+                    m2o = lookup_at(self.tf, self.map_frame, odom, stamp, CYCLE_WAIT)
+                elif self.tf.can_transform(self.map_frame, odom, stamp):
+                    m2o = self.tf.lookup_transform(self.map_frame, odom, stamp)
             o2s = self.tf.lookup_transform(odom, source, stamp)
         except tf2_ros.TransformException:
             return self._transform(source, stamp)

@@ -33,6 +33,8 @@ from tiago_nav.params import nested, param, validate
 from tiago_nav.ros import params as ros_params
 from tiago_nav.ros.actions import server_connected
 from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
+from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant, Peers,
+                                    ScanCache, goal_since, lookup_at)
 from tiago_nav.ros.markers import obstacle_markers
 from tiago_nav.scan import scan_to_points, usable_ranges
 from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
@@ -72,6 +74,9 @@ class Params:
                             'toward pose B?', nonempty=True)
     global_frame: str = param('map', 'frame of pose B and of the reported poses', nonempty=True)
     robot_frame: str = param('base_footprint', 'the robot base frame', nonempty=True)
+    lockstep_period: float = param(0.1, '[s] in lockstep (/use_lockstep), the proxy decides on '
+                                   "the simulator's cycles of this period: a whole number of "
+                                   'physics steps', gt=0)
 
     def __post_init__(self):
         validate(self)
@@ -96,6 +101,15 @@ class RosBackend:
         self._scan = (None, -math.inf)    # the newest scan and its arrival [s wall]
         rospy.Subscriber(params.scan_topic, LaserScan, self._on_scan, queue_size=1)
         self.server = None            # the SimpleActionServer, set by the node
+        # lockstep (README "Lockstep"): the mission decides on its own cycles
+        self.lockstep = LockstepParticipant(params.lockstep_period)
+        self.peers = Peers() if self.lockstep.enabled else None
+        self.scans = ScanCache(params.scan_topic) if self.lockstep.enabled else None
+        self._in_cycle = False        # a cycle has begun and is not answered yet
+        self._stop = False            # this cycle's answer carries a stop
+        self._sent = None             # the stage whose goal was sent in this cycle
+        self._active = None           # the stage whose goal runs
+        self._ran_at = {}             # stage -> True when its server was still at work at this cycle
 
     # --- clock (tiago_nav.clock protocol) ------------------------------------------------------
     def now(self):
@@ -105,7 +119,84 @@ class RosBackend:
         return time.monotonic()
 
     def sleep(self, seconds):
-        time.sleep(seconds)           # wall clock: never blocks if /clock stops
+        """Out of lockstep: ``seconds`` of wall time (never blocks if /clock stops). In lockstep,
+        while a mission runs: the end of this cycle and the start of the next one (the runner
+        polls once per cycle)."""
+        if not self._cycles():
+            time.sleep(seconds)
+            return
+        self._finish_cycle()
+        self._begin_cycle()
+
+    # --- lockstep: the proxy's cycles ----------------------------------------------------------
+    # Inside a cycle (simulated time held at its stamp) the proxy knows exactly what its servers
+    # did up to it: each server's answer for its last deadline at or before the stamp says
+    # whether its goal still ran (an answer with a command) or had ended (an idle answer, sent
+    # after the goal's result); the result is then waited for. So the proxy sees a stage end,
+    # and sends the next stage's goal, at the same simulated instant in every run. A goal sent
+    # in a cycle is stamped with it and the cycle is answered only once the server has accepted
+    # it (the server's participant claimed its cycles on arrival: ClaimingActionServer). Servers
+    # that do not take part (no answers seen) are judged by their action state, as out of
+    # lockstep. Detection and everything after it run free.
+    def begin(self, stamp):
+        """A mission starts (its goal stamped ``stamp``, rospy.Time): in lockstep the proxy's
+        cycles after that stamp are its own."""
+        self._active, self._sent, self._stop, self._ran_at = None, None, False, {}
+        if self.lockstep.enabled:
+            self.lockstep.claim(goal_since(stamp, rospy.Time.now()))
+
+    def end(self):
+        """The mission is over (or going to run free): answer the open cycle and give the
+        cycles back."""
+        if self.lockstep.enabled:
+            self._finish_cycle()
+            self.lockstep.release()
+
+    def _cycles(self):
+        return self.lockstep.enabled and self.lockstep.core.claimed and not rospy.is_shutdown()
+
+    def _begin_cycle(self):
+        """Wait for the proxy's next cycle; then for what the active stage's server did up to it."""
+        if self._in_cycle or not self._cycles():
+            return
+        self._ran_at = {}
+        if not self.lockstep.tick():
+            return                     # shutting down, or ROS time stopped: the runner's guards act
+        self._in_cycle = True
+        stage = self._active
+        if not self.lockstep.lockstep or stage is None:
+            return
+        node = self._server_node(stage)
+        ack = self.peers.covering(node, self.lockstep.stamp, CYCLE_WAIT) if node else None
+        if ack is None:
+            return                     # not a participant: its action state decides
+        self._ran_at[stage] = ack.has_command
+        if not ack.has_command:        # its goal had ended: its result is on the way
+            end = time.monotonic() + CYCLE_WAIT
+            client = self.clients[stage]
+            while client.get_state() in _ACTIVE and time.monotonic() < end \
+                    and not rospy.is_shutdown():
+                time.sleep(0.001)
+
+    def _finish_cycle(self):
+        """Answer the open cycle (with a stop when one was asked for), once a goal sent in it
+        has been accepted."""
+        if not self._in_cycle:
+            return
+        if self._sent is not None:
+            client = self.clients[self._sent]
+            end = time.monotonic() + CYCLE_WAIT
+            while client.get_state() == GoalStatus.PENDING and time.monotonic() < end \
+                    and not rospy.is_shutdown():
+                time.sleep(0.001)
+            self._sent = None
+        self.lockstep.answer(Twist() if self._stop else None)
+        self._stop, self._in_cycle = False, False
+
+    def _server_node(self, stage):
+        """The node serving ``stage``'s action (the callerid of its status messages), or None."""
+        msg = self.clients[stage].action_client.last_status_msg
+        return msg._connection_header.get('callerid') if msg else None
 
     def shutdown(self):
         return rospy.is_shutdown()
@@ -133,6 +224,7 @@ class RosBackend:
         return self._path
 
     def stop_robot(self):
+        self._stop = True             # in lockstep the stop travels in the cycle's answer
         if not rospy.is_shutdown():
             try:
                 self.cmd.publish(Twist())
@@ -158,6 +250,16 @@ class RosBackend:
         when no such scan can be placed within ``server_timeout`` wall seconds (a newer scan is
         tried while waiting: tf may not reach back to the first one, e.g. a localisation that
         started late)."""
+        if self._cycles():
+            t0 = time.monotonic()
+            while True:                # a scan tf cannot place yet (localisation starting): next cycle
+                try:
+                    scan, robot, laser = self._cycle_scan()
+                    return self._judge_corridor(goal, scan, robot, laser)
+                except StageError:
+                    if rospy.is_shutdown() or time.monotonic() - t0 > self.cfg.server_timeout:
+                        raise
+                self.sleep(self.cfg.poll_period)
         t0 = time.monotonic()
         while True:
             scan, seen = self._scan
@@ -174,6 +276,28 @@ class RosBackend:
             if rospy.is_shutdown() or time.monotonic() - t0 > self.cfg.server_timeout:
                 raise StageError('corridor', why)
             time.sleep(self.cfg.poll_period)
+        return self._judge_corridor(goal, scan, robot, laser)
+
+    def _cycle_scan(self):
+        """In lockstep: the scan the current cycle names and the robot's and the laser's poses
+        at its stamp; :class:`StageError` of the corridor stage when they do not come."""
+        self._begin_cycle()
+        stamp = self.lockstep.scan_stamp
+        scan = self.scans.wait_for_scan(stamp, CYCLE_WAIT) if stamp else self.scans.latest()
+        if scan is None:
+            raise StageError('corridor', 'no laser scan on %s for the cycle at %.3f s: cannot tell '
+                             'whether a corridor leads toward pose B'
+                             % (rospy.resolve_name(self.p.scan_topic), rospy.get_time()))
+        try:
+            robot = pose_from_transform(lookup_at(self.tf, self.global_frame, self.robot_frame,
+                                                  scan.header.stamp, CYCLE_WAIT).transform)
+            laser = self._pose(self.robot_frame, scan.header.frame_id, rospy.Time(0))
+        except _TF_ERRORS as e:
+            raise StageError('corridor', 'no transform to place the scan and judge the corridor: '
+                             '%s' % e) from None
+        return scan, robot, laser
+
+    def _judge_corridor(self, goal, scan, robot, laser):
         ranges = usable_ranges(scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
                                scan.range_max, laser)       # no self-hits, no veils
         points, _ = scan_to_points(ranges, scan.angle_min, scan.angle_increment, scan.range_min,
@@ -192,6 +316,8 @@ class RosBackend:
         return server_connected(self.clients[stage])
 
     def send_goal(self, stage, goal):
+        """Send ``stage``'s goal; in lockstep inside a cycle, stamped with it."""
+        self._begin_cycle()
         self.feedbacks[stage] = None
         if stage == 'corridor':
             msg = CorridorGoal(max_speed=goal[0], max_distance=goal[1])
@@ -199,9 +325,14 @@ class RosBackend:
             self._path = None
             msg = MoveBaseGoal(target_pose=pose_stamped(goal, self.global_frame, rospy.Time.now()))
         self.clients[stage].send_goal(msg, feedback_cb=lambda fb: self.feedbacks.__setitem__(stage, fb))
+        if self._in_cycle:
+            self._sent = stage
+        self._active = stage
 
     def poll(self, stage):
         c = self.clients[stage]
+        if self._ran_at.get(stage):   # in lockstep: its server was still at work at this cycle
+            return Poll(mission.ACTIVE, feedback=self.feedbacks.get(stage))
         status = _POLL.get(c.get_state(), mission.ACTIVE)
         if status == mission.ACTIVE:
             return Poll(mission.ACTIVE, feedback=self.feedbacks.get(stage))
@@ -215,6 +346,7 @@ class RosBackend:
 
     # --- detection ---------------------------------------------------------------------------
     def detect(self, timeout):
+        self.end()                    # the service waits for a fresh scan: let time run
         name = self.p.detection_service
         self._wait_service(name)
         proxy = rospy.ServiceProxy(name, DetectObstacles)
@@ -284,8 +416,8 @@ class TiagoController:
         self.runner = MissionRunner(self.backend, params.mission, log=rospy.loginfo)
         self.markers = rospy.Publisher('~obstacle_markers', MarkerArray, queue_size=1, latch=True)
         self.goal_pose = rospy.Publisher('~goal_pose', PoseStamped, queue_size=1, latch=True)
-        self.server = actionlib.SimpleActionServer(params.action_name, TiagoTaskAction,
-                                                   self.execute, auto_start=False)
+        self.server = ClaimingActionServer(params.action_name, TiagoTaskAction, self.execute,
+                                           self.backend.lockstep)
         self.backend.server = self.server
         rospy.on_shutdown(self.on_shutdown)
         self.server.start()
@@ -308,11 +440,19 @@ class TiagoController:
                 self.server.set_aborted(TiagoTaskResult(message=message), message)
 
     def _execute(self, goal):
+        self.backend.begin(self.server.current_goal.get_goal_id().stamp)
+        try:
+            self._run(goal)
+        finally:
+            self.backend.end()
+
+    def _run(self, goal):
         self.publish_markers([])
         if all(math.isfinite(v) for v in (goal.x, goal.y, goal.yaw_deg)):
             self.goal_pose.publish(pose_stamped((goal.x, goal.y, math.radians(goal.yaw_deg)),
                                                 self.p.global_frame, rospy.Time.now()))
         outcome = self.runner.run(Goal(goal.x, goal.y, goal.yaw_deg, goal.use_corridor_law))
+        self.backend.end()
         result = TiagoTaskResult(obstacles=outcome.obstacles, message=outcome.message)
         if outcome.final_pose is not None:
             result.final_pose = pose_stamped(outcome.final_pose, self.p.global_frame,

@@ -6,9 +6,12 @@ told apart); :class:`LockstepParticipant` a control loop's side, used in place o
 the exact scan and transform of a cycle (ROS time stands still while the simulator holds).
 """
 import collections
+import math
 import threading
 import time
 import warnings
+
+import actionlib
 
 import rospy
 from geometry_msgs.msg import Twist
@@ -17,7 +20,7 @@ from sensor_msgs.msg import LaserScan
 
 from tiago_nav import motion
 from tiago_nav.clock import NAP, STALL, Ticker
-from tiago_nav.lockstep import Ack, Gate, ParticipantCore, Schedule, Tick
+from tiago_nav.lockstep import EPS, Ack, Gate, ParticipantCore, Schedule, Tick
 from tiago_nav.msg import LockstepAck, LockstepTick
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.topics import Subscription
@@ -360,6 +363,65 @@ class LockstepParticipant:
                 self._ack(rospy.Time.from_sec(self.clock.now()), cmd, leave=True)
             except rospy.ROSException:
                 pass        # shutting down: the simulator's timeout drops it instead
+
+
+class Peers:
+    """The other participants' answers as they go to the simulator (on ``/sim/lockstep/ack``):
+    lets a node that coordinates others (the mission proxy) know, inside its own cycle, what
+    each of them did up to that cycle."""
+
+    def __init__(self):
+        self.cond = threading.Condition()
+        self.newest = {}         # node -> its newest LockstepAck
+        self.sub = rospy.Subscriber(ACK_TOPIC, LockstepAck, self.on_ack, queue_size=None,
+                                    tcp_nodelay=True)
+
+    def on_ack(self, msg):
+        with self.cond:
+            old = self.newest.get(msg.node)
+            if msg.leave or old is None or old.leave or msg.stamp >= old.stamp:
+                self.newest[msg.node] = msg
+            self.cond.notify_all()
+
+    def covering(self, node, stamp, timeout):
+        """``node``'s newest answer once it covers ``node``'s last deadline at or before
+        ``stamp`` (rospy.Time; a participant acts only at its deadlines, so that answer says
+        what it did up to ``stamp``), waiting up to ``timeout`` [s wall] for it. None when
+        ``node`` does not take part (never answered, or left) or the answer does not come."""
+        t = stamp.to_sec()
+        end = time.monotonic() + timeout
+        with self.cond:
+            while True:
+                a = self.newest.get(node)
+                if a is None or a.leave:
+                    return None
+                period = a.period.to_sec()
+                due = math.floor(t / period + EPS) * period if period > 0 else t
+                if a.stamp.to_sec() >= due - EPS:
+                    return a
+                left = end - time.monotonic()
+                if left <= 0 or rospy.is_shutdown():
+                    return None
+                self.cond.wait(min(left, 0.1))
+
+
+class ClaimingActionServer(actionlib.SimpleActionServer):
+    """A SimpleActionServer (started by :meth:`start`) whose lockstep ``participant`` claims
+    the cycles after a goal's stamp as soon as the goal arrives, when no goal is running: not
+    only once the execute callback starts, after actionlib has accepted the goal. In between,
+    the participant would answer the goal's first cycle idle, and a client that sends the goal
+    inside its own cycle and waits until it is accepted (the mission proxy) would see it start a
+    cycle late in some runs."""
+
+    def __init__(self, name, spec, execute_cb, participant):
+        self.participant = participant
+        super().__init__(name, spec, execute_cb, auto_start=False)
+
+    def internal_goal_callback(self, goal):
+        part = self.participant
+        if part is not None and part.enabled and not self.is_active():
+            part.claim(goal_since(goal.get_goal_id().stamp, rospy.Time.from_sec(part.clock.now())))
+        super().internal_goal_callback(goal)
 
 
 class _Join(rospy.SubscribeListener):
