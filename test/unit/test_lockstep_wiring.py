@@ -274,3 +274,40 @@ def test_peers_tell_what_a_server_did_up_to_a_cycle(monkeypatch):
     assert not peers.covering('/corridor_controller', t, 0.0).has_command
     ack('/move_base', 1.0, 0.1, leave=True)
     assert peers.covering('/move_base', t, 0.0) is None             # left
+
+
+def test_a_participant_registers_only_once_its_tick_subscription_is_connected():
+    """Registered before it can receive ticks, a participant made the simulator wait for it
+    and drop it after 1 s at every start-up."""
+    import time
+
+    from tiago_nav.ros import lockstep as roslockstep
+
+    class Sub:
+        connections = 0
+
+        def get_num_connections(self):
+            return self.connections
+
+    class Participant:
+        sub = type('S', (), {})()
+
+        def join_msg(self):
+            return 'join'
+
+    part = Participant()
+    part.sub.sub = Sub()
+    sent = []
+    roslockstep._Join(part, wait=5.0).peer_subscribe('/sim/lockstep/ack', None, sent.append)
+    time.sleep(0.1)
+    assert sent == []                      # ticks cannot reach it yet
+    part.sub.sub.connections = 1
+    end = time.monotonic() + 2.0
+    while not sent and time.monotonic() < end:
+        time.sleep(0.01)
+    assert sent == ['join']
+    late = []
+    starting = type('Starting', (), {'join_msg': lambda self: 'join'})()   # no subscription yet
+    roslockstep._Join(starting, wait=0.05).peer_subscribe('/x', None, late.append)
+    time.sleep(0.3)
+    assert late == ['join']                # no tick subscription at all: registers after `wait`
