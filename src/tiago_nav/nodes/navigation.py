@@ -222,10 +222,10 @@ class MoveBase:
 
     # --- inputs -----------------------------------------------------------------------------
     def on_tick(self, tick):
-        """Before an idle lockstep answer: the obstacle layer holds the tick's scans (once
-        serving goals; while starting, scans may not be placeable yet, and no goal can come)."""
-        if getattr(self, 'server', None) is not None:
-            self.take_in(tick.scan_stamp)
+        """Before an idle lockstep answer: the obstacle layer holds the tick's scans. (Also
+        while starting: otherwise the simulator runs ahead of the scans move_base takes in, in
+        order, until tf no longer holds their transforms and move_base never gets ready.)"""
+        self.take_in(tick.scan_stamp)
 
     def sense(self):
         """At each control cycle in lockstep: the obstacle layer holds every scan up to the
