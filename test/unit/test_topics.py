@@ -48,7 +48,9 @@ def test_an_orphaned_subscription_subscribes_again_with_the_same_arguments(fake_
         return msg
     s = Subscription('/map', object, cb, period=3600, queue_size=1)
     first = s.sub
-    assert s.check(publishers=['/simulator'])
+    assert not s.check(publishers=['/simulator'])       # the connection may still be coming
+    assert not s.check(publishers=['/simulator'])
+    assert s.check(publishers=['/simulator'])           # the third check in a row: orphaned
     assert first.unregistered and s.sub is not first
     assert (s.sub.name, s.sub.callback, s.sub.kwargs) == ('/map', cb, {'queue_size': 1})
     assert s.resubscribed == 1
@@ -59,6 +61,12 @@ def test_a_connected_or_unpublished_subscription_is_left_alone(fake_rospy):
     s = Subscription('/map', object, lambda m: None, period=3600)
     first = s.sub
     assert not s.check(publishers=[])                  # nobody publishes it yet
+    assert not s.check(publishers=['/simulator'])
+    first.connections = 1                              # ... and the connection came
+    assert not s.check(publishers=['/simulator'])
+    first.connections = 0
+    assert not s.check(publishers=['/simulator'])      # the count starts again
+    assert not s.check(publishers=['/simulator'])
     first.connections = 1
     assert not s.check(publishers=['/simulator'])      # connected
     assert s.sub is first and not first.unregistered and len(fake_rospy.made) == 1

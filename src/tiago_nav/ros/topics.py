@@ -18,6 +18,8 @@ import rosgraph
 import rospy
 
 CHECK_PERIOD = 1.0      # [s wall] how often a subscription without a connection asks the master
+GRACE = 3               # checks in a row that must find it orphaned: a connection still being made
+#                         (slow under load) is not a missed publisher
 MAX_BACKOFF = 30.0      # [s wall] the longest wait between two subscriptions again
 
 
@@ -43,29 +45,37 @@ class Subscription:
     it has no connection while the master lists a publisher (see the module's docstring).
 
     A wall-time thread checks every ``period`` seconds. The master is asked only while there
-    is no connection. After subscribing again it waits twice as long before the next try (up
+    is no connection; it subscribes again after ``grace`` checks in a row found it orphaned (a
+    connection that is still being made, slow on a loaded machine, is left to finish). After subscribing again it waits twice as long before the next try (up
     to 30 s): a publisher killed without unregistering stays listed until it is replaced. This relies on this process having no other Subscriber on ``name``:
     rospy shares one registration between them, so unregistering one would not make a new
     registration."""
 
-    def __init__(self, name, data_class, callback, period=CHECK_PERIOD, **kwargs):
+    def __init__(self, name, data_class, callback, period=CHECK_PERIOD, grace=GRACE, **kwargs):
         self.name = rospy.resolve_name(name)
         self._make = lambda: rospy.Subscriber(name, data_class, callback, **kwargs)
-        self.period = period
+        self.period, self.grace = period, grace
+        self.orphaned_checks = 0
         self.resubscribed = 0
         self.sub = self._make()
         self._stop = threading.Event()
         threading.Thread(target=self._watch, name='subscription ' + self.name, daemon=True).start()
 
     def check(self, publishers=None):
-        """Subscribe again if the subscriber is orphaned. ``publishers`` overrides the master's
-        list (tests). True when it subscribed again."""
+        """Subscribe again if the subscriber has been orphaned for ``grace`` checks in a row.
+        ``publishers`` overrides the master's list (tests). True when it subscribed again."""
         if self.sub.get_num_connections() > 0:
+            self.orphaned_checks = 0
             return False
         if publishers is None:
             publishers = listed_publishers(self.name)
         if not orphaned(self.sub.get_num_connections(), publishers, rospy.get_name()):
+            self.orphaned_checks = 0
             return False
+        self.orphaned_checks += 1
+        if self.orphaned_checks < self.grace:
+            return False
+        self.orphaned_checks = 0
         rospy.logwarn('%s: no connection to %s, which the master lists as published by %s: '
                       'subscribing again', rospy.get_name(), self.name, ', '.join(publishers))
         self.sub.unregister()
