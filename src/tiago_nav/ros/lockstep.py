@@ -32,8 +32,6 @@ TIMEOUT = 1.0     # [s wall] the simulator's default wait for a missing answer; 
                   # after which a participant takes ROS time standing still for a dead simulator
 CYCLE_WAIT = 2.0  # [s wall] in a held cycle, the longest wait for its scan, tf or pose: the
                   # simulator has published them, so only a starved process waits at all
-JOIN_WAIT = 10.0  # [s wall] a participant registers once its tick subscription is connected, or
-                  # after this long anyway
 
 
 def direct_publisher(topic, msg_class, **kwargs):
@@ -428,28 +426,11 @@ class ClaimingActionServer(actionlib.SimpleActionServer):
 
 class _Join(rospy.SubscribeListener):
     """Sends the participant's registration to each simulator that connects to its answers
-    (a simulator started, or restarted, after the participant), once the participant's own
-    tick subscription is connected too: registered earlier, the simulator would hold for
-    ticks the participant cannot receive yet, and drop it after ``lockstep_timeout`` (the
-    start-up warnings ``no answer from ...`` and a second of wall time per launch)."""
+    (a simulator started, or restarted, after the participant)."""
 
-    def __init__(self, participant, wait=JOIN_WAIT):
+    def __init__(self, participant):
         super().__init__()
         self.participant = participant
-        self.wait = wait
 
     def peer_subscribe(self, topic_name, topic_publish, peer_publish):
-        threading.Thread(target=self._register, args=(peer_publish,), daemon=True,
-                         name='lockstep join').start()
-
-    def _register(self, peer_publish):
-        end = time.monotonic() + self.wait
-        while time.monotonic() < end and not rospy.is_shutdown():
-            sub = getattr(self.participant, 'sub', None)
-            if sub is not None and sub.sub.get_num_connections() > 0:
-                break
-            time.sleep(0.01)
-        try:
-            peer_publish(self.participant.join_msg())
-        except Exception as e:          # noqa: BLE001 - the simulator went away meanwhile
-            rospy.logdebug('lockstep: registration not sent: %s', e)
+        peer_publish(self.participant.join_msg())
