@@ -182,9 +182,6 @@ class LocalisationNode:
 
     def _on_scan(self, msg):
         stamp = msg.header.stamp
-        if self.localiser is None:          # before the map: nothing to do, nothing to wait for
-            rospy.logwarn_throttle(5.0, 'localisation: no %s yet', self.p.map_topic)
-            return
         try:
             odom = pose_from_transform(self._lookup(self.p.odom_frame, self.p.base_frame, stamp).transform)
             laser = pose_from_transform(self._lookup(self.p.base_frame, msg.header.frame_id, stamp).transform)
@@ -192,6 +189,9 @@ class LocalisationNode:
             rospy.logwarn_throttle(5.0, 'localisation: scan at %.3f skipped: %s', stamp.to_sec(), e)
             return
         with self.lock:
+            if self.localiser is None:
+                rospy.logwarn_throttle(5.0, 'localisation: no %s yet', self.p.map_topic)
+                return
             if self.frozen(msg.ranges, compose(odom, laser)):
                 pts = ()                    # a stuck driver's repeat: follow odometry
             else:
