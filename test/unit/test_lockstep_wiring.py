@@ -274,3 +274,36 @@ def test_peers_tell_what_a_server_did_up_to_a_cycle(monkeypatch):
     assert not peers.covering('/corridor_controller', t, 0.0).has_command
     ack('/move_base', 1.0, 0.1, leave=True)
     assert peers.covering('/move_base', t, 0.0) is None             # left
+
+
+def test_lookup_at_does_not_wait_for_data_tf_no_longer_holds():
+    """A backlog of scans whose transforms had left tf's buffer waited the whole timeout each
+    (move_base at start-up then never caught up with the simulator); data newer than tf holds
+    is still waited for."""
+    import time
+
+    from tiago_nav.ros import lockstep as roslockstep
+
+    class Buffer:
+        oldest, newest = 10.0, 20.0          # [s] what the buffer holds
+
+        def can_transform(self, target, source, stamp):
+            return self.oldest <= stamp.to_sec() <= self.newest
+
+        def lookup_transform(self, target, source, stamp):
+            t = stamp.to_sec() or self.newest
+            if not self.oldest <= t <= self.newest:
+                raise RuntimeError('extrapolation')
+            return type('T', (), {'header': type('H', (), {'stamp': rospy.Time.from_sec(t)})()})()
+
+    buf = Buffer()
+    assert roslockstep.gone(buf, 'odom', 'base', rospy.Time.from_sec(5.0))
+    assert not roslockstep.gone(buf, 'odom', 'base', rospy.Time.from_sec(25.0))
+    t0 = time.monotonic()
+    with pytest.raises(RuntimeError):
+        roslockstep.lookup_at(buf, 'odom', 'base', rospy.Time.from_sec(5.0), 2.0)
+    assert time.monotonic() - t0 < 0.5                   # gone: no wait
+    t0 = time.monotonic()
+    with pytest.raises(RuntimeError):
+        roslockstep.lookup_at(buf, 'odom', 'base', rospy.Time.from_sec(25.0), 0.3)
+    assert time.monotonic() - t0 >= 0.3                  # may still come: waited

@@ -34,7 +34,7 @@ from tiago_nav.params import nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant,
-                                    goal_since, lookup_at)
+                                    goal_since, gone, lookup_at)
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.topics import Subscription, wait_for_message
 from tiago_nav.scan import FrozenScanCheck
@@ -183,10 +183,13 @@ class MoveBase:
 
     def _wait_for(self, target, source, stamp):
         """Wait until tf can give ``target <- source`` at ``stamp``, up to
-        ``transform_tolerance`` wall seconds (never on ROS time, which may stand still)."""
+        ``transform_tolerance`` wall seconds (never on ROS time, which may stand still); not
+        when that data is :func:`~tiago_nav.ros.lockstep.gone` (older than tf keeps: a backlog
+        of scans that each waited here could never catch up with the simulator)."""
         t_end = self.clock.wall() + self.p.transform_tolerance
         while not self.tf.can_transform(target, source, stamp):
-            if self.clock.wall() > t_end or self.clock.shutdown():
+            if self.clock.wall() > t_end or self.clock.shutdown() \
+                    or gone(self.tf, target, source, stamp):
                 return
             self.clock.sleep(0.005)
 

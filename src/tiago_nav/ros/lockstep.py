@@ -166,13 +166,25 @@ def goal_since(goal_stamp, now):
     return min(goal_stamp, now) or None
 
 
+def gone(buffer, target, source, stamp):
+    """True when tf will never give ``target`` <- ``source`` at ``stamp`` (rospy.Time): it
+    already holds newer data for that chain but cannot transform at ``stamp`` (the data was
+    older than the buffer keeps). Waiting for it would only delay the next message."""
+    try:
+        newest = buffer.lookup_transform(target, source, rospy.Time(0)).header.stamp
+    except Exception:               # noqa: BLE001 - no data at all yet: it may still come
+        return False
+    return stamp < newest and not buffer.can_transform(target, source, stamp)
+
+
 def lookup_at(buffer, target, source, stamp, timeout):
     """tf ``target`` <- ``source`` at exactly ``stamp`` (no extrapolation), waiting up to
     ``timeout`` [s wall] for it to arrive (tf2's own timeout runs in ROS time, which stands
-    still while the simulator holds). Raises tf2_ros.TransformException when it does not."""
+    still while the simulator holds); not at all when it is :func:`gone`. Raises
+    tf2_ros.TransformException when it does not come."""
     end = time.monotonic() + timeout
     while not buffer.can_transform(target, source, stamp) and time.monotonic() < end \
-            and not rospy.is_shutdown():
+            and not rospy.is_shutdown() and not gone(buffer, target, source, stamp):
         time.sleep(NAP)
     return buffer.lookup_transform(target, source, stamp)
 
