@@ -130,7 +130,7 @@ def ros_outputs(params, use_sim_time):
     """The ROS publishers of :class:`Outputs` on the topics ``params`` names."""
     latched = dict(queue_size=1, latch=True)
     return Outputs(
-        # /clock goes to every node 60 times per simulated second: written in this thread, not
+        # /clock goes to every node 30-60 times per simulated second: written in this thread, not
         # handed to a queue thread per subscriber (tiny messages, they cannot fill a socket)
         clock=direct_publisher('/clock', Clock) if use_sim_time else None,
         scan=rospy.Publisher(params.scan_topic, LaserScan, queue_size=5),
