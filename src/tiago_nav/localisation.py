@@ -54,7 +54,7 @@ class LocaliserConfig:
     max_range: float = param(12.0, '[m] hits further than this from the laser are ignored', gt=0)
     max_points: int = param(240, 'at most this many scan points per update (evenly subsampled)',
                             ge=10)
-    initial_scale: float = param(0.3, '[m] Cauchy loss scale of the first registration iteration',
+    initial_scale: float = param(0.1, '[m] Cauchy loss scale of the first registration iteration',
                                  gt=0)
     robust_scale: float = param(0.05, '[m] Cauchy loss scale of the last iterations: points '
                                       'much further than this from the map barely pull', gt=0)
