@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Rostest of the lockstep wire protocol over real topics, without the simulator node: a fake
 simulator loop in this process (the library's schedule through LockstepHost, publishing /clock,
-/scan, tf and ticks) and three LockstepParticipants (10 Hz and 20 Hz control loops, one idle)."""
+/scan, tf and ticks) and LockstepParticipants: 10 Hz and 20 Hz control loops, one late, one idle
+and one whose inputs flow only after 1 s."""
 import threading
 import time
 import unittest
@@ -134,8 +135,15 @@ class LockstepAdapterTest(unittest.TestCase):
         cls.late = LockstepParticipant(0.1, name='/late', enabled=True)
         cls.idle_ready = []
         cls.idle = LockstepParticipant(0.1, enabled=True, ready=cls.idle_takes_in)   # named after this node
+        # its inputs flow only from 1 s of simulated time on (see on_one_second)
+        cls.inputs_flow = threading.Event()
+        cls.waiting = LockstepParticipant(0.1, name='/waiting', enabled=True,
+                                          inputs=cls.inputs_flow.is_set)
         schedule = cls.sim.host.schedule
         wait_for(lambda: len(schedule.members) == 4, 'the four participants to join')
+        wait_for(lambda: cls.waiting.sub.sub.get_num_connections() > 0, '/waiting\'s ticks to connect')
+        cls.before_inputs = None
+        threading.Thread(target=cls.on_one_second, daemon=True).start()
         cls.records = {period: dict(cycles=[], stops=[], still=None) for period in (0.1, 0.05)}
         loops = []
         for p, n in ((cls.p10, 15), (cls.p20, 25)):
@@ -152,6 +160,13 @@ class LockstepAdapterTest(unittest.TestCase):
         cls.finished = cls.sim.done.wait(TIMEOUT)
         for t in loops:
             t.join(TIMEOUT)
+
+    @classmethod
+    def on_one_second(cls):
+        """At 1 s of simulated time: note the participants, then let /waiting's inputs flow."""
+        wait_for(lambda: rospy.get_time() >= 1.0, '1 s of simulated time')
+        cls.before_inputs = set(cls.sim.host.schedule.members)
+        cls.inputs_flow.set()
 
     @classmethod
     def idle_takes_in(cls, tick):
@@ -240,6 +255,14 @@ class LockstepAdapterTest(unittest.TestCase):
         self.assertEqual(grid, [grid[0] + rospy.Duration(0.1 * i) for i in range(len(grid))])
         self.assertEqual(grid[0].nsecs % 100000000, 0)
         self.assertTrue(self.sim.host.schedule.is_participant('/late'))   # idle again
+
+    def test_7_a_participant_joins_only_once_its_inputs_flow(self):
+        wait_for(lambda: self.before_inputs is not None, 'the run to reach 1 s')
+        members = self.before_inputs
+        # ticks were connected from the start, but without its inputs it did not take part
+        self.assertNotIn('/waiting', members)
+        wait_for(lambda: self.sim.host.schedule.is_participant('/waiting'),
+                 '/waiting to join once its inputs flow')
 
 if __name__ == '__main__':
     rostest.rosrun('tiago_nav', 'test_lockstep_adapter', LockstepAdapterTest)

@@ -85,3 +85,14 @@ def test_the_watch_thread_repairs_an_orphaned_subscription(fake_rospy, monkeypat
         assert first.unregistered and s.resubscribed >= 1
     finally:
         s.unregister()
+
+
+def test_handshaken_needs_a_connection_whose_handshake_is_done():
+    from types import SimpleNamespace as NS
+    from tiago_nav.ros.topics import handshaken
+    # rospy's subscriber-side transport: header None until the publisher's reply is read
+    connecting, done = NS(header=None), NS(header={'callerid': '/sim'})
+    assert not handshaken(NS(impl=NS(connections=[])))
+    assert not handshaken(NS(impl=NS(connections=[connecting])))
+    assert handshaken(NS(impl=NS(connections=[connecting, done])))
+    assert not handshaken(NS(impl=None))          # unregistered

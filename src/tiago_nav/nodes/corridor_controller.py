@@ -72,20 +72,27 @@ class Params:
                              'aborts' % self.sensor_timeout, 'scan_timeout')
 
 
+def missing_inputs(params, io):
+    """``''`` once a first scan and the tf from ``~odom_frame`` to ``~base_frame`` and to the
+    scan's frame exist, else a sentence naming what is missing."""
+    scan = io.latest_scan()
+    missing = 'no laser scan on %s' % params.scan_topic if scan is None else ''
+    for frame in (params.base_frame,) + ((scan.frame,) if scan is not None else ()):
+        try:
+            io.lookup(params.odom_frame, frame)
+        except LookupError as e:
+            missing = missing or 'no tf %s -> %s (%s)' % (params.odom_frame, frame, e)
+    return missing
+
+
 def wait_ready(params, clock, io, timeout):
-    """Wait (at most ``timeout`` wall seconds) until a first scan and the tf from
-    ``~odom_frame`` to ``~base_frame`` and to the scan's frame exist.
+    """Wait (at most ``timeout`` wall seconds) for :func:`missing_inputs` to find nothing
+    missing.
 
     Returns ``''`` when ready, else a sentence naming what is missing."""
     end = clock.wall() + timeout
     while True:
-        scan = io.latest_scan()
-        missing = 'no laser scan on %s' % params.scan_topic if scan is None else ''
-        for frame in (params.base_frame,) + ((scan.frame,) if scan is not None else ()):
-            try:
-                io.lookup(params.odom_frame, frame)
-            except LookupError as e:
-                missing = missing or 'no tf %s -> %s (%s)' % (params.odom_frame, frame, e)
+        missing = missing_inputs(params, io)
         if not missing:
             return ''
         if clock.wall() >= end or clock.shutdown():
@@ -331,6 +338,7 @@ def main():
     params = read_or_exit(Params, NODE)
     participant = LockstepParticipant(1.0 / params.control_rate)
     io, clock = RosIO(params, participant), RosClock()
+    participant.inputs = lambda: not missing_inputs(params, io)
     missing = wait_ready(params, clock, io, params.startup_timeout)
     if missing:
         rospy.logfatal('%s: %s; not starting the action server', NODE, missing)

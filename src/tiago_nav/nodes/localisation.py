@@ -124,7 +124,9 @@ class LocalisationNode:
         # scan is taken in, in order, and the between-scan republishes happen at the ticks
         self.intake = threading.Condition()
         self.last_scan_stamp = None
-        self.lockstep = LockstepParticipant(1.0 / params.republish_rate, ready=self.on_tick)
+        # it takes part once it sends map -> odom (it has the map, a scan and the odometry tf)
+        self.lockstep = LockstepParticipant(1.0 / params.republish_rate, ready=self.on_tick,
+                                            inputs=lambda: self.map_to_odom is not None)
         Subscription(params.scan_topic, LaserScan, self.on_scan,
                      queue_size=None if self.lockstep.enabled else 1, buff_size=2 ** 20)
 

@@ -143,13 +143,14 @@ class MoveBase:
         self.intake = threading.Condition()
         self.frozen = FrozenScanCheck()
         self.last_scan_stamp = None         # rospy.Time of the newest scan taken in
-        self.lockstep = LockstepParticipant(1.0 / p.controller_frequency, ready=self.on_tick)
+        self.lockstep = LockstepParticipant(1.0 / p.controller_frequency, ready=self.on_tick,
+                                            inputs=self._inputs_flow)
         # in lockstep every scan, in order (the cycle waits for its own); else the newest only
         Subscription(p.scan_topic, LaserScan, self.on_scan, tcp_nodelay=True,
                      queue_size=None if self.lockstep.enabled else 1)
         self._wait(lambda: self.nav.scan_stamp is not None,
                    lambda: 'no usable laser scan within %g s: %s' % (p.ready_timeout, self.scan_problem))
-        self._wait(lambda: self.tf.can_transform(self.map_frame, p.robot_base_frame, rospy.Time(0)),
+        self._wait(self._has_pose,
                    lambda: 'no transform %s -> %s within %g s (is odometry/localisation running?)'
                    % (self.map_frame, p.robot_base_frame, p.ready_timeout))
         self.server = ClaimingActionServer('move_base', MoveBaseAction, self.execute,
@@ -165,6 +166,14 @@ class MoveBase:
         self.server.start()
         rospy.loginfo('move_base: ready (map %dx%d, %.2f m)', msg.info.width, msg.info.height,
                       msg.info.resolution)
+
+    def _has_pose(self):
+        return self.tf.can_transform(self.map_frame, self.p.robot_base_frame, rospy.Time(0))
+
+    def _inputs_flow(self):
+        """A scan taken in and the robot's pose in the map: what move_base waits for before it
+        is ready, and before it takes part in lockstep."""
+        return self.nav.scan_stamp is not None and self._has_pose()
 
     @staticmethod
     def _log(level, text):

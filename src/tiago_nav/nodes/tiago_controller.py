@@ -105,6 +105,10 @@ class RosBackend:
         self.lockstep = LockstepParticipant(params.lockstep_period)
         self.peers = Peers() if self.lockstep.enabled else None
         self.scans = ScanCache(params.scan_topic) if self.lockstep.enabled else None
+        # it takes part once a scan and the robot's pose in the map have come (its cycles wait
+        # for both at exact stamps)
+        self.lockstep.inputs = lambda: self.scans.latest() is not None and self.tf.can_transform(
+            self.global_frame, self.robot_frame, rospy.Time(0))
         self._in_cycle = False        # a cycle has begun and is not answered yet
         self._stop = False            # this cycle's answer carries a stop
         self._sent = None             # the stage whose goal was sent in this cycle

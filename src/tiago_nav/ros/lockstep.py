@@ -23,7 +23,7 @@ from tiago_nav.clock import NAP, STALL, Ticker
 from tiago_nav.lockstep import EPS, Ack, Gate, ParticipantCore, Schedule, Tick
 from tiago_nav.msg import LockstepAck, LockstepTick
 from tiago_nav.ros.clock import RosClock
-from tiago_nav.ros.topics import Subscription
+from tiago_nav.ros.topics import Subscription, handshaken
 
 ACK_TOPIC = '/sim/lockstep/ack'
 TICK_TOPIC = '/sim/lockstep/tick'
@@ -32,6 +32,7 @@ TIMEOUT = 1.0     # [s wall] the simulator's default wait for a missing answer; 
                   # after which a participant takes ROS time standing still for a dead simulator
 CYCLE_WAIT = 2.0  # [s wall] in a held cycle, the longest wait for its scan, tf or pose: the
                   # simulator has published them, so only a starved process waits at all
+JOIN_POLL = 0.01  # [s wall] how often a participant not registered yet looks at its inputs
 
 
 def direct_publisher(topic, msg_class, **kwargs):
@@ -210,14 +211,24 @@ class LockstepParticipant:
             data the tick names (e.g. its costmap holds every scan up to ``tick.scan_stamp``);
             called before each idle answer, from the tick subscriber's thread. None: idle
             answers are immediate.
+        inputs: ``inputs()`` is True once the node's sensor data flows (e.g. it has received a
+            scan and the odometry tf); None: nothing to wait for. May be set as the attribute
+            ``inputs`` after construction. The participant registers with the simulator only
+            once ticks and answers are connected both ways and ``inputs()`` holds (looked at
+            every :data:`JOIN_POLL` wall seconds), and answers nothing before: a participant that
+            registered sooner would hold the simulator while it waited for a scan or
+            transform published before its subscription connected, which never comes (the
+            simulator then drops it after its timeout and goes on without it, a start that
+            differs from run to run).
     """
 
-    def __init__(self, period, clock=None, name=None, enabled=None, stall=STALL, ready=None):
+    def __init__(self, period, clock=None, name=None, enabled=None, stall=STALL, ready=None,
+                 inputs=None):
         self.clock = clock or RosClock()
         self.period = float(period)
         self.name = name or rospy.get_name()
         self.enabled = rospy.get_param(USE_LOCKSTEP, False) if enabled is None else enabled
-        self.stall, self.ready = stall, ready
+        self.stall, self.ready, self.inputs = stall, ready, inputs
         self.stamp = None        # rospy.Time of the current cycle
         self.tick_msg = None     # its LockstepTick, None when running free
         self.ticker = None if self.enabled else Ticker(self.clock, self.period, stall)
@@ -228,10 +239,32 @@ class LockstepParticipant:
         self._msgs = {}          # tick stamp [s] -> LockstepTick, for the newest tick
         self._answered = True
         self._left = False
+        self.joined = threading.Event()     # registered: the inputs flow (see ``inputs``)
         self.pub = direct_publisher(ACK_TOPIC, LockstepAck, subscriber_listener=_Join(self))
         self.sub = Subscription(TICK_TOPIC, LockstepTick, self.on_tick, queue_size=10,
                                 tcp_nodelay=True)
         rospy.on_shutdown(self.leave)
+        threading.Thread(target=self._join_when_ready, name='lockstep join', daemon=True).start()
+
+    def inputs_ready(self):
+        """True once the simulator's ticks and the simulator's subscription to the answers are
+        connected (an answer published before would be lost, though counted as given) and
+        ``inputs()`` holds."""
+        if not handshaken(self.sub.sub) or self.pub.get_num_connections() == 0:
+            return False
+        try:
+            return self.inputs is None or bool(self.inputs())
+        except Exception as e:      # noqa: BLE001 - the join thread must not die
+            rospy.logwarn_throttle(10.0, '%s: lockstep: checking its inputs: %s' % (self.name, e))
+            return False
+
+    def _join_when_ready(self):
+        while not rospy.is_shutdown():
+            if self.inputs_ready():
+                self.joined.set()
+                self.pub.publish(self.join_msg())
+                return
+            time.sleep(JOIN_POLL)
 
     # --- what the cycle saw -------------------------------------------------------------------
     @property
@@ -276,7 +309,7 @@ class LockstepParticipant:
         """Answers the newest tick with no command when it is due and no control loop owns it
         (after ``ready``)."""
         with self.cond:
-            due = None if self._left else self.core.idle_answer()
+            due = None if self._left or not self.joined.is_set() else self.core.idle_answer()
             msg = self._msgs.get(due)
         if due is None:
             return
@@ -342,6 +375,8 @@ class LockstepParticipant:
                 return None
             self._answered = True
             self.core.answered(self.stamp.to_sec())
+            if not self.joined.is_set():
+                return None     # not registered: the simulator does not wait for this cycle
             return self._ack(self.stamp, cmd)
 
     def wait_until_still(self, pose, stop, monitor, timeout):
@@ -445,4 +480,5 @@ class _Join(rospy.SubscribeListener):
         self.participant = participant
 
     def peer_subscribe(self, topic_name, topic_publish, peer_publish):
-        peer_publish(self.participant.join_msg())
+        if self.participant.joined.is_set():
+            peer_publish(self.participant.join_msg())

@@ -33,6 +33,16 @@ def listed_publishers(topic, master=None):
     return next((nodes for name, nodes in pubs if name == topic), [])
 
 
+def handshaken(subscriber):
+    """True when at least one of a ``rospy.Subscriber``'s connections has completed its
+    handshake with the publisher. rospy counts a connection (``get_num_connections``) as soon as
+    it starts connecting, which on a loaded machine can be a second before messages flow; the
+    subscriber's transport keeps the publisher's reply header once the handshake is done."""
+    impl = getattr(subscriber, 'impl', None)
+    connections = list(getattr(impl, 'connections', None) or ())
+    return any(getattr(c, 'header', None) is not None for c in connections)
+
+
 def orphaned(connections, publishers, own_name):
     """True when a subscriber with ``connections`` connections has missed its publishers: the
     master lists ``publishers`` (node names) other than ``own_name`` (a node that publishes and
