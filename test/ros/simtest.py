@@ -1,6 +1,7 @@
 """Shared pieces of the rostests: the set-up of those that run against the simulator (a test
 node, the world file every assertion is checked against, the robot's true pose from
 /sim/ground_truth) and :func:`distinct_states` for the mission tests."""
+import time
 import unittest
 
 import rospy
@@ -33,13 +34,18 @@ class SimTestCase(unittest.TestCase):
 
     @classmethod
     def base_pose(cls):
-        """Ground-truth pose ``(x, y, yaw)`` of base_footprint in map: the latest
-        /sim/ground_truth (tf map -> base_footprint is the localisation's estimate)."""
-        deadline = rospy.get_time() + TIMEOUT
-        while cls._truth is None and not rospy.is_shutdown():
-            if rospy.get_time() > deadline:
-                raise AssertionError('no /sim/ground_truth within %g s' % TIMEOUT)
-            rospy.sleep(0.05)
+        """Ground-truth pose ``(x, y, yaw)`` of base_footprint in map now: the first
+        /sim/ground_truth stamped at or after the current ROS time (tf map -> base_footprint is
+        the localisation's estimate). Not simply the latest one received: with the simulator at
+        full speed this node's subscriber can be a few steps behind, and a pose from 0.3 s
+        before a goal's end (the robot still turning) is not where the goal left it."""
+        now = rospy.Time.now()
+        deadline = time.monotonic() + TIMEOUT       # wall time: ROS time may stand still
+        while (cls._truth is None or cls._truth.header.stamp < now) and not rospy.is_shutdown():
+            if time.monotonic() > deadline:
+                raise AssertionError('no /sim/ground_truth stamped at or after %.3f s within %g s'
+                                     % (now.to_sec(), TIMEOUT))
+            time.sleep(0.005)
         return pose_from_msg(cls._truth.pose.pose)
 
 
