@@ -230,10 +230,12 @@ class Gate:
 @dataclass(frozen=True)
 class Tick:
     """What a participant reads from the simulator's tick: the held time and the stamps [s] of
-    the newest scan and odometry at or before it."""
+    the newest scan and odometry at or before it; ``named``: the simulator waits for this
+    participant's answer (its ``waiting_for`` names it)."""
     stamp: float
     scan_stamp: float = None
     odom_stamp: float = None
+    named: bool = False
 
 
 class ParticipantCore:
@@ -269,8 +271,8 @@ class ParticipantCore:
         means ROS time went back (a restarted simulator): the cycles start again from 0."""
         if tick.stamp < self.last - RESTART:
             self.last, self.since, self.latest = 0.0, min(self.since, 0.0), tick
-        elif self.latest is None or tick.stamp > self.latest.stamp:
-            self.latest = tick
+        elif self.latest is None or tick.stamp >= self.latest.stamp - EPS:
+            self.latest = tick      # (a tick sent again may name this participant now)
 
     def next_cycle(self, now):
         """The cycle that has begun at ROS time ``now`` [s], as ``(stamp, tick)`` (``tick``
@@ -299,9 +301,12 @@ class ParticipantCore:
 
     def idle_answer(self):
         """The stamp [s] to answer at once with no command, or None: the newest tick when it is
-        due and no control loop owns it."""
+        due, or names this participant, and no control loop owns it. (A registration makes the
+        simulator hold at once, at its current step, which need not be on this participant's
+        grid: that tick names it though its next deadline is later. Answering it places the
+        participant; not answering it held the simulator until its timeout.)"""
         t = self.latest
-        if t is None or t.stamp < grid_after(self.last, self.period) - EPS:
+        if t is None or (t.stamp < grid_after(self.last, self.period) - EPS and not t.named):
             return None
         if self.claimed and t.stamp > self.since + EPS:
             return None

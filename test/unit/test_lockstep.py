@@ -246,6 +246,21 @@ def test_idle_participant_answers_due_ticks_until_claimed():
     assert core.idle_answer() == 0.4
 
 
+def test_a_tick_that_names_the_participant_is_answered_though_not_due():
+    """Registered at 12.73 s (its next deadline 12.8 s), it is held for at once at the
+    simulator's step 12.75 s: that tick names it, and is answered."""
+    core = ParticipantCore(0.1, now=12.73)
+    core.on_tick(Tick(12.75))
+    assert core.idle_answer() is None                    # a tick for someone else
+    core.on_tick(Tick(12.75, named=True))                # sent again, naming it
+    assert core.idle_answer() == 12.75
+    core.answered(12.75)
+    assert core.deadline() == pytest.approx(12.8)
+    core.claim(since=12.6)                               # a control loop's ticks stay its own
+    core.on_tick(Tick(12.8, named=True))
+    assert core.idle_answer() is None
+
+
 def test_claimed_cycle_is_the_first_deadline_after_the_goal_whoever_answered_before():
     """The goal (stamped 0.2) and the tick for 0.2 race: either way the control loop's first
     cycle is 0.3."""

@@ -87,12 +87,15 @@ def test_the_watch_thread_repairs_an_orphaned_subscription(fake_rospy, monkeypat
         s.unregister()
 
 
-def test_handshaken_needs_a_connection_whose_handshake_is_done():
+def test_connected_peers_count_only_handshaken_connections():
     from types import SimpleNamespace as NS
-    from tiago_nav.ros.topics import handshaken
+    from tiago_nav.ros.topics import connected_publishers, connected_subscribers
     # rospy's subscriber-side transport: header None until the publisher's reply is read
-    connecting, done = NS(header=None), NS(header={'callerid': '/sim'})
-    assert not handshaken(NS(impl=NS(connections=[])))
-    assert not handshaken(NS(impl=NS(connections=[connecting])))
-    assert handshaken(NS(impl=NS(connections=[connecting, done])))
-    assert not handshaken(NS(impl=None))          # unregistered
+    connecting, done = NS(header=None), NS(header={'callerid': '/simulator'})
+    assert connected_publishers(NS(impl=NS(connections=[]))) == set()
+    assert connected_publishers(NS(impl=NS(connections=[connecting]))) == set()
+    assert connected_publishers(NS(impl=NS(connections=[connecting, done]))) == {'/simulator'}
+    assert connected_publishers(NS(impl=None)) == set()          # unregistered
+    # publisher side: endpoint_id is the subscriber's callerid
+    pub = NS(impl=NS(connections=[NS(endpoint_id='/tiago_controller'), NS(endpoint_id='/simulator')]))
+    assert connected_subscribers(pub) == {'/tiago_controller', '/simulator'}

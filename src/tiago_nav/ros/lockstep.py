@@ -23,7 +23,7 @@ from tiago_nav.clock import NAP, STALL, Ticker
 from tiago_nav.lockstep import EPS, Ack, Gate, ParticipantCore, Schedule, Tick
 from tiago_nav.msg import LockstepAck, LockstepTick
 from tiago_nav.ros.clock import RosClock
-from tiago_nav.ros.topics import Subscription, handshaken
+from tiago_nav.ros.topics import Subscription, connected_publishers, connected_subscribers
 
 ACK_TOPIC = '/sim/lockstep/ack'
 TICK_TOPIC = '/sim/lockstep/tick'
@@ -247,10 +247,11 @@ class LockstepParticipant:
         threading.Thread(target=self._join_when_ready, name='lockstep join', daemon=True).start()
 
     def inputs_ready(self):
-        """True once the simulator's ticks and the simulator's subscription to the answers are
-        connected (an answer published before would be lost, though counted as given) and
-        ``inputs()`` holds."""
-        if not handshaken(self.sub.sub) or self.pub.get_num_connections() == 0:
+        """True once the simulator's ticks reach this participant, the simulator has subscribed
+        to its answers (an answer published before would be lost, though counted as given; other
+        nodes subscribe to the answers too, e.g. the mission proxy) and ``inputs()`` holds."""
+        simulators = connected_publishers(self.sub.sub) - {None}
+        if not simulators & connected_subscribers(self.pub):
             return False
         try:
             return self.inputs is None or bool(self.inputs())
@@ -298,7 +299,7 @@ class LockstepParticipant:
 
     def on_tick(self, msg):
         with self.cond:
-            tick = Tick(msg.stamp.to_sec())
+            tick = Tick(msg.stamp.to_sec(), named=self.name in msg.waiting_for)
             self.core.on_tick(tick)
             if self.core.latest is tick:
                 self._msgs = {tick.stamp: msg}
