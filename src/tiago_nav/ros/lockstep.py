@@ -259,6 +259,14 @@ class LockstepParticipant:
             rospy.logwarn_throttle(10.0, '%s: lockstep: checking its inputs: %s' % (self.name, e))
             return False
 
+    def wait_joined(self, timeout):
+        """Wait up to ``timeout`` wall seconds until registered with the simulator (True at once
+        when not taking part); False if it did not happen. A node should serve goals only then:
+        a goal that began before would run free, and at the simulator's full speed a free
+        control loop falls behind it (a corridor law drove into the obstacle it should have
+        stopped before)."""
+        return self.ticker is not None or self.joined.wait(timeout)
+
     def _join_when_ready(self):
         while not rospy.is_shutdown():
             if self.inputs_ready():
