@@ -26,12 +26,6 @@ from tiago_nav.scan import (HIT, INVALID, NO_RETURN, TOO_CLOSE, beam_angles, cla
                             usable_ranges)
 
 LETHAL = 254
-
-
-
-
-
-
 INSCRIBED = 253
 MAX_NON_LETHAL = 252
 

@@ -34,7 +34,7 @@ from tiago_nav.params import nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant,
-                                    goal_since, gone, lookup_at)
+                                    goal_since, lookup_at, wait_for_transform)
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.topics import Subscription, wait_for_message
 from tiago_nav.scan import FrozenScanCheck
@@ -194,23 +194,12 @@ class MoveBase:
                 raise NotReady(problem())
             self.clock.sleep(0.05)
 
-    def _wait_for(self, target, source, stamp):
-        """Wait until tf can give ``target <- source`` at ``stamp``, up to
-        ``transform_tolerance`` wall seconds (never on ROS time, which may stand still); not
-        when that data is :func:`~tiago_nav.ros.lockstep.gone` (older than tf keeps: a backlog
-        of scans that each waited here could never catch up with the simulator)."""
-        t_end = self.clock.wall() + self.p.transform_tolerance
-        while not self.tf.can_transform(target, source, stamp):
-            if self.clock.wall() > t_end or self.clock.shutdown() \
-                    or gone(self.tf, target, source, stamp):
-                return
-            self.clock.sleep(0.005)
-
     def _transform(self, source, stamp):
-        """``map <- source`` at ``stamp`` as ``(x, y, yaw)`` and its stamp [s] (see
-        :meth:`_wait_for`)."""
-        self._wait_for(self.map_frame, source, stamp)
-        t = self.tf.lookup_transform(self.map_frame, source, stamp)
+        """``map <- source`` at ``stamp`` as ``(x, y, yaw)`` and its stamp [s], waiting up to
+        ``transform_tolerance`` wall seconds (:func:`~tiago_nav.ros.lockstep.lookup_at`: not
+        for data tf no longer holds, since a backlog of scans that each waited here could
+        never catch up with the simulator)."""
+        t = lookup_at(self.tf, self.map_frame, source, stamp, self.p.transform_tolerance)
         return pose_from_transform(t.transform), t.header.stamp.to_sec()
 
     def _in_map(self, source, stamp):
@@ -219,7 +208,7 @@ class MoveBase:
         lagging behind the odometry (a loaded machine) delays nothing; ``map <- source``
         directly when there is no odom frame."""
         odom = self.p.odom_frame
-        self._wait_for(odom, source, stamp)
+        wait_for_transform(self.tf, odom, source, stamp, self.p.transform_tolerance)
         try:
             m2o = self.tf.lookup_transform(self.map_frame, odom, rospy.Time(0))
             if self.lockstep.enabled and not stamp.is_zero():

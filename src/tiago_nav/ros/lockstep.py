@@ -178,15 +178,22 @@ def gone(buffer, target, source, stamp):
     return stamp < newest and not buffer.can_transform(target, source, stamp)
 
 
-def lookup_at(buffer, target, source, stamp, timeout):
-    """tf ``target`` <- ``source`` at exactly ``stamp`` (no extrapolation), waiting up to
-    ``timeout`` [s wall] for it to arrive (tf2's own timeout runs in ROS time, which stands
-    still while the simulator holds); not at all when it is :func:`gone`. Raises
-    tf2_ros.TransformException when it does not come."""
+def wait_for_transform(buffer, target, source, stamp, timeout):
+    """Wait up to ``timeout`` [s wall] until tf can give ``target`` <- ``source`` at exactly
+    ``stamp`` (tf2's own timeout runs in ROS time, which stands still while the simulator
+    holds); not at all when it is :func:`gone`. True when it can."""
     end = time.monotonic() + timeout
-    while not buffer.can_transform(target, source, stamp) and time.monotonic() < end \
-            and not rospy.is_shutdown() and not gone(buffer, target, source, stamp):
+    while not buffer.can_transform(target, source, stamp):
+        if time.monotonic() >= end or rospy.is_shutdown() or gone(buffer, target, source, stamp):
+            return False
         time.sleep(NAP)
+    return True
+
+
+def lookup_at(buffer, target, source, stamp, timeout):
+    """tf ``target`` <- ``source`` at exactly ``stamp`` (no extrapolation), after
+    :func:`wait_for_transform`. Raises tf2_ros.TransformException when it does not come."""
+    wait_for_transform(buffer, target, source, stamp, timeout)
     return buffer.lookup_transform(target, source, stamp)
 
 
