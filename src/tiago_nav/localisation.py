@@ -274,12 +274,20 @@ class Localiser:
         pose: the initial pose ``(x, y, yaw)`` of base_footprint in map (uncertain: the first
             scan searches around it, see :meth:`reset`).
         config: :class:`LocaliserConfig`.
+        odom: base_footprint in odom ``(x, y, yaw)`` when the robot was at ``pose`` (the first
+            update predicts the motion since); None: at the first update's time.
     """
 
-    def __init__(self, grid, pose, config=LocaliserConfig()):
+    def __init__(self, grid, pose, config=LocaliserConfig(), odom=None):
         self.config = config
         self.field = DistanceField(grid)
         self.reset(pose)
+        self._odom = None if odom is None else tuple(odom)
+
+    @property
+    def odom(self):
+        """base_footprint in odom at the last update (None before one)."""
+        return self._odom
 
     @property
     def map_to_odom(self):

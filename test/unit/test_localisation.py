@@ -180,6 +180,20 @@ def test_tracking_around_pose_b_finds_no_false_minimum(world, grid):
     assert max(errors) < 0.05, sorted(errors)[-5:]
 
 
+def test_motion_before_the_first_scan_is_predicted_from_odometry(world, grid):
+    """Started at the world's start pose (odom's origin), its first scan taken 1.5 m further
+    on: with odom given, it predicts that motion; without, it assumes none and the 0.4 m
+    search cannot reach the truth."""
+    start = world.start_pose
+    odom = (1.5, 0.0, 0.0)
+    truth = compose(start, odom)
+    pts = one_scan(world, truth)
+    up = Localiser(grid, start, odom=(0.0, 0.0, 0.0)).update(odom, pts)
+    assert up.corrected, up.reason
+    assert err(up.pose, truth)[0] < 0.05
+    assert err(Localiser(grid, start).update(odom, pts).pose, truth)[0] > 0.1
+
+
 def test_an_all_invalid_scan_keeps_the_prediction(world, grid):
     loc = Localiser(grid, (1.0, 0.0, 0.0))
     n = 666

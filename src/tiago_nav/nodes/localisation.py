@@ -137,8 +137,11 @@ class LocalisationNode:
             rospy.logerr('localisation: unusable %s: %s', self.p.map_topic, e)
             return
         with self.lock:
-            pose = self.localiser.pose if self.localiser is not None else self.pose
-            self.localiser = Localiser(grid, pose, self.p.localiser)
+            # the start pose is where odom begins (REP 105: odom's origin is the robot's start),
+            # so motion before the first scan taken in is predicted, not assumed zero
+            pose, odom = (self.localiser.pose, self.localiser.odom) if self.localiser is not None \
+                else (self.pose, (0.0, 0.0, 0.0))
+            self.localiser = Localiser(grid, pose, self.p.localiser, odom)
         rospy.loginfo('localisation: map %dx%d at %.3f m; starting at (%.2f, %.2f, %.1f deg)',
                       msg.info.width, msg.info.height, msg.info.resolution, pose[0], pose[1],
                       math.degrees(pose[2]))
