@@ -27,6 +27,7 @@ from tiago_nav.detection.service import DetectionService, Scan
 from tiago_nav.msg import Obstacle
 from tiago_nav.params import nested, param, validate
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform
+from tiago_nav.ros.lockstep import lookup_at
 from tiago_nav.ros.markers import obstacle_markers
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.topics import Subscription
@@ -107,11 +108,11 @@ class RosSensors:
 
     def transform(self, target, source, stamp, timeout):
         """``(x, y, yaw)`` of ``source`` in ``target`` at ``stamp``; LookupError if none
-        within ``timeout`` wall seconds."""
+        within ``timeout`` wall seconds (tf2's own timeout would run in ROS time, which passes
+        faster than wall time when the simulator runs ahead of real time)."""
         try:
-            t = self.tf.lookup_transform(target, source, stamp, rospy.Duration(timeout))
-        except (tf2_ros.LookupException, tf2_ros.ExtrapolationException,
-                tf2_ros.ConnectivityException) as e:
+            t = lookup_at(self.tf, target, source, stamp, timeout)
+        except tf2_ros.TransformException as e:
             raise LookupError(str(e)) from None
         return pose_from_transform(t.transform)
 
