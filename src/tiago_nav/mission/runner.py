@@ -38,7 +38,8 @@ class MissionConfig:
     """
     server_timeout: float = param(10.0, '[s wall] wait this long for each action server / the '
                                   'service, and for a fresh scan to judge the corridor, before a '
-                                  'stage fails', gt=0)
+                                  'stage fails; in lockstep, at start-up, for the node\'s '
+                                  'registration', gt=0)
     server_lost_timeout: float = param(3.0, '[s wall] a stage whose server has been gone (node '
                                        'died) this long aborts', gt=0)
     corridor_timeout: float = param(120.0, '[s] the corridor_controller stage', gt=0)
