@@ -11,6 +11,7 @@ from std_msgs.msg import UInt32
 
 from tiago_nav.msg import CorridorAction, CorridorGoal
 from tiago_nav.robot import ROBOT_RADIUS
+from tiago_nav.ros.actions import wait_server
 
 from simtest import SimTestCase
 
@@ -24,7 +25,7 @@ class CorridorBlockedTest(SimTestCase):
     def setUpClass(cls):
         super().setUpClass()
         cls.client = actionlib.SimpleActionClient('corridor_controller', CorridorAction)
-        assert cls.client.wait_for_server(rospy.Duration(TIMEOUT)), 'no corridor_controller server'
+        assert wait_server(cls.client, TIMEOUT), 'no corridor_controller server'
 
     def test_blocked_ahead_aborts_before_the_obstacle(self):
         self.client.send_goal(CorridorGoal())

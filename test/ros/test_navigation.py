@@ -22,6 +22,7 @@ from std_srvs.srv import Empty
 from geometry_msgs.msg import PoseStamped
 
 from tiago_nav.geometry import wrap_angle
+from tiago_nav.ros.actions import wait_server
 from tiago_nav.ros.conversions import pose_stamped
 from tiago_nav.sim.raster import rasterise_world
 
@@ -51,7 +52,7 @@ class NavigationTest(SimTestCase):
         cls.odom = None
         rospy.Subscriber('/mobile_base_controller/odom', Odometry, cls._on_odom)
         cls.client = actionlib.SimpleActionClient('move_base', MoveBaseAction)
-        assert cls.client.wait_for_server(rospy.Duration(TIMEOUT)), 'no move_base server'
+        assert wait_server(cls.client, TIMEOUT), 'no move_base server'
 
     @classmethod
     def _on_collisions(cls, msg):
@@ -157,7 +158,7 @@ class NavigationTest(SimTestCase):
         self.client.send_goal(goal_msg(11.0, 0.0, 0.0))
         rospy.sleep(1.0)
         first = actionlib.SimpleActionClient('move_base', MoveBaseAction)
-        first.wait_for_server(rospy.Duration(TIMEOUT))
+        self.assertTrue(wait_server(first, TIMEOUT), 'no move_base server for a second client')
         # the second client's goal replaces the first client's
         first.send_goal(goal_msg(*self.base_pose()[:2], 0.0))
         self.assertTrue(self.client.wait_for_result(rospy.Duration(10.0)))
