@@ -253,3 +253,41 @@ def test_params_are_checked_and_named():
         replace(p.detection, min_radius=0.7)
     with pytest.raises(ParamError, match='cluster_threshold'):
         replace(p.detection, cluster_threshold=-0.1)
+
+
+def test_the_nodes_tf_wait_is_counted_in_wall_time():
+    """RosSensors.transform waits ``timeout`` wall seconds for a transform that is late (tf2's
+    own timeout ran in ROS time: at 4x real time a call made while the node's /tf subscription
+    was still connecting gave up after a quarter of its wait), and fails with LookupError."""
+    import threading
+    import time
+
+    import rospy
+    import tf2_ros
+    from geometry_msgs.msg import TransformStamped
+
+    from tiago_nav.nodes.obstacle_detection import RosSensors
+
+    class Buffer:                           # tf that holds the transform once ``arrived`` is set
+        arrived = threading.Event()
+
+        def can_transform(self, target, source, stamp):
+            return self.arrived.is_set()
+
+        def lookup_transform(self, target, source, stamp):
+            if not self.arrived.is_set():
+                raise tf2_ros.LookupException('"map" passed to lookupTransform argument '
+                                              'target_frame does not exist')
+            t = TransformStamped()
+            t.transform.translation.x, t.transform.rotation.w = 1.5, 1.0
+            return t
+
+    sensors = object.__new__(RosSensors)    # no subscriptions: only its tf wait is tested
+    sensors.tf = Buffer()
+    stamp = rospy.Time.from_sec(3.0)
+    t0 = time.monotonic()
+    with pytest.raises(LookupError):
+        sensors.transform('map', 'base_laser_link', stamp, 0.3)
+    assert time.monotonic() - t0 >= 0.3
+    threading.Timer(0.2, Buffer.arrived.set).start()
+    assert sensors.transform('map', 'base_laser_link', stamp, 2.0) == pytest.approx((1.5, 0, 0))
