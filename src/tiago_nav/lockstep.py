@@ -258,6 +258,7 @@ class ParticipantCore:
         self.period = float(period)
         self.idle_period = float(idle_period or period)
         self.last = float(now)    # [s] stamp of the last answer (or the start)
+        self.answered_upto = -math.inf   # [s] stamp of the last answer actually sent
         self.since = -math.inf    # [s] the control loop owns cycles after this time
         self.claimed = False
         self.latest = None        # the newest Tick received
@@ -271,6 +272,7 @@ class ParticipantCore:
         means ROS time went back (a restarted simulator): the cycles start again from 0."""
         if tick.stamp < self.last - RESTART:
             self.last, self.since, self.latest = 0.0, min(self.since, 0.0), tick
+            self.answered_upto = -math.inf
         elif self.latest is None or tick.stamp >= self.latest.stamp - EPS:
             self.latest = tick      # (a tick sent again may name this participant now)
 
@@ -289,6 +291,7 @@ class ParticipantCore:
     def answered(self, stamp):
         """Records an answer sent for ``stamp`` [s]."""
         self.last = max(self.last, stamp)
+        self.answered_upto = max(self.answered_upto, stamp)
 
     def claim(self, since):
         """A control loop takes the cycles after time ``since`` [s] (e.g. its goal's stamp);
@@ -304,9 +307,14 @@ class ParticipantCore:
         due, or names this participant, and no control loop owns it. (A registration makes the
         simulator hold at once, at its current step, which need not be on this participant's
         grid: that tick names it though its next deadline is later. Answering it places the
-        participant; not answering it held the simulator until its timeout.)"""
+        participant; not answering it held the simulator until its timeout. A named tick that
+        was answered already, e.g. by the control loop's last cycle before it released, is
+        not answered again: that second, idle answer would cover the next deadline too, and
+        the mission proxy, reading the answers while the simulator still held at that tick,
+        saw the stage end one cycle early or not, as the two answers raced it.)"""
         t = self.latest
-        if t is None or (t.stamp < grid_after(self.last, self.period) - EPS and not t.named):
+        if t is None or (t.stamp < grid_after(self.last, self.period) - EPS
+                         and not (t.named and t.stamp > self.answered_upto + EPS)):
             return None
         if self.claimed and t.stamp > self.since + EPS:
             return None

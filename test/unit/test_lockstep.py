@@ -261,6 +261,25 @@ def test_a_tick_that_names_the_participant_is_answered_though_not_due():
     assert core.idle_answer() is None
 
 
+def test_a_named_tick_the_control_loop_answered_is_not_answered_again_after_release():
+    """The corridor law's last cycle (0.05 s period, idle period 0.1 s) answers the tick for
+    67.6 s, which names it, and releases: no second, idle answer to that tick (it would cover
+    67.65 s while the simulator still held at 67.6 s, and the mission proxy saw the corridor
+    goal end at 67.6 s or not depending on which answer it read first: the course mission
+    then took one of two routes). The next tick is answered idle as before."""
+    core = ParticipantCore(0.05, now=60.0, idle_period=0.1)
+    core.claim(since=60.1)
+    core.on_tick(Tick(67.6, named=True))
+    assert core.idle_answer() is None                    # the control loop's
+    assert core.next_cycle(67.6)[0] == pytest.approx(67.6)
+    core.answered(67.6)
+    core.release()
+    assert core.idle_answer() is None                    # answered already
+    core.on_tick(Tick(67.65, named=True))
+    assert core.idle_answer() == pytest.approx(67.65)
+    assert core.cover(67.65) == pytest.approx(67.65)
+
+
 def test_claimed_cycle_is_the_first_deadline_after_the_goal_whoever_answered_before():
     """The goal (stamped 0.2) and the tick for 0.2 race: either way the control loop's first
     cycle is 0.3."""
