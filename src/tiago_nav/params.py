@@ -213,7 +213,8 @@ def _yaml_value(v):
     if isinstance(v, bool):
         return 'true' if v else 'false'
     if isinstance(v, float):
-        return repr(v)
+        r = repr(v)     # YAML 1.1 (PyYAML, rosparam) reads 1e-06 as a string, 1.0e-06 as a float
+        return r.replace('e', '.0e') if 'e' in r and '.' not in r else r
     if isinstance(v, str):
         return v if v and v.strip() == v and not any(c in v for c in ':#{}[],&*?|<>=!%@`\'"') \
             else '"%s"' % v

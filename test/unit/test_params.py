@@ -75,3 +75,17 @@ def test_shipped_config_equals_the_dataclass_defaults(module):
     is written once, in code."""
     with open(os.path.join(ROOT, 'config', CONFIG_FILES[module])) as f:
         assert f.read() == config_text(module), 'run: python3 -m tiago_nav.nodes ' + module
+
+
+@pytest.mark.parametrize('module', sorted(CONFIG_FILES))
+def test_shipped_config_reads_back_as_the_defaults(module):
+    """rosparam reads YAML 1.1, where 1e-06 is a string: every value reads back as its default
+    (a float default 1e-06 is written 1.0e-06)."""
+    import importlib
+
+    import yaml
+    cls = importlib.import_module('tiago_nav.nodes.' + module).Params
+    with open(os.path.join(ROOT, 'config', CONFIG_FILES[module])) as f:
+        values = yaml.safe_load(f)
+    expected = {k: list(v) if isinstance(v, tuple) else v for k, v in defaults(cls).items()}
+    assert values == expected
