@@ -106,3 +106,30 @@ def test_noise_is_seeded():
     finally:
         a.close()
         b.close()
+
+
+def test_commands_differing_in_the_last_bits_drive_exactly_the_same_path():
+    """Commands are rounded to ``cmd_resolution``: the controllers' last-bit floating-point
+    differences between runs (numpy/BLAS reductions) do not reach the robot's path, so lockstep
+    runs repeat to the bit. With ``cmd_resolution`` 0 they did."""
+    def path(resolution, eps):
+        s = Simulator(World.from_dict(ROOM), SimConfig(laser_noise=0.0,
+                                                       cmd_resolution=resolution))
+        try:
+            for i in range(120):
+                s.command(0.4 + 1e-4 * i + eps, 0.2 - 1e-4 * i - eps)
+                s.step()
+            return s.pose
+        finally:
+            s.close()
+    assert path(1e-6, 0.0) == path(1e-6, 2e-16)          # the same doubles
+    assert path(0.0, 0.0) != path(0.0, 2e-16)
+
+
+def test_command_resolution_rounds_the_command():
+    s = Simulator(World.from_dict(ROOM), SimConfig(laser_noise=0.0, cmd_resolution=0.001))
+    try:
+        s.command(0.12345, -0.06789)
+        assert s._cmd == pytest.approx((0.123, -0.068), abs=1e-12)
+    finally:
+        s.close()

@@ -35,6 +35,11 @@ class SimConfig:
     laser_noise: float = param(0.01, '[m] Gaussian range noise std', ge=0, lt=1)
     cmd_timeout: float = param(0.5, '[s] the base brakes to a stop when no cmd_vel arrives for this long',
                                gt=0)
+    cmd_resolution: float = param(1e-6, '[m/s, rad/s] velocity commands are rounded to this, '
+                                  'as a motor driver takes fixed-point setpoints (keeps the '
+                                  'controllers\' last-bit floating-point differences out of the '
+                                  'motion, so lockstep runs repeat exactly); 0 = exact',
+                                  ge=0, lt=0.01)
     robot_radius: float = param(ROBOT_RADIUS, "[m] the base's footprint", gt=0)
     seed: int = param(0, 'seed of the laser noise and of the odometry drift', ge=0)
     limits: BaseLimits = nested(BaseLimits)
@@ -95,10 +100,14 @@ class Simulator:
     # --- commands and stepping ------------------------------------------------------------
     def command(self, v, w):
         """A velocity command ``v`` [m/s], ``w`` [rad/s] in base_footprint, held for
-        ``cmd_timeout`` of simulated time."""
+        ``cmd_timeout`` of simulated time and rounded to ``cmd_resolution``: the controllers'
+        numpy/BLAS reductions can differ in the last bit from run to run (their summation
+        order follows the arrays' memory alignment), and without the rounding those 10⁻¹⁶
+        differences reached the robot's path (final poses 10⁻⁹ m apart)."""
         if not (math.isfinite(v) and math.isfinite(w)):
             return False
-        self._cmd = (float(v), float(w))
+        q = self.config.cmd_resolution
+        self._cmd = (round(v / q) * q, round(w / q) * q) if q > 0 else (float(v), float(w))
         self._cmd_time = self.time
         return True
 
