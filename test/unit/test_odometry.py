@@ -139,3 +139,18 @@ def test_simulator_odometry_drifts_and_map_to_odom_closes_the_loop():
         drift.close()
     finally:
         sim.close()
+
+
+def test_a_standing_base_adds_no_drift():
+    """The relative motion of a pose to itself is not exactly zero in floating point (about
+    10⁻¹⁶ m); with drift its noise moved a standing robot's odometry by about 10⁻¹⁰ m per step,
+    and how long the robot stood (a free-running detection call) changed every later pose."""
+    pose = (11.005442059344205, 0.0008226933250628158, -0.808669033333338)
+    assert compose(inverse(pose), pose) != (0.0, 0.0, 0.0)
+    odo = Odometry(OdometryNoise(), START, np.random.default_rng(0))
+    before = odo.odom_pose(pose)
+    for _ in range(1000):
+        odo.advance(pose, pose)
+    assert odo.odom_pose(pose) == before
+    odo.advance(pose, compose(pose, (0.01, 0.0, 0.0)))
+    assert odo.odom_pose(pose) != before                 # moving still drifts

@@ -82,8 +82,11 @@ class Odometry:
             self.rot_scale = 1.0 + rng.normal(0.0, noise.rotation_scale_error)
 
     def advance(self, before, after):
-        """Integrate the true motion from pose ``before`` to pose ``after`` (map frame)."""
-        if self.noise.is_ideal:
+        """Integrate the true motion from pose ``before`` to pose ``after`` (map frame). A base
+        that did not move adds nothing (wheels that do not turn give no encoder ticks): the
+        relative motion of a pose to itself is not exactly zero in floating point, and its
+        noise made a standing robot's odometry wander by 10⁻¹⁰ m per step."""
+        if self.noise.is_ideal or tuple(before) == tuple(after):
             return
         n = self.noise
         dx, dy, dyaw = compose(inverse(before), after)
