@@ -343,9 +343,7 @@ def main():
     if missing:
         rospy.logfatal('%s: %s; not starting the action server', NODE, missing)
         sys.exit(1)
-    if not participant.wait_joined(params.startup_timeout):
-        rospy.logwarn('%s: not registered in lockstep within %g s (is the simulator holding?): '
-                      'serving anyway, running free', NODE, params.startup_timeout)
+    participant.wait_joined(params.startup_timeout)
     cmd_pub = rospy.Publisher(params.cmd_vel_topic, Twist, queue_size=1)
     node = CorridorServer(params, clock, None, cmd_pub, io, participant)
     node.server = ClaimingActionServer(NODE, CorridorAction, node.execute, participant)

@@ -154,9 +154,7 @@ class MoveBase:
                    lambda: 'no transform %s -> %s within %g s (is odometry/localisation running?)'
                    % (self.map_frame, p.robot_base_frame, p.ready_timeout))
         # goals only once the simulator holds for this node (a goal begun before runs free)
-        if not self.lockstep.wait_joined(p.ready_timeout):
-            rospy.logwarn('move_base: not registered in lockstep within %g s (is the simulator '
-                          'holding?): serving anyway, running free', p.ready_timeout)
+        self.lockstep.wait_joined(p.ready_timeout)
         self.server = ClaimingActionServer('move_base', MoveBaseAction, self.execute,
                                            self.lockstep)
         io = ActionIO(self.server, self.cmd_pub, self.plan_pub, self.clock, self.cycle_pose,

@@ -426,10 +426,7 @@ class TiagoController:
         rospy.on_shutdown(self.on_shutdown)
         # missions only once the simulator holds for the proxy: one begun before would decide
         # its stages in wall time
-        if not self.backend.lockstep.wait_joined(params.mission.server_timeout):
-            rospy.logwarn('tiago_controller: not registered in lockstep within %g s (no scan or '
-                          'no pose in %s yet?): serving anyway, deciding in wall time until it '
-                          'registers', params.mission.server_timeout, params.global_frame)
+        self.backend.lockstep.wait_joined(params.mission.server_timeout)
         self.server.start()
         rospy.loginfo('tiago_controller: serving %s (corridor %s, move_base %s, detection %s)',
                       rospy.resolve_name(params.action_name),

@@ -268,11 +268,16 @@ class LockstepParticipant:
 
     def wait_joined(self, timeout):
         """Wait up to ``timeout`` wall seconds until registered with the simulator (True at once
-        when not taking part); False if it did not happen. A node should serve goals only then:
-        a goal that began before would run free, and at the simulator's full speed a free
-        control loop falls behind it (a corridor law drove into the obstacle it should have
-        stopped before)."""
-        return self.ticker is not None or self.joined.wait(timeout)
+        when not taking part); False, with a warning, if it did not happen. A node should serve
+        goals only then: a goal that began before would run free, and at the simulator's full
+        speed a free control loop falls behind it (a corridor law drove into the obstacle it
+        should have stopped before)."""
+        if self.ticker is not None or self.joined.wait(timeout):
+            return True
+        rospy.logwarn('%s: not registered in lockstep within %g s (is the simulator holding? do '
+                      'its inputs flow?): serving anyway, running free until it registers',
+                      self.name, timeout)
+        return False
 
     def _join_when_ready(self):
         while not rospy.is_shutdown():
