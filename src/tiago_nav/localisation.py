@@ -75,6 +75,12 @@ class LocaliserConfig:
     prior_sigma_xy: float = param(0.1, '[m] std of the prediction as a prior (holds directions '
                                        'the scan does not constrain)', gt=0)
     prior_sigma_yaw_deg: float = param(5.0, '[deg] std of the prediction yaw as a prior', gt=0)
+    min_update_distance: float = param(
+        0.1, '[m] a scan is registered once the odometry has moved this far, or turned '
+             'min_update_yaw_deg, since the last registered one (AMCL\'s update_min_d); the '
+             'scans between follow odometry (0 with min_update_yaw_deg 0: every scan)', ge=0)
+    min_update_yaw_deg: float = param(
+        5.0, '[deg] see min_update_distance (AMCL\'s update_min_a)', ge=0)
 
     def __post_init__(self):
         validate(self)
@@ -344,6 +350,20 @@ class Localiser:
         if len(pts) > c.max_points:
             pts = pts[np.linspace(0, len(pts) - 1, c.max_points).round().astype(int)]
         return pts
+
+    def due(self, odom_pose):
+        """Whether the scan at ``odom_pose`` (base_footprint in odom) is to be registered:
+        always after a (re)set and at the first scan; else once the odometry has moved
+        ``min_update_distance`` or turned ``min_update_yaw_deg`` since the last registered scan.
+        (AMCL's update_min_d / update_min_a: a scan taken from about the same pose adds little,
+        and registering it costs most of the node's time.) Between, the estimate is
+        ``map_to_odom`` ∘ odometry, unchanged."""
+        if self._searching or self._odom is None:
+            return True
+        dx, dy, dyaw = compose(inverse(self._odom), tuple(odom_pose))
+        c = self.config
+        return (math.hypot(dx, dy) >= c.min_update_distance
+                or abs(dyaw) >= math.radians(c.min_update_yaw_deg))
 
     def update(self, odom_pose, points, sensor=None):
         """Predict from odometry, correct with the scan, gate; returns an :class:`Update`.

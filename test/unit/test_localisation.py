@@ -212,6 +212,30 @@ def test_an_all_invalid_scan_keeps_the_prediction(world, grid):
     assert np.all(np.diag(up.covariance) > np.diag(before))
 
 
+def test_scans_from_about_the_same_pose_follow_odometry(world, grid, route):
+    """Like AMCL (update_min_d / update_min_a) a scan is registered only once the odometry has
+    moved 0.1 m or turned 5 deg since the last registered one, and always after a (re)set; the
+    route above registers under a third of its scans and still meets the bar."""
+    start = world.start_pose
+    loc = Localiser(grid, start, odom=(0.0, 0.0, 0.0))
+    assert loc.due((0.0, 0.0, 0.0))                     # the first scan (after the set)
+    assert loc.update((0.0, 0.0, 0.0), one_scan(world, start)).corrected
+    assert not loc.due((0.0, 0.0, 0.0))                 # standing
+    assert not loc.due((0.06, 0.05, 0.0))               # 7.8 cm
+    assert loc.due((0.08, 0.07, 0.0))                   # 10.6 cm
+    assert not loc.due((0.0, 0.0, math.radians(4.0)))
+    assert loc.due((0.0, 0.0, math.radians(-6.0)))
+    loc.reset(start)
+    assert loc.due((0.0, 0.0, 0.0))                     # after a reset, always
+    every = Localiser(grid, start, LocaliserConfig(min_update_distance=0.0,
+                                                   min_update_yaw_deg=0.0), odom=(0.0, 0.0, 0.0))
+    every.update((0.0, 0.0, 0.0), one_scan(world, start))
+    assert every.due((0.0, 0.0, 0.0))
+    registered, scans = len(route.seconds), len(route.loc_xy)
+    print('%d of %d scans registered' % (registered, scans))
+    assert 0.15 * scans < registered < 0.6 * scans
+
+
 def test_self_hits_are_filtered_by_geometry():
     las = SimConfig().laser
     loc = Localiser.__new__(Localiser)

@@ -197,21 +197,30 @@ class LocalisationNode:
             if self.localiser is None:
                 rospy.logwarn_throttle(5.0, 'localisation: no %s yet', self.p.map_topic)
                 return
-            if self.frozen(msg.ranges, compose(odom, laser)):
-                pts = ()                    # a stuck driver's repeat: follow odometry
-            else:
-                pts = self.localiser.scan_points(msg.ranges, msg.angle_min, msg.angle_increment,
-                                                 msg.range_min, msg.range_max, laser)
-            up = self.localiser.update(odom, pts, laser[:2])
-            self.map_to_odom = up.map_to_odom
-        if not up.corrected:
+            if self.localiser.due(odom):
+                if self.frozen(msg.ranges, compose(odom, laser)):
+                    pts = ()                # a stuck driver's repeat: follow odometry
+                else:
+                    pts = self.localiser.scan_points(msg.ranges, msg.angle_min,
+                                                     msg.angle_increment, msg.range_min,
+                                                     msg.range_max, laser)
+                up = self.localiser.update(odom, pts, laser[:2])
+                self.map_to_odom = up.map_to_odom
+                pose, cov, rejected = up.pose, up.covariance, up.reason
+            else:                           # about where the last registered scan was taken
+                pose, cov, rejected = (compose(self.map_to_odom, odom),
+                                       self.localiser.covariance.copy(), '')
+        if rejected:
             rospy.logwarn_throttle(5.0, 'localisation: correction rejected (%s); following '
-                                   'odometry', up.reason)
+                                   'odometry', rejected)
         self.send_transform(stamp)
+        self.publish_pose(stamp, pose, cov)
+
+    def publish_pose(self, stamp, pose, covariance):
         out = PoseWithCovarianceStamped()
         out.header.stamp, out.header.frame_id = stamp, self.p.map_frame
-        out.pose.pose = pose_msg(up.pose)
-        out.pose.covariance = covariance_6x6(up.covariance)
+        out.pose.pose = pose_msg(pose)
+        out.pose.covariance = covariance_6x6(covariance)
         self.pub_pose.publish(out)
 
     def send_transform(self, stamp):
