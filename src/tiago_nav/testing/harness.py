@@ -48,10 +48,14 @@ class Harness:
         log_path: where roscore and roslaunch write (default: a file in the temp directory).
         extra_args: further ``name:=value`` launch arguments.
         launch: the roslaunch arguments naming the launch file (package and file, or a path).
+        observe: take in /scan and /tf and track the path and the localisation error (for
+            plots and the demo's summary); False leaves this process a client like
+            ``rosrun tiago_nav client`` (plus the ground truth and the collision count), so
+            that a benchmark does not time its own observing.
     """
 
     def __init__(self, world, real_time_factor=5.0, laser_noise=0.01, port=None, robot_start=None,
-                 log_path=None, extra_args=(), launch=('tiago_nav', 'demo.launch')):
+                 log_path=None, extra_args=(), launch=('tiago_nav', 'demo.launch'), observe=True):
         self.port = port or free_port()
         self.uri = 'http://localhost:%d' % self.port
         self.log_path = log_path or os.path.join(tempfile.gettempdir(),
@@ -78,6 +82,8 @@ class Harness:
         self.loc_errors = []        # [(position m, |yaw| rad)] of the estimate against the truth
         self.lock = threading.Lock()
         self._node = False
+        self.observe = observe
+        self.tf = None
 
     # --- ROS side ------------------------------------------------------------------------------
     def connect(self, timeout=60.0):
@@ -104,14 +110,16 @@ class Harness:
         from std_msgs.msg import UInt32
         rospy.init_node('mission_harness', anonymous=True, disable_signals=True)
         self._node = True
-        self.tf = tf2_ros.Buffer(rospy.Duration(30))
-        self.tf_listener = tf2_ros.TransformListener(self.tf)
-        rospy.Subscriber('/scan', LaserScan, self._on_scan, queue_size=1)
+        if self.observe:
+            self.tf = tf2_ros.Buffer(rospy.Duration(30))
+            self.tf_listener = tf2_ros.TransformListener(self.tf)
+            rospy.Subscriber('/scan', LaserScan, self._on_scan, queue_size=1)
         rospy.Subscriber('/map', OccupancyGrid, self._on_map, queue_size=1)
         rospy.Subscriber('/sim/collisions', UInt32, self._on_collisions, queue_size=1)
         rospy.Subscriber('/sim/ground_truth', Odometry, self._on_truth, queue_size=1)
         self.wait_servers(timeout - (time.monotonic() - t0))
-        threading.Thread(target=self._track, daemon=True).start()
+        if self.observe:
+            threading.Thread(target=self._track, daemon=True).start()
 
     def wait_servers(self, timeout):
         """Wait (wall ``timeout`` [s]) for every server of the mission, /map and the robot's tf;
