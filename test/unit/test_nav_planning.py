@@ -31,21 +31,46 @@ def test_inflation_values_follow_distance():
 
 
 def test_costmap_inflates_once_per_read_after_scans(monkeypatch):
-    """Scans taken in between two reads cost one inflation (the full-grid EDT), and a read
-    after a scan sees that scan's obstacle."""
+    """Scans taken in between two reads of the grid cost one inflation (the full-grid EDT);
+    cost_at a few points costs none, and both see the newest scan's obstacle."""
     import tiago_nav.nav.costmap as costmap_module
     calls = []
     real = costmap_module.inflate
     monkeypatch.setattr(costmap_module, 'inflate', lambda *a: calls.append(1) or real(*a))
     cm = Costmap(empty(60, 60))
-    assert cm.cost_at([(1.0, 1.5)])[0] == 0
+    assert cm.cost[30, 20] == 0
+    assert calls == [1]
     for _ in range(5):
         cm.add_scan(beam((0.5, 1.5), 1.0))
         cm.update()
-    assert calls == [1]                               # nothing read yet: no inflation
-    assert cm.cost_at([(1.5, 1.5)])[0] == LETHAL      # the beam's hit, 1 m ahead
+        assert cm.cost_at([(1.5, 1.5)])[0] == LETHAL  # the beam's hit, 1 m ahead
+    assert calls == [1]                               # only points read: no inflation
     assert cm.distance[30, 30] == pytest.approx(0.0)
     assert calls == [1, 1]
+
+
+@pytest.mark.parametrize('seed', range(20))
+def test_cost_at_matches_the_inflated_grid(seed):
+    """cost_at without inflating (distances to the static layer and to the marked cells) gives
+    exactly the costs of the full-grid inflation, inside and outside the grid."""
+    rng = np.random.default_rng(seed)
+    data = np.zeros((80, 120), dtype=np.int8)
+    for _ in range(rng.integers(0, 4)):                 # some static walls (or none)
+        r, c = rng.integers(0, 80), rng.integers(0, 120)
+        data[r:r + rng.integers(1, 20), c:c + rng.integers(1, 4)] = 100
+    cm = Costmap(GridMap(data, 0.05, (-1.0, -2.0)))
+    marked = rng.random(data.shape) < rng.choice([0.0, 0.002, 0.02])
+    cm.obstacles[:] = marked
+    cm.update()
+    xy = np.column_stack((rng.uniform(-1.5, 5.5, 500), rng.uniform(-2.5, 2.5, 500)))
+    fast = cm.cost_at(xy)
+    assert cm._inflated is None                         # it did not inflate
+    rc = cm.grid.world_to_cell(xy)
+    inside = cm.grid.in_bounds(rc)
+    expected = np.full(len(xy), LETHAL, dtype=np.uint8)
+    expected[inside] = cm.cost[rc[inside, 0], rc[inside, 1]]
+    assert np.array_equal(fast, expected)
+    assert np.array_equal(cm.cost_at(xy), expected)    # read from the inflated grid now
 
 
 def beam(origin, r, angle=0.0, range_min=0.05, range_max=25.0):
@@ -206,3 +231,4 @@ def test_a_scan_clears_marked_cells_before_its_hits_and_keeps_those_behind():
     kept = cm.obstacles[rc[:, 0], rc[:, 1]]
     assert ahead.sum() > 100 and not kept[ahead].any()
     assert kept[behind].all() and kept[np.abs(bearing) > 1.1].all()
+

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from tiago_nav.geometry import transform_points, wrap_angle
 from tiago_nav.gridmap import distance_to_mask
@@ -105,18 +106,25 @@ def inflate(occupied, resolution, robot_radius, inflation_radius, cost_scaling_f
     ``distance`` is each cell centre's Euclidean distance to the nearest occupied cell centre
     (:func:`tiago_nav.gridmap.distance_to_mask`), ``cost`` as in the module docstring."""
     dist = distance_to_mask(occupied, resolution)
-    cost = np.zeros(occupied.shape, dtype=np.uint8)
+    return cost_of_distance(dist, robot_radius, inflation_radius, cost_scaling_factor), dist
+
+
+def cost_of_distance(dist, robot_radius, inflation_radius, cost_scaling_factor):
+    """uint8 costs (module docstring) of an array of distances [m] to the nearest obstacle."""
+    cost = np.zeros(dist.shape, dtype=np.uint8)
     band = (dist >= robot_radius) & (dist <= inflation_radius)
     cost[band] = np.minimum(
         MAX_NON_LETHAL,
         np.round(MAX_NON_LETHAL * np.exp(-cost_scaling_factor * (dist[band] - robot_radius)))).astype(np.uint8)
     cost[dist < robot_radius] = LETHAL
-    return cost, dist
+    return cost
 
 
 class Costmap:
     """Static layer + obstacle layer, inflated when ``cost``/``distance`` are read after an
-    :meth:`update` (one EDT).
+    :meth:`update` (one EDT). :meth:`cost_at` a few points does not inflate: it measures their
+    distance to the static layer (its distance field, computed once) and to the obstacle layer
+    (a KD-tree of its cells), which gives the same costs.
 
     ``obstacle_range`` [m]: laser returns farther than this are not marked;
     ``raytrace_range`` [m]: beams clear the obstacle layer up to this range (or their hit).
@@ -211,6 +219,7 @@ class Costmap:
         read. (One inflation is a full-grid EDT, the costliest part of taking in a scan; scans
         that arrive between two reads, e.g. while no goal is active, then cost none.)"""
         self._inflated = None
+        self._marked = None         # KD-tree of the obstacle layer's cells, for cost_at
 
     def _inflation(self):
         if self._inflated is None:
@@ -244,9 +253,24 @@ class Costmap:
         return pts[np.hypot(pts[:, 0] - xy[0], pts[:, 1] - xy[1]) <= radius]
 
     def cost_at(self, xy):
-        """Costs at ``(N, 2)`` map points; ``LETHAL`` outside the grid."""
+        """Costs at ``(N, 2)`` map points; ``LETHAL`` outside the grid. Read from ``cost`` when
+        it is up to date, else from the distances of the points' cells to the nearest static
+        and marked cell centres: the same numbers as the EDT's, without inflating the whole grid
+        (a control cycle checks the plan ahead, about 50 points, after every scan)."""
         rc = self.grid.world_to_cell(xy)
         inb = self.grid.in_bounds(rc)
         out = np.full(len(rc), LETHAL, dtype=np.uint8)
-        out[inb] = self.cost[rc[inb, 0], rc[inb, 1]]
+        cells = rc[inb]
+        if self._inflated is not None:
+            out[inb] = self.cost[cells[:, 0], cells[:, 1]]
+            return out
+        if self._marked is None:
+            marked = np.argwhere(self.obstacles)
+            self._marked = cKDTree(marked) if len(marked) else False
+        dist = self.grid.distance_field()[cells[:, 0], cells[:, 1]]
+        if self._marked is not False and len(cells):
+            near, _ = self._marked.query(cells)
+            dist = np.minimum(dist, near * self.resolution)
+        out[inb] = cost_of_distance(dist, self.robot_radius, self.inflation_radius,
+                                    self.cost_scaling_factor)
         return out
