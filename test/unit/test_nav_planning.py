@@ -232,3 +232,32 @@ def test_a_scan_clears_marked_cells_before_its_hits_and_keeps_those_behind():
     assert ahead.sum() > 100 and not kept[ahead].any()
     assert kept[behind].all() and kept[np.abs(bearing) > 1.1].all()
 
+
+@pytest.mark.parametrize('seed', range(5))
+def test_planning_graph_has_exactly_the_allowed_steps(seed):
+    """The graph's edges, cell by cell: into every passable 8-neighbour of a passable cell, no
+    diagonal between two blocked cells, weight = step length (cells) x (1 + w cost / 252) of
+    the cell entered."""
+    from tiago_nav.nav.planner import build_graph
+    rng = np.random.default_rng(seed)
+    rows, cols = 7, 9
+    cost = rng.integers(0, 256, (rows, cols)).astype(np.uint8)
+    passable = cost < INSCRIBED
+    g = build_graph(cost, 1.5).tocoo()
+    got = {(int(i), int(j)): w for i, j, w in zip(g.row, g.col, g.data)}
+    want = {}
+    for r in range(rows):
+        for c in range(cols):
+            for dr in (-1, 0, 1):
+                for dc in (-1, 0, 1):
+                    rr, cc = r + dr, c + dc
+                    if (dr, dc) == (0, 0) or not (0 <= rr < rows and 0 <= cc < cols):
+                        continue
+                    if not (passable[r, c] and passable[rr, cc]):
+                        continue
+                    if dr and dc and not (passable[rr, c] or passable[r, cc]):
+                        continue
+                    want[(r * cols + c, rr * cols + cc)] = \
+                        math.hypot(dr, dc) * (1 + 1.5 * float(cost[rr, cc]) / 252)
+    assert got.keys() == want.keys()
+    assert all(got[k] == pytest.approx(want[k], rel=1e-12) for k in want)

@@ -5,6 +5,8 @@ path keeps to the middle of free space where there is room, yet takes a narrow c
 must. Lethal/inscribed cells are not entered. The grid path is then shortened by a
 line-of-sight pass that never raises the cost it crosses (:func:`shortcut`).
 """
+from functools import lru_cache
+
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
@@ -18,25 +20,47 @@ class PlanError(Exception):
     """No plan: ``reason`` is a sentence for the action's status text."""
 
 
+@lru_cache(maxsize=4)
+def _csr_layout(rows, cols):
+    """For the 8-neighbour edges of a ``rows x cols`` grid listed direction by direction (as
+    :func:`build_graph` lists them, :data:`_NEIGHBOURS` order, each a row-major block): the
+    permutation into CSR order (by source cell, then target cell) and the edges' source and
+    target cells in that order. Computed once per grid shape: a plan then only decides which
+    edges exist and what they weigh."""
+    idx = np.arange(rows * cols, dtype=np.int32).reshape(rows, cols)
+    src, dst = [], []
+    for dr, dc in _NEIGHBOURS:
+        r0, r1 = max(0, -dr), rows - max(0, dr)
+        c0, c1 = max(0, -dc), cols - max(0, dc)
+        src.append(idx[r0:r1, c0:c1].ravel())
+        dst.append(idx[r0 + dr:r1 + dr, c0 + dc:c1 + dc].ravel())
+    src, dst = np.concatenate(src), np.concatenate(dst)
+    order = np.lexsort((dst, src))
+    return order, src[order], dst[order]
+
+
 def build_graph(cost, cost_weight, passable=None):
-    """CSR adjacency matrix over the ``rows*cols`` cells (weights in cells)."""
+    """CSR adjacency matrix over the ``rows*cols`` cells (weights in cells): an edge into every
+    passable neighbour of a passable cell, no corner cutting between two blocked cells."""
     rows, cols = cost.shape
     if passable is None:
         passable = cost < INSCRIBED
-    idx = np.arange(rows * cols).reshape(rows, cols)
     w_cell = 1.0 + cost_weight * cost.astype(float) / MAX_NON_LETHAL
-    src, dst, wt = [], [], []
+    allowed, weight = [], []
     for dr, dc in _NEIGHBOURS:
         r0, r1 = max(0, -dr), rows - max(0, dr)
         c0, c1 = max(0, -dc), cols - max(0, dc)
         a = passable[r0:r1, c0:c1] & passable[r0 + dr:r1 + dr, c0 + dc:c1 + dc]
         if dr and dc:   # no corner cutting between two blocked cells
             a &= passable[r0 + dr:r1 + dr, c0:c1] | passable[r0:r1, c0 + dc:c1 + dc]
-        src.append(idx[r0:r1, c0:c1][a])
-        dst.append(idx[r0 + dr:r1 + dr, c0 + dc:c1 + dc][a])
-        wt.append(np.hypot(dr, dc) * w_cell[r0 + dr:r1 + dr, c0 + dc:c1 + dc][a])
+        allowed.append(a.ravel())
+        weight.append((np.hypot(dr, dc) * w_cell[r0 + dr:r1 + dr, c0 + dc:c1 + dc]).ravel())
+    order, src, dst = _csr_layout(rows, cols)
+    keep = np.concatenate(allowed)[order]
     n = rows * cols
-    return csr_matrix((np.concatenate(wt), (np.concatenate(src), np.concatenate(dst))), shape=(n, n))
+    indptr = np.zeros(n + 1, dtype=np.int32)
+    np.cumsum(np.bincount(src[keep], minlength=n), out=indptr[1:])
+    return csr_matrix((np.concatenate(weight)[order][keep], dst[keep], indptr), shape=(n, n))
 
 
 def grid_path(cost, start_rc, goal_rc, cost_weight=3.0, passable=None):
