@@ -307,3 +307,23 @@ def test_lookup_at_does_not_wait_for_data_tf_no_longer_holds():
     with pytest.raises(RuntimeError):
         roslockstep.lookup_at(buf, 'odom', 'base', rospy.Time.from_sec(25.0), 0.3)
     assert time.monotonic() - t0 >= 0.3                  # may still come: waited
+
+
+def test_the_clock_source_sets_its_own_time_instead_of_receiving_its_clock(monkeypatch):
+    """The simulator drops rospy's /clock subscription (it received its own /clock back) and
+    sets its ROS time as it publishes /clock."""
+    from rosgraph_msgs.msg import Clock
+    from rospy.impl import simtime
+    from tiago_nav.ros import lockstep as roslockstep
+
+    dropped, sent = [], []
+    monkeypatch.setattr(simtime, '_clock_sub', type('Sub', (), {
+        'unregister': lambda self: dropped.append(1)})(), raising=False)
+    monkeypatch.setattr(roslockstep, 'direct_publisher', lambda topic, cls: type('Pub', (), {
+        'publish': lambda self, msg: sent.append((topic, msg))})())
+    monkeypatch.setattr(rospy.rostime, '_rostime_current', None)
+    source = roslockstep.ClockSource()
+    assert dropped == [1] and simtime._clock_sub is None
+    source.publish(Clock(rospy.Time(12, 5)))
+    assert sent == [('/clock', Clock(rospy.Time(12, 5)))]
+    assert rospy.rostime._rostime_current == rospy.Time(12, 5)

@@ -30,7 +30,7 @@ from tiago_nav.params import ParamError, nested, param, read_params, validate
 from tiago_nav.robot import BASE_LINK_HEIGHT
 from tiago_nav.ros import conversions
 from tiago_nav.ros.clock import RosClock
-from tiago_nav.ros.lockstep import LockstepHost, direct_publisher
+from tiago_nav.ros.lockstep import ClockSource, LockstepHost
 from tiago_nav.sim.faults import FaultError, LaserFaults
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
@@ -132,7 +132,7 @@ def ros_outputs(params, use_sim_time):
     return Outputs(
         # /clock goes to every node 30-60 times per simulated second: written in this thread, not
         # handed to a queue thread per subscriber (tiny messages, they cannot fill a socket)
-        clock=direct_publisher('/clock', Clock) if use_sim_time else None,
+        clock=ClockSource() if use_sim_time else None,
         scan=rospy.Publisher(params.scan_topic, LaserScan, queue_size=5),
         odom=rospy.Publisher(params.odom_topic, Odometry, queue_size=10),
         ground_truth=rospy.Publisher(params.ground_truth_topic, Odometry, queue_size=10),

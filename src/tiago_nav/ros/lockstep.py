@@ -45,6 +45,26 @@ def direct_publisher(topic, msg_class, **kwargs):
         return rospy.Publisher(topic, msg_class, queue_size=None, **kwargs)
 
 
+class ClockSource:
+    """The /clock publisher of the process that makes simulated time (the simulator): a
+    :func:`direct_publisher` that also sets this process's own ROS time. rospy subscribes every
+    node to /clock under /use_sim_time, the simulator too, which then received each of its
+    own /clock messages back (a thread wake-up and a deserialisation, in the process every
+    lockstep hold waits on): that subscription is dropped here."""
+
+    def __init__(self):
+        from rospy.impl import simtime
+        sub = getattr(simtime, '_clock_sub', None)     # set by rospy.init_node
+        if sub is not None:
+            sub.unregister()
+            simtime._clock_sub = None
+        self.pub = direct_publisher('/clock', Clock)
+
+    def publish(self, msg):
+        self.pub.publish(msg)
+        rospy.rostime._set_rostime(msg.clock)
+
+
 def _on_grid(stamp, seconds):
     """``stamp`` (rospy.Time) + ``seconds`` rounded to whole nanoseconds (a stamp on the
     physics grid stays on it)."""
