@@ -186,18 +186,21 @@ def test_corridor_server_claims_the_goal_answers_each_cycle_and_releases():
     assert max(v for _, (v, _) in part.answers) > 0.1
 
 
-def test_in_lockstep_clock_goes_out_with_the_sensor_data_only():
+def test_in_lockstep_clock_goes_out_with_the_scans_only():
     """/clock to every node at every physics step was half of a mission's messages: in
-    lockstep the simulator sends it at the steps with odometry or a scan (30 Hz of 60), through
-    the host (which sends it before a tick when needed)."""
+    lockstep the simulator sends it at the steps with a scan (15 Hz of 60), through the host
+    (which sends it before a tick when needed); odometry (30 Hz) goes out without it."""
     host = FakeHost()
     node = lockstep_node(host)
+    odom = []
+    node.out.odom.publish = lambda msg: odom.append(msg.header.stamp.to_sec())
     try:
         node.start()
-        for _ in range(6):
+        for _ in range(8):
             node.hold()
             node.step()
-        assert [t.to_sec() for t in host.clocks] == pytest.approx([0, 2 / 60, 4 / 60, 6 / 60])
+        assert [t.to_sec() for t in host.clocks] == pytest.approx([0, 4 / 60, 8 / 60])
+        assert odom == pytest.approx([0, 2 / 60, 4 / 60, 6 / 60, 8 / 60])
     finally:
         node.close()
 
