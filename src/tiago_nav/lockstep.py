@@ -80,6 +80,9 @@ class Schedule:
         self._seq = 0
         self.lags = []          # [s sim] application time - stamp, per applied command
         self.drops = 0
+        self.waits = 0          # steps at which the simulator waited for answers
+        self.waited = 0.0       # [s wall] how long, in all
+        self.waited_for = {}    # node -> [s wall] of the waits its answer ended
 
     # --- time grid ------------------------------------------------------------------------
     def step_of(self, t):
@@ -168,6 +171,22 @@ class Schedule:
             out.append((v, w))
         return out
 
+    def record_wait(self, seconds, last):
+        """The simulator waited ``seconds`` [s wall] at one step, until the answers of the
+        participants ``last`` (usually one) came; the time is theirs, shared."""
+        self.waits += 1
+        self.waited += seconds
+        for name in last:
+            self.waited_for[name] = self.waited_for.get(name, 0.0) + seconds / len(last)
+
+    def wait_summary(self):
+        """One line: how long the simulator waited for answers, and whose answers it waited for
+        longest (where lockstep's wall time goes)."""
+        who = sorted(self.waited_for.items(), key=lambda kv: -kv[1])
+        return 'waited %.2f s of wall time at %d steps%s' % (
+            self.waited, self.waits, ('; last to answer: ' + ', '.join(
+                '%s %.2f s' % kv for kv in who)) if who else '')
+
     def lag_stats(self):
         """Lag [s of simulated time] between a command's stamp and its application: ``count``,
         ``max``, ``p50``, ``p95``, ``p99`` (zeros when no command was applied)."""
@@ -212,13 +231,18 @@ class Gate:
         is called (to publish the tick) when the wait begins and again whenever a participant
         is added to it, or ``retick`` has passed. Returns the commands ``(v, w)`` to apply at
         ``t`` in order, or None on shutdown."""
-        told, last = set(), None
+        told, last, start, before = set(), None, None, ()
         with self.cond:
             while not self.shutdown():
                 wall = self.wall()
                 waiting = self.schedule.hold(t, wall)
                 if not waiting:
+                    if start is not None:
+                        self.schedule.record_wait(wall - start, before)
                     return self.schedule.commands(t)
+                if start is None:
+                    start = wall
+                before = waiting
                 if not told.issuperset(waiting) or wall - last > self.retick:
                     told.update(waiting)
                     last = wall

@@ -430,3 +430,25 @@ def test_gate_gives_up_on_shutdown():
     gate = Gate(s, wall=time.monotonic, shutdown=lambda: bool(stop), poll=0.005)
     gate.receive(Ack('/a', 0.0, 0.1))
     assert gate.hold(t_of(6), lambda t, w: stop.append(1)) is None
+
+
+def test_gate_records_how_long_it_waited_and_whose_answer_ended_the_wait():
+    s, _ = schedule(timeout=10.0)
+    now = [100.0]
+    gate = Gate(s, wall=lambda: now[0], poll=0.001, retick=0.01)
+    gate.receive(Ack('/a', 0.0, 0.1))
+    gate.receive(Ack('/b', 0.0, 0.1))
+    assert gate.hold(t_of(3), lambda t, w: None) == []      # nobody due: no wait
+    assert s.waits == 0
+
+    def tick(t, waiting):       # /a answers 0.3 s of wall time after the first tick, /b 0.2 s later
+        if waiting == ['/a', '/b']:
+            now[0] += 0.3
+            gate.receive(Ack('/a', t, 0.1))
+        else:
+            now[0] += 0.2
+            gate.receive(Ack('/b', t, 0.1))
+    gate.hold(t_of(6), tick)
+    assert s.waits == 1 and s.waited == pytest.approx(0.5)
+    assert s.waited_for == {'/b': pytest.approx(0.5)}
+    assert s.wait_summary() == 'waited 0.50 s of wall time at 1 steps; last to answer: /b 0.50 s'

@@ -26,7 +26,7 @@ class FakeHost:
         self.holds = []
         self.clocks = []                            # /clock stamps sent through the host
         self.schedule = type('Schedule', (), {'drops': 0, 'lag_stats': lambda self: dict(
-            count=0, max=0.0, p50=0.0, p95=0.0, p99=0.0)})()
+            count=0, max=0.0, p50=0.0, p95=0.0, p99=0.0), 'wait_summary': lambda self: ''})()
 
     def hold(self, t, scan_stamp, odom_stamp):
         self.holds.append((t, scan_stamp, odom_stamp))

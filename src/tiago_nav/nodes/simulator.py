@@ -369,6 +369,7 @@ class SimulatorNode:
             s = self.lockstep.schedule.lag_stats()
             self.log.loginfo('lockstep: %d commands, lag max %.3f s, p95 %.3f s, %d drops'
                              % (s['count'], s['max'], s['p95'], self.lockstep.schedule.drops))
+            self.log.loginfo('lockstep: %s' % self.lockstep.schedule.wait_summary())
 
     def hold(self):
         """In lockstep, before the next step: wait for every participant's answer due by now and
