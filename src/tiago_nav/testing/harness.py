@@ -50,8 +50,10 @@ class Harness:
         launch: the roslaunch arguments naming the launch file (package and file, or a path).
         observe: take in /scan and /tf and track the path and the localisation error (for
             plots and the demo's summary); False leaves this process a client like
-            ``rosrun tiago_nav client`` (plus the ground truth and the collision count), so
-            that a benchmark does not time its own observing.
+            ``rosrun tiago_nav client`` (plus the collision count) once :meth:`connect` has
+            seen everything up: it then drops its ground-truth subscription and the action
+            clients it probed the servers with, so that a benchmark does not time its own
+            observing (:attr:`truth` and :meth:`pose` are then not updated).
     """
 
     def __init__(self, world, real_time_factor=5.0, laser_noise=0.01, port=None, robot_start=None,
@@ -116,10 +118,12 @@ class Harness:
             rospy.Subscriber('/scan', LaserScan, self._on_scan, queue_size=1)
         rospy.Subscriber('/map', OccupancyGrid, self._on_map, queue_size=1)
         rospy.Subscriber('/sim/collisions', UInt32, self._on_collisions, queue_size=1)
-        rospy.Subscriber('/sim/ground_truth', Odometry, self._on_truth, queue_size=1)
+        truth = rospy.Subscriber('/sim/ground_truth', Odometry, self._on_truth, queue_size=1)
         self.wait_servers(timeout - (time.monotonic() - t0))
         if self.observe:
             threading.Thread(target=self._track, daemon=True).start()
+        else:
+            truth.unregister()
 
     def wait_servers(self, timeout):
         """Wait (wall ``timeout`` [s]) for every server of the mission, /map and the robot's tf;
@@ -133,7 +137,9 @@ class Harness:
         for name, kind in (('tiago_controller', TiagoTaskAction), ('move_base', MoveBaseAction),
                            ('corridor_controller', CorridorAction)):
             c = actionlib.SimpleActionClient(name, kind)
-            if not wait_server(c, max(1.0, timeout - (time.monotonic() - t0))):
+            up = wait_server(c, max(1.0, timeout - (time.monotonic() - t0)))
+            c.action_client.stop()      # a probe: its status and feedback are not read
+            if not up:
                 self._check_alive()
                 raise HarnessError('no %s action server (see %s)' % (name, self.log_path))
         try:
