@@ -81,6 +81,10 @@ class LocaliserConfig:
              'scans between follow odometry (0 with min_update_yaw_deg 0: every scan)', ge=0)
     min_update_yaw_deg: float = param(
         5.0, '[deg] see min_update_distance (AMCL\'s update_min_a)', ge=0)
+    rest_updates: int = param(
+        5, 'scans registered anyway once the robot has come to rest (odometry unchanged since '
+           'the scan before), until it moves again: at rest they refine the estimate that places '
+           'what the robot then sees (detection at pose B)', ge=0)
 
     def __post_init__(self):
         validate(self)
@@ -314,6 +318,8 @@ class Localiser:
             if covariance is None else np.asarray(covariance, dtype=float).reshape(3, 3)
         self._odom = None       # odom → base_footprint at the last update
         self._searching = True
+        self._seen = None       # odom → base_footprint of the scan before (due)
+        self._rest = 0          # scans due at rest since the robot stopped
 
     def predict(self, odom_pose):
         """The pose in map predicted from the odometry delta since the last update.
@@ -352,18 +358,29 @@ class Localiser:
         return pts
 
     def due(self, odom_pose):
-        """Whether the scan at ``odom_pose`` (base_footprint in odom) is to be registered:
-        always after a (re)set and at the first scan; else once the odometry has moved
-        ``min_update_distance`` or turned ``min_update_yaw_deg`` since the last registered scan.
-        (AMCL's update_min_d / update_min_a: a scan taken from about the same pose adds little,
-        and registering it costs most of the node's time.) Between, the estimate is
-        ``map_to_odom`` ∘ odometry, unchanged."""
+        """Whether the scan at ``odom_pose`` (base_footprint in odom) is to be registered (call
+        once per scan, in order): always after a (re)set and at the first scan; else once the
+        odometry has moved ``min_update_distance`` or turned ``min_update_yaw_deg`` since the
+        last registered scan (AMCL's update_min_d / update_min_a: a scan taken from about the
+        same pose adds little, and registering it costs most of the node's time), and the first
+        ``rest_updates`` scans after the robot came to rest (odometry unchanged since the scan
+        before: without them the estimate at a stop, where the robot looks for obstacles, was
+        one registration taken on the move; detection's centre RMS at pose B went from about
+        1.3 to 2.2 cm). Between, the estimate is ``map_to_odom`` ∘ odometry, unchanged."""
+        odom_pose = tuple(odom_pose)
+        still, self._seen = odom_pose == self._seen, odom_pose
+        if not still:
+            self._rest = 0
         if self._searching or self._odom is None:
             return True
-        dx, dy, dyaw = compose(inverse(self._odom), tuple(odom_pose))
+        dx, dy, dyaw = compose(inverse(self._odom), odom_pose)
         c = self.config
-        return (math.hypot(dx, dy) >= c.min_update_distance
-                or abs(dyaw) >= math.radians(c.min_update_yaw_deg))
+        if math.hypot(dx, dy) >= c.min_update_distance or abs(dyaw) >= math.radians(c.min_update_yaw_deg):
+            return True
+        if still and self._rest < c.rest_updates:
+            self._rest += 1
+            return True
+        return False
 
     def update(self, odom_pose, points, sensor=None):
         """Predict from odometry, correct with the scan, gate; returns an :class:`Update`.
