@@ -375,7 +375,8 @@ class Localiser:
             return True
         dx, dy, dyaw = compose(inverse(self._odom), odom_pose)
         c = self.config
-        if math.hypot(dx, dy) >= c.min_update_distance or abs(dyaw) >= math.radians(c.min_update_yaw_deg):
+        if math.hypot(dx, dy) >= c.min_update_distance \
+                or abs(dyaw) >= math.radians(c.min_update_yaw_deg):
             return True
         if still and self._rest < c.rest_updates:
             self._rest += 1

@@ -20,6 +20,14 @@ class PlanError(Exception):
     """No plan: ``reason`` is a sentence for the action's status text."""
 
 
+def _shifted(rows, cols, dr, dc):
+    """The slices ``(rows_from, cols_from, rows_to, cols_to)`` pairing every cell of a
+    ``rows x cols`` grid with its neighbour ``(dr, dc)`` away, where that neighbour exists."""
+    r0, r1 = max(0, -dr), rows - max(0, dr)
+    c0, c1 = max(0, -dc), cols - max(0, dc)
+    return slice(r0, r1), slice(c0, c1), slice(r0 + dr, r1 + dr), slice(c0 + dc, c1 + dc)
+
+
 @lru_cache(maxsize=4)
 def _csr_layout(rows, cols):
     """For the 8-neighbour edges of a ``rows x cols`` grid listed direction by direction (as
@@ -30,10 +38,9 @@ def _csr_layout(rows, cols):
     idx = np.arange(rows * cols, dtype=np.int32).reshape(rows, cols)
     src, dst = [], []
     for dr, dc in _NEIGHBOURS:
-        r0, r1 = max(0, -dr), rows - max(0, dr)
-        c0, c1 = max(0, -dc), cols - max(0, dc)
-        src.append(idx[r0:r1, c0:c1].ravel())
-        dst.append(idx[r0 + dr:r1 + dr, c0 + dc:c1 + dc].ravel())
+        rs, cs, rd, cd = _shifted(rows, cols, dr, dc)
+        src.append(idx[rs, cs].ravel())
+        dst.append(idx[rd, cd].ravel())
     src, dst = np.concatenate(src), np.concatenate(dst)
     order = np.lexsort((dst, src))
     return order, src[order], dst[order]
@@ -48,13 +55,12 @@ def build_graph(cost, cost_weight, passable=None):
     w_cell = 1.0 + cost_weight * cost.astype(float) / MAX_NON_LETHAL
     allowed, weight = [], []
     for dr, dc in _NEIGHBOURS:
-        r0, r1 = max(0, -dr), rows - max(0, dr)
-        c0, c1 = max(0, -dc), cols - max(0, dc)
-        a = passable[r0:r1, c0:c1] & passable[r0 + dr:r1 + dr, c0 + dc:c1 + dc]
+        rs, cs, rd, cd = _shifted(rows, cols, dr, dc)
+        a = passable[rs, cs] & passable[rd, cd]
         if dr and dc:   # no corner cutting between two blocked cells
-            a &= passable[r0 + dr:r1 + dr, c0:c1] | passable[r0:r1, c0 + dc:c1 + dc]
+            a &= passable[rd, cs] | passable[rs, cd]
         allowed.append(a.ravel())
-        weight.append((np.hypot(dr, dc) * w_cell[r0 + dr:r1 + dr, c0 + dc:c1 + dc]).ravel())
+        weight.append((np.hypot(dr, dc) * w_cell[rd, cd]).ravel())
     order, src, dst = _csr_layout(rows, cols)
     keep = np.concatenate(allowed)[order]
     n = rows * cols
