@@ -126,6 +126,9 @@ class Participant:
         self.ticks += 1
         return True
 
+    def now(self):
+        return rospy.Time.from_sec(self.clock.now())
+
     def answer(self, cmd=None):
         if self.answers and self.answers[-1][0] == self.stamp:
             return None
@@ -330,3 +333,37 @@ def test_the_clock_source_sets_its_own_time_instead_of_receiving_its_clock(monke
     source.publish(Clock(rospy.Time(12, 5)))
     assert sent == [('/clock', Clock(rospy.Time(12, 5)))]
     assert rospy.rostime._rostime_current == rospy.Time(12, 5)
+
+
+def test_a_goal_that_overtakes_its_cycles_clock_and_tick_keeps_its_stamp():
+    """The proxy sends the corridor goal in its cycle at 60.2, which the simulator holds; the
+    goal can reach the 20 Hz corridor server before that cycle's /clock and tick (its ROS time
+    still the scan's, 60.133). Its cycles start at 60.3 either way, as when the tick came first;
+    the server's clock as the start put the first command at 60.2 in one run in twenty."""
+    from tiago_nav.lockstep import ParticipantCore, Tick
+    from tiago_nav.ros.lockstep import goal_since
+    stamp, clock = rospy.Time.from_sec(60.2), rospy.Time.from_sec(60.1 + 1 / 30)
+
+    def first_cycle(since, tick_first):
+        core = ParticipantCore(0.05, now=60.0)
+        core.on_tick(Tick(60.1))
+        core.answered(core.cover(core.idle_answer()))     # idle: covers 60.15
+        if not tick_first:
+            core.claim(since.to_sec())
+        core.on_tick(Tick(60.2))
+        due = core.idle_answer()
+        if due is not None:
+            core.answered(core.cover(due))
+        if tick_first:
+            core.claim(since.to_sec())
+        return core.deadline()
+
+    since = goal_since(stamp, clock)
+    assert since == stamp
+    assert first_cycle(since, True) == pytest.approx(60.3)
+    assert first_cycle(since, False) == pytest.approx(60.3)
+    assert first_cycle(min(stamp, clock), False) == pytest.approx(60.2)     # the old rule
+    # late goals keep their stamp; one far ahead is on another clock; zero: from now
+    assert goal_since(rospy.Time.from_sec(50.0), stamp) == rospy.Time.from_sec(50.0)
+    assert goal_since(rospy.Time(1700000000), stamp) == stamp
+    assert goal_since(rospy.Time(0), stamp) is None

@@ -183,7 +183,7 @@ class CorridorServer:
         if self.participant is not None:
             # the goal's cycles are those after its stamp, however late it arrived
             self.participant.claim(goal_since(self.server.current_goal.get_goal_id().stamp,
-                                              rospy.Time.from_sec(self.clock.now())))
+                                              self.participant.now()))
         try:
             if not (math.isfinite(goal.max_speed) and goal.max_speed >= 0
                     and math.isfinite(goal.max_distance) and goal.max_distance >= 0):

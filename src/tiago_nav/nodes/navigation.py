@@ -347,7 +347,7 @@ class MoveBase:
         p = goal.target_pose
         # the goal's cycles are those after its stamp, however late it arrived
         self.lockstep.claim(goal_since(self.server.current_goal.get_goal_id().stamp,
-                                       rospy.Time.from_sec(self.clock.now())))
+                                       self.lockstep.now()))
         try:
             self.runner.run(p.header.frame_id,
                             (p.pose.position.x, p.pose.position.y, p.pose.position.z),

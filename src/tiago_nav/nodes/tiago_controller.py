@@ -147,7 +147,7 @@ class RosBackend:
         cycles after that stamp are its own."""
         self._active, self._sent, self._stop, self._ran_at = None, None, False, {}
         if self.lockstep.enabled:
-            self.lockstep.claim(goal_since(stamp, rospy.Time.now()))
+            self.lockstep.claim(goal_since(stamp, self.lockstep.now()))
 
     def end(self):
         """The mission is over (or going to run free): answer the open cycle and give the
