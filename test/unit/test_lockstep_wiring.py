@@ -367,3 +367,37 @@ def test_a_goal_that_overtakes_its_cycles_clock_and_tick_keeps_its_stamp():
     assert goal_since(rospy.Time.from_sec(50.0), stamp) == rospy.Time.from_sec(50.0)
     assert goal_since(rospy.Time(1700000000), stamp) == stamp
     assert goal_since(rospy.Time(0), stamp) is None
+
+
+def test_a_direct_publishers_write_to_a_frozen_subscriber_times_out():
+    """rospy writes with a blocking sendall: without a send timeout, a subscriber that stops
+    reading (a frozen process, its socket buffers full) would block the simulator's loop for
+    as long as it stays frozen; with one the write fails (rospy then drops that connection)."""
+    import socket
+    import time as wall
+    from tiago_nav.ros.lockstep import _SendTimeout, limit_sends
+    ours, theirs = socket.socketpair()
+    set_before, _ = socket.socketpair()
+    set_before.settimeout(5.0)
+    conns = [type('Conn', (), {'socket': s})() for s in (ours, set_before)]
+    conns.append(type('Conn', (), {'socket': None})())        # a connection not yet open
+    pub = type('Pub', (), {'impl': type('Impl', (), {'connections': conns})()})()
+    seen = []
+    listener = _SendTimeout(0.2, then=type('Then', (), {
+        'peer_subscribe': lambda self, *a: seen.append('subscribe'),
+        'peer_unsubscribe': lambda self, *a: seen.append('unsubscribe')})())
+    listener.peer_subscribe('/scan', None, None)      # before the publisher exists: only passed on
+    assert ours.gettimeout() is None
+    listener.pub = pub
+    listener.peer_subscribe('/scan', None, None)
+    listener.peer_unsubscribe('/scan', 0)
+    assert seen == ['subscribe', 'subscribe', 'unsubscribe']
+    assert ours.gettimeout() == 0.2 and set_before.gettimeout() == 5.0
+    limit_sends(pub, 0.5)                              # a timeout once set is kept
+    assert ours.gettimeout() == 0.2
+    t0 = wall.monotonic()
+    with pytest.raises(socket.timeout):
+        while True:                                    # `theirs` never reads
+            ours.sendall(b'x' * 65536)
+    assert wall.monotonic() - t0 < 5.0
+    theirs.close()

@@ -30,7 +30,7 @@ from tiago_nav.params import ParamError, nested, param, read_params, validate
 from tiago_nav.robot import BASE_LINK_HEIGHT
 from tiago_nav.ros import conversions
 from tiago_nav.ros.clock import RosClock
-from tiago_nav.ros.lockstep import ClockSource, LockstepHost
+from tiago_nav.ros.lockstep import ClockSource, LockstepHost, direct_publisher
 from tiago_nav.sim.faults import FaultError, LaserFaults
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
@@ -129,14 +129,21 @@ class Outputs:
 def ros_outputs(params, use_sim_time):
     """The ROS publishers of :class:`Outputs` on the topics ``params`` names."""
     latched = dict(queue_size=1, latch=True)
+
+    def stream(topic, cls, queue_size):
+        # in lockstep every controller waits for these before it answers: written in this
+        # thread, not handed to a queue thread per subscriber (a thread switch each; measured
+        # 7 % of a course mission's wall time)
+        return direct_publisher(topic, cls) if params.lockstep else \
+            rospy.Publisher(topic, cls, queue_size=queue_size)
+
     return Outputs(
-        # /clock goes to every node 30-60 times per simulated second: written in this thread, not
-        # handed to a queue thread per subscriber (tiny messages, they cannot fill a socket)
+        # /clock goes to every node 30-60 times per simulated second: written in this thread too
         clock=ClockSource() if use_sim_time else None,
-        scan=rospy.Publisher(params.scan_topic, LaserScan, queue_size=5),
-        odom=rospy.Publisher(params.odom_topic, Odometry, queue_size=10),
-        ground_truth=rospy.Publisher(params.ground_truth_topic, Odometry, queue_size=10),
-        tf=rospy.Publisher('/tf', TFMessage, queue_size=20),
+        scan=stream(params.scan_topic, LaserScan, 5),
+        odom=stream(params.odom_topic, Odometry, 10),
+        ground_truth=stream(params.ground_truth_topic, Odometry, 10),
+        tf=stream('/tf', TFMessage, 20),
         tf_static=rospy.Publisher('/tf_static', TFMessage, **latched),
         collisions=rospy.Publisher(params.collisions_topic, UInt32, **latched),
         map=rospy.Publisher(params.map_topic, OccupancyGrid, **latched),

@@ -33,17 +33,55 @@ TIMEOUT = 1.0     # [s wall] the simulator's default wait for a missing answer; 
 CYCLE_WAIT = 2.0  # [s wall] in a held cycle, the longest wait for its scan, tf or pose: the
                   # simulator has published them, so only a starved process waits at all
 GOAL_LEAD = 1.0  # [s] a goal stamped up to this far ahead of a server's ROS time is on its clock
+SEND_TIMEOUT = 1.0  # [s wall] the longest write of a direct publisher to one subscriber
 JOIN_POLL = 0.01  # [s wall] how often a participant not registered yet looks at its inputs
 
 
-def direct_publisher(topic, msg_class, **kwargs):
+def direct_publisher(topic, msg_class, subscriber_listener=None, send_timeout=SEND_TIMEOUT,
+                     **kwargs):
     """A rospy.Publisher that writes in the caller's thread (``queue_size=None``): no queue
     thread per subscriber, whose hand-over (rospy yields the processor after queueing) adds a
-    thread switch to every message. For the small messages of a lockstep round trip (ticks and
-    answers), where each hop's latency holds the whole simulation."""
+    thread switch to every message. For the messages of a lockstep round trip (ticks, answers,
+    and in lockstep the simulator's sensor data), where each hop's latency holds the whole
+    simulation. A write to one subscriber that takes longer than ``send_timeout`` [s wall] (a
+    frozen process whose socket buffers are full) drops that subscriber's connection, as
+    rospy does on any write error, instead of blocking the publisher; the subscriber
+    connects again once it runs."""
+    listener = _SendTimeout(send_timeout, subscriber_listener)
     with warnings.catch_warnings():     # rospy warns about a missing queue_size: it is meant
         warnings.simplefilter('ignore')
-        return rospy.Publisher(topic, msg_class, queue_size=None, **kwargs)
+        pub = rospy.Publisher(topic, msg_class, queue_size=None, subscriber_listener=listener,
+                              **kwargs)
+    listener.pub = pub
+    limit_sends(pub, send_timeout)
+    return pub
+
+
+def limit_sends(pub, timeout):
+    """Puts a send timeout of ``timeout`` [s] on the sockets of ``pub``'s subscriber
+    connections that have none (rospy writes with a blocking ``sendall``)."""
+    for c in list(pub.impl.connections):
+        sock = getattr(c, 'socket', None)
+        if sock is not None and sock.gettimeout() is None:
+            sock.settimeout(timeout)
+
+
+class _SendTimeout(rospy.SubscribeListener):
+    """:func:`limit_sends` on each new subscriber of ``pub``; then ``then``'s callbacks."""
+
+    def __init__(self, timeout, then=None):
+        super().__init__()
+        self.timeout, self.then, self.pub = timeout, then, None
+
+    def peer_subscribe(self, topic_name, topic_publish, peer_publish):
+        if self.pub is not None:
+            limit_sends(self.pub, self.timeout)
+        if self.then is not None:
+            self.then.peer_subscribe(topic_name, topic_publish, peer_publish)
+
+    def peer_unsubscribe(self, topic_name, num_peers):
+        if self.then is not None:
+            self.then.peer_unsubscribe(topic_name, num_peers)
 
 
 class ClockSource:
