@@ -377,7 +377,7 @@ def test_a_direct_publishers_write_to_a_frozen_subscriber_times_out():
     import time as wall
     from tiago_nav.ros.lockstep import _SendTimeout, limit_sends
     ours, theirs = socket.socketpair()
-    set_before, _ = socket.socketpair()
+    set_before, other = socket.socketpair()
     set_before.settimeout(5.0)
     conns = [type('Conn', (), {'socket': s})() for s in (ours, set_before)]
     conns.append(type('Conn', (), {'socket': None})())        # a connection not yet open
@@ -400,4 +400,5 @@ def test_a_direct_publishers_write_to_a_frozen_subscriber_times_out():
         while True:                                    # `theirs` never reads
             ours.sendall(b'x' * 65536)
     assert wall.monotonic() - t0 < 5.0
-    theirs.close()
+    for s in (ours, theirs, set_before, other):
+        s.close()

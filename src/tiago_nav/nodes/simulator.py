@@ -132,8 +132,8 @@ def ros_outputs(params, use_sim_time):
 
     def stream(topic, cls, queue_size):
         # in lockstep every controller waits for these before it answers: written in this
-        # thread, not handed to a queue thread per subscriber (a thread switch each; measured
-        # 7 % of a course mission's wall time)
+        # thread, not handed to a queue thread per subscriber (a thread switch each: 0.14-0.71 s
+        # of a course mission's 2.7-4.1 s of wall time in four A/B rounds)
         return direct_publisher(topic, cls) if params.lockstep else \
             rospy.Publisher(topic, cls, queue_size=queue_size)
 
