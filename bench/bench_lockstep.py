@@ -5,8 +5,10 @@ each core.
 
 Each run is a fresh demo.launch (same world, same seed), so that runs can be compared: success,
 collisions, wall time per mission, simulated/wall ratio, the final pose (ground truth and
-odometry, to the last bit) and, with lockstep, the simulator's figures for the lag between a
-command's cycle and its application (its log line ``lockstep: N commands, lag max ...``).
+odometry, to the last bit), the CPU time the launch's processes used during the mission (divided
+by the cores: the least wall time the mission could take on this machine) and, with lockstep,
+the simulator's figures for the lag between a command's cycle and its application (its log line
+``lockstep: N commands, lag max ...``).
 Writes bench/results/lockstep.json and lockstep.png.
 
 Usage: bench/bench_lockstep.py [--n 20] [--nav 2] [--modes on,off] [--loads idle,busy]
@@ -71,6 +73,7 @@ def mission_in_cycle(h, x, y, yaw_deg):
     part.claim(rospy.Time(NAV_START))
     if not part.tick():
         raise RuntimeError('no lockstep cycle')
+    cpu0 = h.cpu_seconds()      # (a walk over /proc: before the clock starts)
     c0, t0, s0 = h.collisions or 0, time.monotonic(), rospy.get_time()
     client.send_goal(TiagoTaskGoal(x=x, y=y, yaw_deg=yaw_deg, use_corridor_law=True))
     while client.get_state() == GoalStatus.PENDING and time.monotonic() - t0 < 5.0:
@@ -78,9 +81,10 @@ def mission_in_cycle(h, x, y, yaw_deg):
     part.answer()
     part.leave()        # the mission is placed: the simulator need not wait for us any more
     done = client.wait_for_result(180.0)
+    wall, cpu = time.monotonic() - t0, h.cpu_seconds() - cpu0
     result = client.get_result()
     return {'succeeded': bool(done) and client.get_state() == GoalStatus.SUCCEEDED,
-            'message': client.get_goal_status_text(), 'wall_s': time.monotonic() - t0,
+            'message': client.get_goal_status_text(), 'wall_s': wall, 'cpu_s': cpu,
             'sim_s': rospy.get_time() - s0, 'collisions': (h.collisions or 0) - c0,
             'obstacles': len(result.obstacles) if result else 0, 'mission_start_s': s0}
 
@@ -147,10 +151,11 @@ def run_one(lockstep, nav_goals, seed, task, launch_args=()):
         elif lockstep:
             rec.update(mission_in_cycle(h, *COURSE))
         else:
-            c0, t_sim = h.collisions or 0, rospy.get_time()
+            c0, t_sim, cpu0 = h.collisions or 0, rospy.get_time(), h.cpu_seconds()
             lines = []
             code, _, result, wall = h.mission(*COURSE, True, out=lines.append)
             rec.update(succeeded=code == 0, message=lines[-1] if lines else '', wall_s=wall,
+                       cpu_s=h.cpu_seconds() - cpu0,
                        sim_s=rospy.get_time() - t_sim, collisions=(h.collisions or 0) - c0,
                        obstacles=len(result.obstacles) if result else 0)
         # subscribed only now: a mission's client does not read odometry (nor /scan or /tf,
@@ -198,11 +203,13 @@ def summarise(runs):
         spread = max(math.hypot(a[0] - b[0], a[1] - b[1]) for a in truths for b in truths)
     lags = [r['lag'] for r in runs if 'lag' in r]
     loads = [r['loadavg_1min'] for r in runs if 'loadavg_1min' in r]
+    cpus = [r['cpu_s'] for r in runs if 'cpu_s' in r]
     return {'runs': len(runs), 'succeeded': len(ok),
             'loadavg_1min_mean': sum(loads) / len(loads) if loads else None,
             'collisions': sum(r.get('collisions', 0) for r in runs),
             'wall_s_mean': sum(walls) / len(walls) if walls else None,
             'wall_s_max': max(walls) if walls else None,
+            'cpu_s_mean': sum(cpus) / len(cpus) if cpus else None,
             'sim_per_wall_mean': sum(ratios) / len(ratios) if ratios else None,
             'final_pose_spread_m': spread,
             'distinct_final_odometry': len(set(odoms)),
@@ -230,6 +237,19 @@ def table(report):
                  fmt(s.get('loadavg_1min_mean'), '%.1f')]
         rows.append('| ' + ' | '.join(cells) + ' |')
     return rows
+
+
+def cpu_lines(report):
+    """Per condition, the CPU a mission cost and the wall time it bounds on these cores."""
+    cores = report.get('cores') or 1
+    lines = []
+    for c in report['conditions']:
+        cpu = c['summary'].get('cpu_s_mean')
+        if cpu is not None:
+            lines.append('%s: %.2f s of CPU per mission (every node, roscore and roslaunch); on %d '
+                         'cores no mission can take less than %.2f s of wall time'
+                         % (c['label'], cpu, cores, cpu / cores))
+    return lines
 
 
 def fmt(v, f='%.2f'):
@@ -286,7 +306,8 @@ def main():
     if args.run:
         run_one(args.run == 'on', args.nav, args.seed, args.task, args.launch_args.split())
         return 0
-    report = {'task': args.task, 'n': args.n, 'nav_goals_per_run': args.nav, 'seed': args.seed, 'conditions': []}
+    report = {'task': args.task, 'n': args.n, 'nav_goals_per_run': args.nav, 'seed': args.seed,
+              'cores': os.cpu_count(), 'conditions': []}
     t0 = time.monotonic()
     for load in args.loads.split(','):
         for mode in args.modes.split(','):
@@ -304,10 +325,11 @@ def main():
                                 if l.startswith('RESULT ')), {'succeeded': False, 'error': 'no result'})
                     rec['loadavg_1min'] = os.getloadavg()[0]
                     runs.append(rec)
-                    print('  #%-2d %-6s wall %5s s  sim %5s s  collisions %d  nav %d/%d  final %s  '
-                          'lag max %s  %s' % (
+                    print('  #%-2d %-6s wall %5s s  cpu %5s s  sim %5s s  collisions %d  nav %d/%d  '
+                          'final %s  lag max %s  %s' % (
                               i, 'ok' if rec.get('succeeded') else 'FAILED',
-                              fmt(rec.get('wall_s')), fmt(rec.get('sim_s')), rec.get('collisions', 0),
+                              fmt(rec.get('wall_s')), fmt(rec.get('cpu_s')), fmt(rec.get('sim_s')),
+                              rec.get('collisions', 0),
                               sum(g['succeeded'] for g in rec.get('nav', [])), len(rec.get('nav', [])),
                               rec.get('truth'), fmt(rec.get('lag', {}).get('max_s'), '%.3f'),
                               rec.get('error', '') or ('' if rec.get('succeeded') else rec.get('message'))),
@@ -325,7 +347,7 @@ def main():
     png = os.path.splitext(args.out)[0] + '.png'
     plot(report, png)
     print('wrote %s and %s' % (args.out, png))
-    print('\n'.join(table(report)))
+    print('\n'.join(table(report) + cpu_lines(report)))
     return 0
 
 

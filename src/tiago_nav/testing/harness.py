@@ -295,6 +295,12 @@ class Harness:
                 dead.append(name)
         return dead
 
+    def cpu_seconds(self):
+        """CPU time [s] used so far by roscore and by roslaunch and its nodes (Linux only: see
+        :func:`tree_cpu_seconds`). Over a mission, its difference is the work the mission cost:
+        on ``n`` cores no mission can take less wall time than that divided by ``n``."""
+        return tree_cpu_seconds((self.core.pid, self.launch.pid))
+
     # --- shutdown ------------------------------------------------------------------------------
     def close(self):
         """Leave the master and stop roslaunch and roscore (SIGINT, then SIGTERM, SIGKILL)."""
@@ -345,6 +351,37 @@ def mission_record(h, world, goal, use_corridor_law, limit=None):
             'rms_error_m': s['rms_error'], 'max_error_m': s['max_error'],
             'errors_m': [e for _, _, e in s['pairs']],
             'final_pose': list(final) if final else None, 'lines': lines}
+
+
+def tree_cpu_seconds(roots):
+    """CPU time [s] (user + system) used so far by the live processes ``roots`` (pids) and all
+    their descendants (roslaunch and every node it started, each in a session of its own), read
+    from Linux's ``/proc``. Processes that have exited are not counted: take differences over a
+    window in which they all run."""
+    tick = os.sysconf('SC_CLK_TCK')
+    parent, cpu = {}, {}
+    for pid in os.listdir('/proc'):
+        if not pid.isdigit():
+            continue
+        try:
+            with open('/proc/%s/stat' % pid) as f:
+                # after the command name (which may hold spaces and parentheses): state, ppid,
+                # ..., utime and stime (the 14th and 15th fields overall)
+                fields = f.read().rsplit(')', 1)[1].split()
+        except OSError:         # gone meanwhile
+            continue
+        parent[int(pid)] = int(fields[1])
+        cpu[int(pid)] = int(fields[11]) + int(fields[12])
+    roots = set(roots)
+    total = 0
+    for pid, ticks in cpu.items():
+        p, seen = pid, set()
+        while p not in roots and p in parent and p not in seen:
+            seen.add(p)
+            p = parent[p]
+        if p in roots:
+            total += ticks
+    return total / tick
 
 
 def stop_process(proc):
