@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from tiago_nav.nodes.localisation import Params, covariance_6x6, start_pose
+import rospy
+
+from tiago_nav.nodes.localisation import Params, covariance_6x6, reaches_past, start_pose
 from tiago_nav.params import ParamError, read_params
 from tiago_nav.sim.world import WorldError
 
@@ -46,3 +48,12 @@ def test_covariance_lands_on_x_y_yaw():
     m = np.array(cov).reshape(6, 6)
     assert m[0, 0] == 1 and m[1, 1] == 4 and m[5, 5] == 6 and m[0, 5] == 3 and m[5, 1] == 5
     assert np.count_nonzero(m) == 9
+
+
+def test_a_tick_needs_a_re_send_only_when_no_send_reaches_past_it():
+    t = rospy.Time.from_sec
+    scans = [t(10.0 + 0.1), t(10.0 + 1 / 15 + 0.1)]       # two scans' sends (0.1 s ahead)
+    assert reaches_past(scans, t(10.1))                     # the scans flow: no re-send
+    assert not reaches_past(scans, t(10.2))                 # a silent laser: re-send
+    assert not reaches_past(scans, t(10.0 + 1 / 15 + 0.1))  # a send at the tick is not past it
+    assert not reaches_past([], t(10.1))                    # nothing sent yet

@@ -10,7 +10,8 @@ publishes tf ``map → odom`` (on ``tf_topic``, ``/tf`` by default) and ``/amcl_
 ``map → odom`` is sent at every scan stamped with the scan's time plus ``transform_tolerance``
 and re-sent at ``republish_rate`` stamped now plus ``transform_tolerance`` (as AMCL does): tf
 consumers asking for "now" then never extrapolate past the last transform, at the price of
-using an estimate up to ``transform_tolerance`` old.
+using an estimate up to ``transform_tolerance`` old. In lockstep the re-sends happen at the
+ticks, and only when no scan's send reaches past the tick (the laser is silent).
 """
 import collections
 import math
@@ -103,6 +104,12 @@ def covariance_6x6(cov3):
     return out.ravel().tolist()
 
 
+def reaches_past(sent, stamp):
+    """True when one of the ``map → odom`` stamps ``sent`` (rospy.Time) lies after ``stamp``:
+    tf then gives ``map → odom`` at ``stamp`` without a re-send."""
+    return any(t > stamp for t in sent)
+
+
 class LocalisationNode:
     def __init__(self, params):
         self.p = params
@@ -162,7 +169,9 @@ class LocalisationNode:
 
     def on_tick(self, tick):
         """Before an idle lockstep answer: every scan up to the tick's is taken in; then the
-        latest estimate is re-sent, stamped at the tick."""
+        latest estimate is re-sent, stamped at the tick, unless a scan's send already reaches
+        past the tick (while scans flow, each is stamped ``transform_tolerance`` ahead of the
+        last: a re-send would only cost every tf listener a message)."""
         upto = tick.scan_stamp
         if upto is not None and not upto.is_zero():
             deadline = time.monotonic() + CYCLE_WAIT    # wall time: ROS time stands still here
@@ -170,7 +179,10 @@ class LocalisationNode:
                 while (self.last_scan_stamp is None or self.last_scan_stamp < upto) \
                         and time.monotonic() < deadline and not rospy.is_shutdown():
                     self.intake.wait(0.1)
-        self.send_transform(tick.stamp + REPUBLISH_OFFSET)
+        with self.lock:
+            covered = reaches_past(self.sent, tick.stamp)
+        if not covered:
+            self.send_transform(tick.stamp + REPUBLISH_OFFSET)
 
     def on_scan(self, msg):
         try:
