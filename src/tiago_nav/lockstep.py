@@ -225,6 +225,11 @@ class Gate:
         with self.cond:
             return self.schedule.is_participant(node)
 
+    def has_participants(self):
+        """True while anyone takes part."""
+        with self.cond:
+            return bool(self.schedule.members)
+
     def hold(self, t, tick):
         """Before stepping past simulated time ``t`` [s]: waits until every participant whose
         deadline is at or before ``t`` has answered or has been dropped. ``tick(t, waiting)``

@@ -338,14 +338,15 @@ class SimulatorNode:
         truth at ``odom_rate``, /scan at ``scan_rate``, /sim/collisions when it changed.
         (/clock goes first: a controller woken by it uses the data of the step before, whose tf
         has surely arrived, rather than a scan whose tf may still be on its way.) /clock goes
-        out every step; in lockstep only with a scan and before a tick (the host sends it
-        then): the controllers pace themselves by the ticks, and every /clock costs each of
-        the ten nodes a message (at every step, it was half of all the messages of a mission;
-        with odometry too, 30 Hz, still the most numerous)."""
+        out every step; in lockstep only before a tick (the host sends it then), and with a
+        scan while nobody takes part (no ticks then): the controllers pace themselves by the
+        ticks, and every /clock costs each of the ten nodes a message (at every step, it was
+        half of all the messages of a mission; with odometry too, 30 Hz, still the most
+        numerous; with the scans too, a fifth of them)."""
         with self.lock:
             scan_due, odom_due = self.sim.step()
             stamp = self.stamp()
-            if self.lockstep is None or scan_due:
+            if self.lockstep is None or (scan_due and not self.lockstep.has_participants()):
                 self.publish_clock(stamp)
             if odom_due:
                 self.publish_odom(stamp)

@@ -147,6 +147,10 @@ class LockstepHost:
     def on_ack(self, msg):
         self.gate.receive(ack_from_msg(msg))
 
+    def has_participants(self):
+        """True while anyone takes part (the ticks then carry time forward)."""
+        return self.gate.has_participants()
+
     def from_participant(self, msg):
         """True for a message (e.g. a cmd_vel Twist) published by a current participant: its
         commands come in its answers, so this copy must not be applied."""
