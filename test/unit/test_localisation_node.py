@@ -1,14 +1,13 @@
-"""The localisation node's own logic (parameters, start pose, covariance layout); the decisions
-are the library's (test_localisation.py)."""
+"""The localisation node's own logic (parameters, start pose, covariance layout, when a lockstep tick
+needs a re-send); the decisions are the library's (test_localisation.py)."""
 import math
 import os
 
 import numpy as np
 import pytest
-
-from conftest import ROOT
 import rospy
 
+from conftest import ROOT
 from tiago_nav.nodes.localisation import Params, covariance_6x6, reaches_past, start_pose
 from tiago_nav.params import ParamError, read_params
 from tiago_nav.sim.world import WorldError

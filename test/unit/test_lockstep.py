@@ -156,11 +156,13 @@ def test_periods_on_the_step_grid_are_taken(period):
 def test_cmd_vel_of_participants_is_ignored_and_of_others_not():
     s, _ = schedule()
     gate = Gate(s, wall=lambda: 0.0)
+    assert not gate.has_participants()
     gate.receive(Ack('/move_base', 0.0, 0.1))
-    assert gate.is_participant('/move_base')
+    assert gate.is_participant('/move_base') and gate.has_participants()
     assert not gate.is_participant('/student_controller')
     gate.receive(Ack('/move_base', 0.1, 0.1, leave=True))
     assert not gate.is_participant('/move_base')      # its cmd_vel counts again
+    assert not gate.has_participants()                # (and /clock goes out with the scans)
 
 
 def test_a_stale_or_repeated_answer_is_ignored():
