@@ -325,8 +325,8 @@ def main():
                                 if l.startswith('RESULT ')), {'succeeded': False, 'error': 'no result'})
                     rec['loadavg_1min'] = os.getloadavg()[0]
                     runs.append(rec)
-                    print('  #%-2d %-6s wall %5s s  cpu %5s s  sim %5s s  collisions %d  nav %d/%d  '
-                          'final %s  lag max %s  %s' % (
+                    print('  #%-2d %-6s wall %5s s  cpu %5s s  sim %5s s  collisions %d  '
+                          'nav %d/%d  final %s  lag max %s  %s' % (
                               i, 'ok' if rec.get('succeeded') else 'FAILED',
                               fmt(rec.get('wall_s')), fmt(rec.get('cpu_s')), fmt(rec.get('sim_s')),
                               rec.get('collisions', 0),

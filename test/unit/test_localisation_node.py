@@ -1,5 +1,5 @@
-"""The localisation node's own logic (parameters, start pose, covariance layout, when a lockstep tick
-needs a re-send); the decisions are the library's (test_localisation.py)."""
+"""The localisation node's own logic (parameters, start pose, covariance layout, when a
+lockstep tick needs a re-send); the decisions are the library's (test_localisation.py)."""
 import math
 import os
 

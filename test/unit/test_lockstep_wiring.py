@@ -192,7 +192,8 @@ def test_corridor_server_claims_the_goal_answers_each_cycle_and_releases():
     assert max(v for _, (v, _) in part.answers) > 0.1
 
 
-@pytest.mark.parametrize('participants, clocks', [((), [0, 4 / 60, 8 / 60]), (('/move_base',), [0])])
+@pytest.mark.parametrize('participants, clocks',
+                         [((), [0, 4 / 60, 8 / 60]), (('/move_base',), [0])])
 def test_in_lockstep_clock_goes_out_with_the_scans_only_while_nobody_takes_part(participants,
                                                                                  clocks):
     """/clock to every node at every physics step was half of a mission's messages: in

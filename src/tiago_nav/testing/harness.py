@@ -375,9 +375,8 @@ def tree_cpu_seconds(roots):
     roots = set(roots)
     total = 0
     for pid, ticks in cpu.items():
-        p, seen = pid, set()
-        while p not in roots and p in parent and p not in seen:
-            seen.add(p)
+        p = pid
+        while p not in roots and p in parent:    # up the tree to a root, or past init (ppid 0)
             p = parent[p]
         if p in roots:
             total += ticks
