@@ -70,7 +70,7 @@ class FakeSimulator(threading.Thread):
                 scan.header.stamp, scan.header.frame_id = t, 'base_laser_link'
                 self.pub_scan.publish(scan)
                 scan_stamp = t
-            commands = self.host.hold(t, scan_stamp, odom_stamp)
+            commands = self.host.hold(t, lambda _, s=scan_stamp, o=odom_stamp: (s, o))
             if commands is None:
                 return
             self.applied += [(k, v, w) for v, w in commands]

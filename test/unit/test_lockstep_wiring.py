@@ -17,19 +17,26 @@ from tiago_nav.nodes.simulator import Params, SimulatorNode
 
 
 class FakeHost:
-    """The simulator's side of lockstep: records each hold's stamps, returns the commands
-    queued for it; ``participants``: callerids whose cmd_vel must be ignored."""
+    """The simulator's side of lockstep: records each hold's stamp and, at the holds where a
+    participant's deadline falls (every ``tick_every`` steps while anyone takes part), the
+    tick's ``(stamp, scan_stamp, odom_stamp)`` from the node's ``sensors`` as the real host
+    does; returns the commands queued for the hold; ``participants``: callerids whose cmd_vel
+    must be ignored."""
 
-    def __init__(self, commands=None, participants=('/move_base',)):
+    def __init__(self, commands=None, participants=('/move_base',), tick_every=1):
         self.commands = dict(commands or {})       # step number -> [(v, w)]
         self.participants = participants
+        self.tick_every = tick_every
         self.holds = []
+        self.ticks = []
         self.clocks = []                            # /clock stamps sent through the host
         self.schedule = type('Schedule', (), {'drops': 0, 'lag_stats': lambda self: dict(
             count=0, max=0.0, p50=0.0, p95=0.0, p99=0.0), 'wait_summary': lambda self: ''})()
 
-    def hold(self, t, scan_stamp, odom_stamp):
-        self.holds.append((t, scan_stamp, odom_stamp))
+    def hold(self, t, sensors):
+        self.holds.append(t)
+        if self.participants and (len(self.holds) - 1) % self.tick_every == 0:
+            self.ticks.append((t,) + tuple(sensors(t)))
         return self.commands.get(len(self.holds) - 1, [])
 
     def from_participant(self, msg):
@@ -53,19 +60,25 @@ def from_node(msg, callerid):
     return msg
 
 
-def test_the_simulator_holds_before_every_step_with_the_newest_scan_and_odometry_stamps():
-    host = FakeHost()
+def test_the_simulator_holds_before_every_step_and_each_tick_has_odometry_at_its_time():
+    """A 20 Hz participant (ticks every 3 steps of 60 Hz): each tick names odometry stamped
+    exactly at the tick (published for it when due) and the newest scan (15 Hz: every 4
+    steps); odometry also goes out with each scan, and at no other step."""
+    host = FakeHost(tick_every=3)
     node = lockstep_node(host)
+    odom = []
+    node.out.odom.publish = lambda msg: odom.append(msg.header.stamp.to_sec())
     try:
         node.start()
-        for _ in range(6):
+        for _ in range(10):
             assert node.hold()
             node.step()
-        stamps = [t.to_sec() for t, _, _ in host.holds]
-        assert stamps == pytest.approx([k / 60.0 for k in range(6)])
-        # odometry every 2 steps, scans every 4 (30 and 15 Hz of 60): the newest at or before t
-        assert [o.to_sec() for _, _, o in host.holds] == pytest.approx([0, 0, 2 / 60, 2 / 60, 4 / 60, 4 / 60])
-        assert [s.to_sec() for _, s, _ in host.holds] == pytest.approx([0, 0, 0, 0, 4 / 60, 4 / 60])
+        assert [t.to_sec() for t in host.holds] == pytest.approx([k / 60.0 for k in range(10)])
+        ticks = [x.to_sec() for tick in host.ticks for x in tick]    # (tick, scan, odometry)
+        assert ticks == pytest.approx([0, 0, 0, 3 / 60, 0, 3 / 60, 6 / 60, 4 / 60, 6 / 60,
+                                       9 / 60, 8 / 60, 9 / 60])
+        assert odom == pytest.approx([k / 60 for k in (0, 3, 4, 6, 8, 9)])
+        assert len(node.out.tf.messages) == len(odom)       # the tf of each odometry
     finally:
         node.close()
 
@@ -192,15 +205,17 @@ def test_corridor_server_claims_the_goal_answers_each_cycle_and_releases():
     assert max(v for _, (v, _) in part.answers) > 0.1
 
 
-@pytest.mark.parametrize('participants, clocks',
-                         [((), [0, 4 / 60, 8 / 60]), (('/move_base',), [0])])
+@pytest.mark.parametrize('participants, clocks, odoms',
+                         [((), [0, 4 / 60, 8 / 60], [0, 2 / 60, 4 / 60, 6 / 60, 8 / 60]),
+                          (('/move_base',), [0], [0, 4 / 60, 6 / 60, 8 / 60])])
 def test_in_lockstep_clock_goes_out_with_the_scans_only_while_nobody_takes_part(participants,
-                                                                                 clocks):
+                                                                                 clocks, odoms):
     """/clock to every node at every physics step was half of a mission's messages: in
     lockstep the simulator sends it through the host, which sends it before each tick (not
     faked here); with the scans (15 Hz of 60) only while nobody takes part, so that ROS time
-    still moves with no ticks. Odometry (30 Hz) goes out without it."""
-    host = FakeHost(participants=participants)
+    still moves with no ticks. Odometry goes out without it: at 30 Hz while nobody takes
+    part, else with the scans and for the ticks (here one every 6 steps, 10 Hz)."""
+    host = FakeHost(participants=participants, tick_every=6)
     node = lockstep_node(host)
     odom = []
     node.out.odom.publish = lambda msg: odom.append(msg.header.stamp.to_sec())
@@ -210,7 +225,7 @@ def test_in_lockstep_clock_goes_out_with_the_scans_only_while_nobody_takes_part(
             node.hold()
             node.step()
         assert [t.to_sec() for t in host.clocks] == pytest.approx(clocks)
-        assert odom == pytest.approx([0, 2 / 60, 4 / 60, 6 / 60, 8 / 60])
+        assert odom == pytest.approx(odoms)
     finally:
         node.close()
 
@@ -246,13 +261,13 @@ def test_the_host_sends_clock_before_a_tick_unless_it_was_the_last_sent_and_agai
     host.publish_clock(rospy.Time.from_sec(0.1))
     del sent[:]
     threading.Timer(0.02, answer, (0.1,)).start()
-    assert host.hold(rospy.Time.from_sec(0.1), None, None) == []
+    assert host.hold(rospy.Time.from_sec(0.1), lambda t: (None, None)) == []
     assert sent == [('tick', pytest.approx(0.1))]
     # 0.2 s without /clock for it: /clock first; the answer is late, so tick and /clock again
     del sent[:]
     threading.Timer(0.12, answer, (0.2,)).start()
     t0 = time.monotonic()
-    assert host.hold(rospy.Time.from_sec(0.2), None, None) == []
+    assert host.hold(rospy.Time.from_sec(0.2), lambda t: (None, None)) == []
     assert time.monotonic() - t0 >= 0.1
     assert sent[:4] == [('clock', pytest.approx(0.2)), ('tick', pytest.approx(0.2))] * 2
 

@@ -335,7 +335,10 @@ class SimulatorNode:
 
     def step(self):
         """One physics step, then what is due at the new time: /clock, odometry, tf and ground
-        truth at ``odom_rate``, /scan at ``scan_rate``, /sim/collisions when it changed.
+        truth at ``odom_rate`` (in lockstep while anyone takes part: with each scan, and for
+        each tick in :meth:`before_tick`, so that a cycle's pose is the robot's at its deadline,
+        not up to a step older, and only lookups at those stamps are made), /scan at
+        ``scan_rate``, /sim/collisions when it changed.
         (/clock goes first: a controller woken by it uses the data of the step before, whose tf
         has surely arrived, rather than a scan whose tf may still be on its way.) /clock goes
         out every step; in lockstep only before a tick (the host sends it then), and with a
@@ -346,9 +349,10 @@ class SimulatorNode:
         with self.lock:
             scan_due, odom_due = self.sim.step()
             stamp = self.stamp()
-            if self.lockstep is None or (scan_due and not self.lockstep.has_participants()):
+            held = self.lockstep is not None and self.lockstep.has_participants()
+            if self.lockstep is None or (scan_due and not held):
                 self.publish_clock(stamp)
-            if odom_due:
+            if scan_due if held else odom_due:
                 self.publish_odom(stamp)
             if scan_due:
                 self.publish_scan(stamp)
@@ -384,13 +388,22 @@ class SimulatorNode:
         apply their commands (in stamp order). False on shutdown."""
         if self.lockstep is None:
             return True
-        commands = self.lockstep.hold(self.stamp(), self.scan_stamp, self.odom_stamp)
+        commands = self.lockstep.hold(self.stamp(), self.before_tick)
         if commands is None:
             return False
         with self.lock:
             for v, w in commands:
                 self.sim.command(v, w)
         return True
+
+    def before_tick(self, stamp):
+        """Just before a lockstep tick at ``stamp`` (rospy.Time, the current time): odometry at
+        it unless already out, so that the cycle's pose is the robot's at its deadline.
+        Returns the ``(scan_stamp, odom_stamp)`` the tick names."""
+        with self.lock:
+            if self.odom_stamp != stamp:
+                self.publish_odom(stamp)
+            return self.scan_stamp, self.odom_stamp
 
     def close(self):
         self.sim.close()

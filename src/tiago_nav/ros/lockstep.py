@@ -157,14 +157,16 @@ class LockstepHost:
         header = getattr(msg, '_connection_header', None) or {}
         return self.gate.is_participant(header.get('callerid', ''))
 
-    def hold(self, t, scan_stamp, odom_stamp):
+    def hold(self, t, sensors):
         """Before stepping past simulated time ``t`` (rospy.Time): waits for the missing
         answers (ticks published as needed). Returns the commands ``(v, w)`` to apply now, in
-        order, or None on shutdown. ``scan_stamp``/``odom_stamp``: rospy.Time of the newest
-        scan and odometry published at or before ``t``."""
+        order, or None on shutdown. ``sensors(t)``, called before each tick, publishes what the
+        tick needs and returns the rospy.Time ``(scan_stamp, odom_stamp)`` of the newest scan
+        and odometry published at or before ``t`` (None: none yet)."""
         ticks = []
 
         def tick(_, waiting):
+            scan_stamp, odom_stamp = sensors(t)
             if ticks or self.clock_stamp != t:
                 self.publish_clock(t)
             ticks.append(t)
