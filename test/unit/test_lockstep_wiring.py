@@ -263,13 +263,29 @@ def test_the_host_sends_clock_before_a_tick_unless_it_was_the_last_sent_and_agai
     threading.Timer(0.02, answer, (0.1,)).start()
     assert host.hold(rospy.Time.from_sec(0.1), lambda t: (None, None)) == []
     assert sent == [('tick', pytest.approx(0.1))]
-    # 0.2 s without /clock for it: /clock first; the answer is late, so tick and /clock again
+    # 0.2 s without /clock for it: /clock first; the answer is late, so tick and /clock again;
+    # before each tick the simulator's sensors(t) publishes what is due, and the tick names
+    # the stamps it returns
     del sent[:]
+    ticks = []
+    real_publish = host.pub.publish
+
+    def publish_tick(msg):
+        ticks.append((msg.scan_stamp.to_sec(), msg.odom_stamp.to_sec()))
+        real_publish(msg)
+    host.pub.publish = publish_tick
+
+    def sensors(t):
+        sent.append(('sensors', t.to_sec()))
+        return rospy.Time.from_sec(0.15), t
+
     threading.Timer(0.12, answer, (0.2,)).start()
     t0 = time.monotonic()
-    assert host.hold(rospy.Time.from_sec(0.2), lambda t: (None, None)) == []
+    assert host.hold(rospy.Time.from_sec(0.2), sensors) == []
     assert time.monotonic() - t0 >= 0.1
-    assert sent[:4] == [('clock', pytest.approx(0.2)), ('tick', pytest.approx(0.2))] * 2
+    assert sent[:6] == [('sensors', pytest.approx(0.2)), ('clock', pytest.approx(0.2)),
+                        ('tick', pytest.approx(0.2))] * 2
+    assert ticks[:2] == [(pytest.approx(0.15), pytest.approx(0.2))] * 2
 
 
 def test_peers_tell_what_a_server_did_up_to_a_cycle(monkeypatch):
