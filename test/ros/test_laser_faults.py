@@ -15,6 +15,8 @@ In order (one launch, the course world from its start):
    ``navigation failed: move_base aborted: no laser data for 3.0 s``.
 Every case: no collision. The bound on stopping: within the fault, i.e. the base's speed
 (ground truth) falls below 0.05 m/s less than FAULT seconds (simulated) after the command.
+move_base's commands are read from its lockstep answers (each stamped with its cycle), or from
+cmd_vel outside lockstep.
 
 Private params: ``world`` (path).
 """
@@ -34,8 +36,10 @@ from move_base_msgs.msg import MoveBaseAction
 from nav_msgs.msg import Odometry
 from std_msgs.msg import String, UInt32
 
-from tiago_nav.msg import CorridorAction, TiagoTaskAction, TiagoTaskFeedback as FB, TiagoTaskGoal
+from tiago_nav.msg import (CorridorAction, LockstepAck, TiagoTaskAction,
+                           TiagoTaskFeedback as FB, TiagoTaskGoal)
 from tiago_nav.ros.actions import TaskClient, wait_server
+from tiago_nav.ros.lockstep import ACK_TOPIC, USE_LOCKSTEP
 from tiago_nav.sim.world import load_world
 
 from test_mission import MissionTest
@@ -58,9 +62,16 @@ class LaserFaultTest(unittest.TestCase):
         cls.lock = threading.Lock()
         cls.speeds = []              # (stamp [s sim], linear speed [m/s]) from ground truth
         cls.collisions = None
-        cls.cmds = []                # (ROS time [s], linear.x) of move_base's commands
+        cls.cmds = []                # (time [s sim], linear.x) of move_base's commands
         rospy.Subscriber('/sim/ground_truth', Odometry, cls._on_truth)
-        rospy.Subscriber('/mobile_base_controller/cmd_vel', Twist, cls._on_cmd)
+        if rospy.get_param(USE_LOCKSTEP, False):
+            # in lockstep each command comes in move_base's answer, stamped with its cycle: a
+            # cmd_vel copy stamped with this process's ROS time on arrival could be stamped up
+            # to a second of simulated time early on a loaded machine (a command after the
+            # fault's end then counted as one during it)
+            rospy.Subscriber(ACK_TOPIC, LockstepAck, cls._on_ack, queue_size=None)
+        else:
+            rospy.Subscriber('/mobile_base_controller/cmd_vel', Twist, cls._on_cmd)
         rospy.Subscriber('/sim/collisions', UInt32, cls._on_collisions)
         cls.fault = rospy.Publisher('/sim/laser_fault', String, queue_size=10)
         cls.client = TaskClient('tiago_controller')
@@ -84,6 +95,12 @@ class LaserFaultTest(unittest.TestCase):
         if m._connection_header.get('callerid') == '/move_base':
             with cls.lock:
                 cls.cmds.append((rospy.get_time(), m.linear.x))
+
+    @classmethod
+    def _on_ack(cls, m):
+        if m.node == '/move_base' and m.has_command:
+            with cls.lock:
+                cls.cmds.append((m.stamp.to_sec(), m.cmd.linear.x))
 
     @classmethod
     def _on_collisions(cls, m):
