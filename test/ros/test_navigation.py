@@ -144,7 +144,9 @@ class NavigationTest(SimTestCase):
         end = rospy.Time.now() + rospy.Duration(20.0)
         while rospy.Time.now() < end and (self.odom is None or self.odom.twist.twist.linear.x < 0.3):
             rospy.sleep(0.05)
-        self.assertGreaterEqual(self.odom.twist.twist.linear.x, 0.3, 'the robot never got moving')
+        self.assertGreaterEqual(self.odom.twist.twist.linear.x, 0.3,
+                                'the robot never got moving (goal state %d, %r)'
+                                % (self.client.get_state(), self.client.get_goal_status_text()))
         self.client.cancel_goal()
         self.assertTrue(self.client.wait_for_result(rospy.Duration(10.0)))
         self.assertEqual(self.client.get_state(), GoalStatus.PREEMPTED)

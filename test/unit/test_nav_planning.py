@@ -147,6 +147,37 @@ def test_goal_in_obstacle_and_outside_rejected():
         plan(cm, (0.5, 0.5), (9.0, 1.0))
 
 
+@pytest.mark.parametrize('seed', range(20))
+def test_a_rejected_goal_names_the_layer_and_cell_that_block_it(seed):
+    """"Inside an obstacle" says whether a wall of the map or a mark of the laser is within the
+    robot's radius of the goal, and where: the nearest one, as the cost counts it; exactly the
+    goals the planner rejects have one."""
+    rng = np.random.default_rng(seed)
+    g = empty(60, 60)
+    g.data[30, 30] = 100                              # the map's cell, centre (1.525, 1.525)
+    cm = Costmap(g)
+    cm.add_scan(beam((0.5, 0.5), 1.0))                # a laser mark at (1.5, 0.5)
+    cm.update()
+    for goal in rng.uniform(0.3, 2.7, size=(40, 2)):
+        found = cm.blocker(goal)
+        blocked = cm.cost_at([goal])[0] >= INSCRIBED
+        assert (found is not None) == blocked, (goal, found)
+        if not blocked:
+            plan(cm, (0.5, 2.5), goal)                # no PlanError
+            continue
+        (x, y), layer, d = found
+        assert layer == ('map' if abs(x - 1.525) < 1e-9 and abs(y - 1.525) < 1e-9 else 'laser')
+        centre = g.cell_to_world(g.world_to_cell([goal]))[0]
+        assert d == pytest.approx(math.hypot(x - centre[0], y - centre[1]))
+        assert d == pytest.approx(cm.distance[tuple(g.world_to_cell([goal])[0])])
+        with pytest.raises(PlanError) as err:
+            plan(cm, (0.5, 2.5), goal)
+        text = str(err.value)
+        assert 'inside an obstacle' in text and '(%.2f, %.2f)' % (x, y) in text
+        assert ("the map's obstacle" in text) == (layer == 'map')
+        assert ('the laser marked' in text and 'clear_costmaps' in text) == (layer == 'laser')
+
+
 def test_plan_goes_around_a_wall_gap_and_keeps_clear():
     g = empty(60, 80)
     g.data[:45, 40] = 100                             # wall with a gap at the top

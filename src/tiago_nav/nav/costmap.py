@@ -241,6 +241,11 @@ class Costmap:
     def occupied_near(self, xy, radius):
         """Centres ``(M, 2)`` [m] of the occupied cells (static or laser-marked) within
         ``radius`` [m] of the point ``xy``."""
+        return self._near(xy, radius, self.static, self.obstacles)
+
+    def _near(self, xy, radius, *layers):
+        """Centres ``(M, 2)`` [m] of the cells set in any of ``layers`` (boolean grids) within
+        ``radius`` [m] of the point ``xy``."""
         g = self.grid
         lo = g.world_to_cell([(xy[0] - radius, xy[1] - radius)])[0]
         hi = g.world_to_cell([(xy[0] + radius, xy[1] + radius)])[0] + 1
@@ -248,9 +253,42 @@ class Costmap:
         r1, c1 = min(hi[0], g.height), min(hi[1], g.width)
         if r1 <= r0 or c1 <= c0:
             return np.zeros((0, 2))
-        rc = np.argwhere(self.static[r0:r1, c0:c1] | self.obstacles[r0:r1, c0:c1]) + (r0, c0)
-        pts = g.cell_to_world(rc)
+        window = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+        for layer in layers:
+            window |= layer[r0:r1, c0:c1]
+        pts = g.cell_to_world(np.argwhere(window) + (r0, c0))
         return pts[np.hypot(pts[:, 0] - xy[0], pts[:, 1] - xy[1]) <= radius]
+
+    def blocker(self, xy):
+        """What makes the point ``xy`` [m, map] too close for the robot: ``(centre, layer,
+        distance)`` of the occupied cell nearest to the centre of ``xy``'s cell (costs are
+        those of cell centres) within ``robot_radius`` [m]; ``layer`` is ``'map'`` for the
+        static map, ``'laser'`` for a cell the laser marked (the map's when both are as near).
+        None when there is none."""
+        centre = self.grid.cell_to_world(self.grid.world_to_cell([xy[:2]]))[0]
+        best = None
+        for layer, occupied in (('map', self.static), ('laser', self.obstacles)):
+            pts = self._near(centre, self.robot_radius + 1e-9, occupied)
+            if len(pts):
+                d = np.hypot(pts[:, 0] - centre[0], pts[:, 1] - centre[1])
+                i = int(np.argmin(d))
+                if best is None or d[i] < best[2]:
+                    best = ((float(pts[i, 0]), float(pts[i, 1])), layer, float(d[i]))
+        return best
+
+    def blocked_reason(self, xy):
+        """The sentence :class:`PlanError` gives for a goal ``xy`` [m, map] whose cost is at
+        least ``INSCRIBED``: which layer's cell is within the robot's radius, and where (a mark
+        of the laser can be forgotten with ``clear_costmaps``; a wall of the map cannot)."""
+        what = 'goal (%.2f, %.2f) is inside an obstacle (after inflation)' % tuple(xy[:2])
+        b = self.blocker(xy)
+        if b is None:
+            return what
+        (x, y), layer, d = b
+        if layer == 'map':
+            return '%s: %.2f m from the map\'s obstacle at (%.2f, %.2f)' % (what, d, x, y)
+        return ('%s: %.2f m from an obstacle the laser marked at (%.2f, %.2f) (clear_costmaps '
+                'forgets the laser\'s marks)' % (what, d, x, y))
 
     def cost_at(self, xy):
         """Costs at ``(N, 2)`` map points; ``LETHAL`` outside the grid. Read from ``cost`` when

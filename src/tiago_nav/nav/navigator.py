@@ -158,7 +158,7 @@ class Navigator:
         if not g.contains([goal[:2]])[0]:
             raise PlanError('goal (%.2f, %.2f) is outside the map' % tuple(goal[:2]))
         if self.costmap.cost_at([goal[:2]])[0] >= INSCRIBED:
-            raise PlanError('goal (%.2f, %.2f) is inside an obstacle (after inflation)' % tuple(goal[:2]))
+            raise PlanError(self.costmap.blocked_reason(goal[:2]))
         self.goal = tuple(float(v) for v in goal)
         self.t0 = t
         self.state = ACTIVE

@@ -153,7 +153,7 @@ def plan(costmap, start_xy, goal_xy, cost_weight=3.0, step=0.05, shortcut_tolera
     if not grid.in_bounds(rc[:1])[0]:
         raise PlanError('robot (%.2f, %.2f) is outside the map' % tuple(start_xy))
     if costmap.cost[rc[1, 0], rc[1, 1]] >= INSCRIBED:
-        raise PlanError('goal (%.2f, %.2f) is inside an obstacle (after inflation)' % tuple(goal_xy))
+        raise PlanError(costmap.blocked_reason(goal_xy))
     cells = grid_path(costmap.cost, rc[0], rc[1], cost_weight)
     cells = shortcut(cells, costmap.cost, tolerance=shortcut_tolerance)
     pts = grid.cell_to_world(cells)
