@@ -120,3 +120,68 @@ def test_dead_laser_stops_the_robot_and_aborts():
     assert max(v for t, v in speeds if t >= 2.0 + 0.5 + 1.5) < 0.01
     assert max(v for t, v in speeds if t < 2.0) > 0.5          # it was driving before
     assert r['collisions'] == 0
+
+
+
+def _course_loop(marks, config=None):
+    """The shipped course world, the robot at its start, and laser marks at ``marks`` (map
+    points) where the world has nothing: phantoms, e.g. mixed pixels no later beam crossed.
+    Beyond raytrace_range (5 m) from the start: no beam can clear them before the goal."""
+    loop = ClosedLoop(load_world(os.path.join(WORLDS, 'ias_lab_room_full.yaml')), config=config)
+    cm = loop.nav.costmap
+    for r, c in cm.grid.world_to_cell(marks):
+        cm.obstacles[r, c] = True
+    cm.update()
+    return loop
+
+
+@pytest.mark.parametrize('reset_distance, reached', [(3.0, True), (100.0, False)])
+def test_a_goal_covered_only_by_far_phantom_marks_is_driven_to(reset_distance, reached):
+    """A mark 5.4 m ahead, 0.15 m from the goal: the goal is not rejected on it; the marks
+    farther than reset_distance are forgotten and the goal reached. (With a reset_distance
+    beyond the mark the goal is rejected on it, as before.)"""
+    loop = _course_loop([(5.4, 0.15)], NavConfig(reset_distance=reset_distance))
+    try:
+        r = loop.run_goal((5.4, 0.0, 0.0), 60.0)
+        forgot = loop.nav.reset_forgot
+    finally:
+        loop.close()
+    if reached:
+        assert r['state'] == SUCCEEDED, r['reason']
+        assert math.hypot(r['pose'][0] - 5.4, r['pose'][1]) <= 0.15 and r['collisions'] == 0
+        assert forgot >= 1
+    else:
+        assert r['state'] == ABORTED and 'the laser marked at (5.4' in r['reason'], r['reason']
+
+
+def test_a_goal_covered_by_a_near_mark_or_a_wall_is_rejected_at_once():
+    nav = Navigator(rasterise_world(load_world(os.path.join(WORLDS, 'ias_lab_room_full.yaml'))),
+                    NavConfig())
+    cm = nav.costmap
+    r, c = cm.grid.world_to_cell([(1.5, 0.15)])[0]
+    cm.obstacles[r, c] = True                          # 1.5 m from the robot: within reach
+    cm.update()
+    with pytest.raises(PlanError, match='the laser marked at'):
+        nav.start((1.5, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0)
+    assert cm.obstacles[r, c]                          # kept: the laser sees that place
+    with pytest.raises(PlanError, match="the map's obstacle"):
+        nav.start((3.0, 0.62, 0.0), (0.0, 0.0, 0.0), 0.0)
+
+
+@pytest.mark.parametrize('reset_distance, reached', [(3.0, True), (100.0, False)])
+def test_far_marks_closing_the_only_way_are_forgotten_after_planner_patience(reset_distance,
+                                                                             reached):
+    """Marks across the corridor 5.4 m ahead close the only way to a goal past it: after
+    planner_patience without a plan, the marks farther than reset_distance are forgotten
+    (once per goal) and the robot drives there; when none is that far, the goal aborts."""
+    marks = [(5.4, y) for y in np.arange(-0.6, 0.61, 0.05)]
+    loop = _course_loop(marks, NavConfig(reset_distance=reset_distance))
+    try:
+        res = loop.run_goal((7.5, 0.0, 0.0), 90.0)
+    finally:
+        loop.close()
+    if reached:
+        assert res['state'] == SUCCEEDED, res['reason']
+        assert res['collisions'] == 0
+    else:
+        assert res['state'] == ABORTED and 'no path' in res['reason'], res['reason']

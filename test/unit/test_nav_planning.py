@@ -292,3 +292,25 @@ def test_planning_graph_has_exactly_the_allowed_steps(seed):
                         math.hypot(dr, dc) * (1 + 1.5 * float(cost[rr, cc]) / 252)
     assert got.keys() == want.keys()
     assert all(got[k] == pytest.approx(want[k], rel=1e-12) for k in want)
+
+
+def test_a_scan_leaves_no_mark_on_the_robots_footprint():
+    """Hits on the robot's footprint (a mixed pixel or noise at the body) are not kept as
+    marks: the robot would be touching them, and a mark left there when the robot drives on
+    later rejects goals near that place. Marks outside the footprint stay."""
+    base = (1.5, 1.5)
+
+    def marks(laser_in_base):
+        cm = Costmap(empty(60, 60), robot_radius=0.27)
+        # a laser 0.2 m ahead of the base centre: one beam straight ahead 0.06 m (a point 0.26
+        # m from the centre), one at 1.2 rad 0.6 m (0.70 m from it); one beam per scan
+        for a, r in ((0.0, 0.06), (1.2, 0.6)):
+            cm.add_scan(MapScan((base[0] + 0.2, base[1], a), np.array([r]), 0.0, 0.01, 0.05,
+                                25.0, laser_in_base=(0.2, 0.0, a) if laser_in_base else None))
+        pts = cm.grid.cell_to_world(np.argwhere(cm.obstacles))
+        return np.hypot(pts[:, 0] - base[0], pts[:, 1] - base[1])
+
+    d = marks(True)
+    assert len(d) == 1 and d[0] == pytest.approx(0.70, abs=0.04)
+    d = marks(False)                       # without the laser's pose in the base: no footprint
+    assert len(d) == 2 and d.min() < 0.27 + 0.025

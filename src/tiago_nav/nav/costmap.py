@@ -20,7 +20,7 @@ from functools import cached_property
 import numpy as np
 from scipy.spatial import cKDTree
 
-from tiago_nav.geometry import transform_points, wrap_angle
+from tiago_nav.geometry import compose, inverse, transform_points, wrap_angle
 from tiago_nav.gridmap import distance_to_mask
 from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.scan import (HIT, INVALID, NO_RETURN, TOO_CLOSE, beam_angles, classify, scan_to_points,
@@ -154,6 +154,33 @@ class Costmap:
         self.obstacles[:] = False
         self.update()
 
+    def forget_marks_beyond(self, xy, distance):
+        """Forget the laser's marks whose cell centres lie farther than ``distance`` [m] from
+        the point ``xy`` [m, map] (move_base's ``conservative_reset`` around the robot); returns
+        how many were forgotten."""
+        return self._forget_marks(xy, distance, beyond=True)
+
+    def _forget_marks(self, xy, distance, beyond):
+        """Forget the marks whose cell centres lie farther than ``distance`` [m] from ``xy``
+        (``beyond``) or within it; the count. Only within ``distance`` is looked at near ``xy``."""
+        if beyond:
+            rc = np.argwhere(self.obstacles)
+        else:
+            w = self._window(xy, distance)
+            if w is None:
+                return 0
+            r0, r1, c0, c1 = w
+            rc = np.argwhere(self.obstacles[r0:r1, c0:c1]) + (r0, c0)
+        if len(rc) == 0:
+            return 0
+        pts = self.grid.cell_to_world(rc)
+        d = np.hypot(pts[:, 0] - xy[0], pts[:, 1] - xy[1])
+        gone = rc[d > distance] if beyond else rc[d <= distance]
+        if len(gone):
+            self.obstacles[gone[:, 0], gone[:, 1]] = False
+            self.update()
+        return len(gone)
+
     def add_scan(self, scan):
         """Mark and clear the obstacle layer with one :class:`MapScan` (REP 117, see the module
         docstring): hit and no-return beams clear the marked cells they cross, up to half a cell
@@ -162,6 +189,15 @@ class Costmap:
         self._clear(scan)
         pts, ranges = scan.obstacles
         self._set(pts[ranges <= self.obstacle_range], True)
+        if scan.laser_in_base is not None:
+            # the robot's footprint (costmap_2d's footprint_clearing_enabled): nothing the laser
+            # reports there can be an obstacle, or the robot would be touching it; a mark left
+            # there (a noisy self-hit, a mixed pixel at the body) stays behind when the robot
+            # leaves and later rejects goals near that place. Every cell whose centre lies
+            # within half a cell of the footprint circle. (The controller stops on the scan's
+            # own points, not on these cells.)
+            base = compose(scan.laser_pose, inverse(scan.laser_in_base))
+            self._forget_marks(base[:2], self.robot_radius + 0.5 * self.resolution, beyond=False)
 
     def _clear(self, scan):
         """Clear the marked cells within ``raytrace_range`` of the laser that a clearing beam
@@ -181,12 +217,10 @@ class Costmap:
         g, res = self.grid, self.resolution
         x, y, yaw = scan.laser_pose
         rng = self.raytrace_range
-        lo = g.world_to_cell([(x - rng, y - rng)])[0]
-        hi = g.world_to_cell([(x + rng, y + rng)])[0] + 1
-        r0, c0 = max(lo[0], 0), max(lo[1], 0)
-        r1, c1 = min(hi[0], g.height), min(hi[1], g.width)
-        if r1 <= r0 or c1 <= c0:
+        w = self._window((x, y), rng)
+        if w is None:
             return
+        r0, r1, c0, c1 = w
         rc = np.argwhere(self.obstacles[r0:r1, c0:c1]) + (r0, c0)
         if len(rc) == 0:
             return
@@ -243,16 +277,24 @@ class Costmap:
         ``radius`` [m] of the point ``xy``."""
         return self._near(xy, radius, self.static, self.obstacles)
 
-    def _near(self, xy, radius, *layers):
-        """Centres ``(M, 2)`` [m] of the cells set in any of ``layers`` (boolean grids) within
-        ``radius`` [m] of the point ``xy``."""
+    def _window(self, xy, radius):
+        """``(r0, r1, c0, c1)``: the grid's rows and columns within ``radius`` [m] of ``xy`` in
+        each axis (a square, clipped to the grid), or None when it misses the grid."""
         g = self.grid
         lo = g.world_to_cell([(xy[0] - radius, xy[1] - radius)])[0]
         hi = g.world_to_cell([(xy[0] + radius, xy[1] + radius)])[0] + 1
         r0, c0 = max(lo[0], 0), max(lo[1], 0)
         r1, c1 = min(hi[0], g.height), min(hi[1], g.width)
-        if r1 <= r0 or c1 <= c0:
+        return None if r1 <= r0 or c1 <= c0 else (r0, r1, c0, c1)
+
+    def _near(self, xy, radius, *layers):
+        """Centres ``(M, 2)`` [m] of the cells set in any of ``layers`` (boolean grids) within
+        ``radius`` [m] of the point ``xy``."""
+        g = self.grid
+        w = self._window(xy, radius)
+        if w is None:
             return np.zeros((0, 2))
+        r0, r1, c0, c1 = w
         window = np.zeros((r1 - r0, c1 - c0), dtype=bool)
         for layer in layers:
             window |= layer[r0:r1, c0:c1]

@@ -38,6 +38,10 @@ class NavConfig:
     planner_frequency: float = param(1.0, '[Hz] periodic replanning (0: only when the plan '
                                      'ahead is blocked)', ge=0)
     planner_patience: float = param(3.0, '[s] abort when no plan can be found for this long', gt=0)
+    reset_distance: float = param(3.0, "[m] once per goal, when its cell is covered by the laser's "
+                                  'marks only, or no plan is found for planner_patience: forget '
+                                  'the marks farther than this from the robot and plan again '
+                                  "(move_base's conservative_reset)", gt=0)
     controller_patience: float = param(6.0, '[s] no progress (progress_distance) for this long '
                                        '-> next recovery (clear, rotate, back up), then abort', gt=0)
     progress_distance: float = param(0.15, '[m] moving this far counts as progress for '
@@ -153,12 +157,19 @@ class Navigator:
     def start(self, goal, pose, t):
         """Accept a goal ``(x, y, yaw)`` in map. Raises :class:`PlanError` for a goal that can
         never be reached (outside the map, inside an obstacle); a goal with no path *yet* is
-        retried for ``planner_patience``."""
+        retried for ``planner_patience``. A goal covered only by the laser's marks, all
+        farther than ``reset_distance`` from the robot, is not judged on them: what the laser
+        saw from afar may be gone or a phantom (a mixed pixel that no later beam crossed), so
+        they are forgotten (:meth:`_reset`) and the laser judges that place again on the way."""
         g = self.costmap.grid
+        self.reset_done, self.reset_forgot = False, 0
         if not g.contains([goal[:2]])[0]:
             raise PlanError('goal (%.2f, %.2f) is outside the map' % tuple(goal[:2]))
         if self.costmap.cost_at([goal[:2]])[0] >= INSCRIBED:
-            raise PlanError(self.costmap.blocked_reason(goal[:2]))
+            blocker = self.costmap.blocker(goal[:2])
+            if blocker is None or blocker[1] != 'laser' or not self._reset(pose) \
+                    or self.costmap.cost_at([goal[:2]])[0] >= INSCRIBED:
+                raise PlanError(self.costmap.blocked_reason(goal[:2]))
         self.goal = tuple(float(v) for v in goal)
         self.t0 = t
         self.state = ACTIVE
@@ -167,6 +178,7 @@ class Navigator:
         self.path = None
         self.last_plan_ok = t
         self.last_plan_try = -math.inf
+        self.patience_from = t
         self.progress_pose = pose
         self.progress_time = t
         self.recovery = 0
@@ -178,6 +190,20 @@ class Navigator:
             self.timeout_reason = 'timeout: goal not reached in %.0f s' % self.cfg.goal_timeout
         self._replan(pose, t)
         return self.path
+
+    def _reset(self, pose):
+        """Once per goal: forget the laser's marks farther than ``reset_distance`` from the
+        robot at ``pose``; True when any were forgotten."""
+        if self.reset_done:
+            return False
+        self.reset_done = True
+        self.reset_forgot = self.costmap.forget_marks_beyond(pose[:2], self.cfg.reset_distance)
+        return self.reset_forgot > 0
+
+    def _reset_note(self):
+        return (', the last %.1f s after forgetting %d cells the laser had marked farther than '
+                '%g m away' % (self.cfg.planner_patience, self.reset_forgot, self.cfg.reset_distance)
+                if self.reset_done and self.reset_forgot else '')
 
     def cancel(self):
         """Forget the goal (it was preempted or ended outside :meth:`step`)."""
@@ -268,9 +294,17 @@ class Navigator:
                     self.path = None
                     self.controller.set_path(None)
             if self.path is None:
-                if t - self.last_plan_ok > cfg.planner_patience:
-                    return self._finish(ABORTED, 'no path: %s (for %.1f s)'
-                                        % (getattr(self, 'plan_error', 'no plan'), cfg.planner_patience))
+                if t - max(self.last_plan_ok, self.patience_from) > cfg.planner_patience:
+                    if self._reset(pose):
+                        # as move_base's recovery: marks seen from afar may be stale; the
+                        # patience counts again from here
+                        self.patience_from = t
+                        self._replan(pose, t)
+                    else:
+                        return self._finish(ABORTED, 'no path: %s (for %.1f s%s)'
+                                            % (getattr(self, 'plan_error', 'no plan'),
+                                               cfg.planner_patience, self._reset_note()))
+            if self.path is None:
                 self.controller.v = self.controller.w = 0.0
                 self.progress_time = t
                 return 0.0, 0.0, ACTIVE, 'planning'
