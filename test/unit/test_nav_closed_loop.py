@@ -185,3 +185,23 @@ def test_far_marks_closing_the_only_way_are_forgotten_after_planner_patience(res
         assert res['collisions'] == 0
     else:
         assert res['state'] == ABORTED and 'no path' in res['reason'], res['reason']
+
+
+def test_a_goal_on_a_real_obstacle_seen_from_afar_still_aborts_naming_it():
+    """The far marks are forgotten, but the laser marks the cylinder again on the way: the goal
+    ends ABORTED, saying that the laser sees an obstacle there, and the robot never touches it."""
+    w = World.from_dict(dict(name='t', resolution=0.05, bounds=[-1, -2, 8, 2], robot_start=[0, 0, 0],
+                             walls=[], static_cylinders=[],
+                             movable_obstacles=[dict(x=6.0, y=0.0, radius=0.25)]))
+    loop = ClosedLoop(w)
+    r, c = loop.nav.costmap.grid.world_to_cell([(6.0, 0.0)])[0]
+    loop.nav.costmap.obstacles[r, c] = True            # seen earlier, from closer
+    loop.nav.costmap.update()
+    try:
+        res = loop.run_goal((6.0, 0.0, 0.0), 90.0)
+        forgot = loop.nav.reset_forgot
+    finally:
+        loop.close()
+    assert forgot >= 1
+    assert res['state'] == ABORTED and 'the laser marked at' in res['reason'], res['reason']
+    assert res['collisions'] == 0
