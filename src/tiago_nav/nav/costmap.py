@@ -162,7 +162,7 @@ class Costmap:
 
     def _forget_marks(self, xy, distance, beyond):
         """Forget the marks whose cell centres lie farther than ``distance`` [m] from ``xy``
-        (``beyond``) or within it; the count. Only within ``distance`` is looked at near ``xy``."""
+        (``beyond``) or within it (then only the cells near ``xy`` are looked at); the count."""
         if beyond:
             rc = np.argwhere(self.obstacles)
         else:
@@ -193,9 +193,9 @@ class Costmap:
             # the robot's footprint (costmap_2d's footprint_clearing_enabled): nothing the laser
             # reports there can be an obstacle, or the robot would be touching it; a mark left
             # there (a noisy self-hit, a mixed pixel at the body) stays behind when the robot
-            # leaves and later rejects goals near that place. Every cell whose centre lies
-            # within half a cell of the footprint circle. (The controller stops on the scan's
-            # own points, not on these cells.)
+            # leaves and later rejects goals near that place. Cleared: the cells whose centres
+            # lie within robot_radius plus half a cell. (The controller stops on the scan's own
+            # points, not on these cells.)
             base = compose(scan.laser_pose, inverse(scan.laser_in_base))
             self._forget_marks(base[:2], self.robot_radius + 0.5 * self.resolution, beyond=False)
 

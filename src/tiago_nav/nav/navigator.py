@@ -201,9 +201,10 @@ class Navigator:
         return self.reset_forgot > 0
 
     def _reset_note(self):
-        return (', the last %.1f s after forgetting %d cells the laser had marked farther than '
-                '%g m away' % (self.cfg.planner_patience, self.reset_forgot, self.cfg.reset_distance)
-                if self.reset_done and self.reset_forgot else '')
+        n = self.reset_forgot
+        return (', the last %.1f s after forgetting %d cell%s the laser had marked farther than '
+                '%g m away' % (self.cfg.planner_patience, n, '' if n == 1 else 's',
+                               self.cfg.reset_distance) if self.reset_done and n else '')
 
     def cancel(self):
         """Forget the goal (it was preempted or ended outside :meth:`step`)."""
