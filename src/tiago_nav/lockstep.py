@@ -138,6 +138,12 @@ class Schedule:
         return True
 
     # --- the simulator's questions ------------------------------------------------------------
+    def due(self, t):
+        """The names of the participants whose deadline is at or before ``t`` [s] (what
+        :meth:`hold` asks, without its timeouts)."""
+        step = self.step_of(t)
+        return {name for name, m in self.members.items() if m.deadline <= step}
+
     def hold(self, t, wall):
         """Who must answer before simulated time may step past ``t`` [s]: the sorted names of
         participants whose deadline is at or before ``t``. One waited for longer than
@@ -214,11 +220,20 @@ class Gate:
         self.schedule, self.wall, self.shutdown, self.poll = schedule, wall, shutdown, poll
         self.retick = retick
         self.cond = threading.Condition()
+        self._held = None       # (t, names waited for) while :meth:`hold` waits
 
     def receive(self, ack):
-        """From a subscriber thread: hands one :class:`Ack` to the schedule."""
+        """From a subscriber thread: hands one :class:`Ack` to the schedule, and wakes a
+        waiting :meth:`hold` only when that answer can end its wait or adds someone to it (an
+        answer that leaves others still missing would only wake the step loop for nothing:
+        three of the four answers at a typical hold)."""
         with self.cond:
             self.schedule.receive(ack, self.wall())
+            if self._held is not None:
+                t, waiting = self._held
+                due = self.schedule.due(t)
+                if due and due <= waiting:
+                    return
             self.cond.notify_all()
 
     def is_participant(self, node):
@@ -252,7 +267,11 @@ class Gate:
                     told.update(waiting)
                     last = wall
                     tick(t, waiting)
-                self.cond.wait(self.poll)
+                self._held = (t, set(waiting))
+                try:
+                    self.cond.wait(self.poll)
+                finally:
+                    self._held = None
         return None
 
 

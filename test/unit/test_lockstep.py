@@ -454,3 +454,22 @@ def test_gate_records_how_long_it_waited_and_whose_answer_ended_the_wait():
     assert s.waits == 1 and s.waited == pytest.approx(0.5)
     assert s.waited_for == {'/b': pytest.approx(0.5)}
     assert s.wait_summary() == 'waited 0.50 s of wall time at 1 steps; last to answer: /b 0.50 s'
+
+
+def test_gate_wakes_its_hold_only_for_an_answer_that_ends_the_wait_or_adds_to_it():
+    s, _ = schedule(timeout=10.0)
+    gate = Gate(s, wall=lambda: 0.0)
+    gate.receive(Ack('/a', 0.0, 0.1))
+    gate.receive(Ack('/b', 0.0, 0.1))
+    assert s.due(t_of(6)) == {'/a', '/b'} and s.due(t_of(5)) == set()
+    woken = []
+    gate.cond.notify_all = lambda: woken.append(sorted(s.due(gate._held[0])))
+    gate._held = (t_of(6), {'/a', '/b'})       # as hold() leaves it while it waits
+    gate.receive(Ack('/a', t_of(6), 0.1))
+    assert woken == []                          # /b is still missing: nothing to do
+    gate.receive(Ack('/b', t_of(6), 0.1))
+    assert woken == [[]]                        # nobody is missing: the step may go on
+    gate._held = (t_of(12), {'/a'})            # (/b answered ahead: it covers 0.2 s)
+    gate.receive(Ack('/b', t_of(12), 0.1))
+    gate.receive(Ack('/c', 0.0, 0.1))
+    assert woken[1:] == [['/a', '/c']]          # a newcomer due now must be sent the tick
