@@ -50,7 +50,7 @@ def nav_goal(client, h, x, y, yaw_deg, participant=None):
         while client.get_state() == GoalStatus.PENDING and time.monotonic() - t0 < 5.0:
             time.sleep(0.001)
         participant.answer()
-        participant.leave()     # the goal is placed: the simulator need not wait for us any more
+        participant.close()     # the goal is placed: the simulator need not wait for us any more
     done = client.wait_for_result(rospy.Duration(120.0))
     return {'goal': [x, y, yaw_deg], 'succeeded': done and client.get_state() == GoalStatus.SUCCEEDED,
             'wall_s': time.monotonic() - t0, 'sim_s': rospy.get_time() - s0,
@@ -79,7 +79,7 @@ def mission_in_cycle(h, x, y, yaw_deg):
     while client.get_state() == GoalStatus.PENDING and time.monotonic() - t0 < 5.0:
         time.sleep(0.001)
     part.answer()
-    part.leave()        # the mission is placed: the simulator need not wait for us any more
+    part.close()        # the mission is placed: the simulator need not wait for us any more
     done = client.wait_for_result(180.0)
     wall, cpu = time.monotonic() - t0, h.cpu_seconds() - cpu0
     result = client.get_result()

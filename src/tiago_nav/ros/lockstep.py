@@ -35,6 +35,9 @@ CYCLE_WAIT = 2.0  # [s wall] in a held cycle, the longest wait for its scan, tf 
 GOAL_LEAD = 1.0  # [s] a goal stamped up to this far ahead of a server's ROS time is on its clock
 SEND_TIMEOUT = 1.0  # [s wall] the longest write of a direct publisher to one subscriber
 JOIN_POLL = 0.01  # [s wall] how often a participant not registered yet looks at its inputs
+WAKE = 0.05       # [s wall] the longest a waiting cycle sleeps between looks at its clock: ticks
+                  # and /clock wake it at once (it used to look every 2 ms, 500 wake-ups per wall
+                  # second in each waiting loop)
 
 
 def direct_publisher(topic, msg_class, subscriber_listener=None, send_timeout=SEND_TIMEOUT,
@@ -55,6 +58,17 @@ def direct_publisher(topic, msg_class, subscriber_listener=None, send_timeout=SE
     listener.pub = pub
     limit_sends(pub, send_timeout)
     return pub
+
+
+def stream_publisher(topic, msg_class, queue_size, direct):
+    """A publisher of a message stream: with ``direct`` (the node takes part in lockstep) a
+    :func:`direct_publisher`, else a plain ``rospy.Publisher`` with ``queue_size``. rospy's
+    queued publish hands each message to a queue thread per subscriber and yields the processor
+    once per subscriber; in lockstep, where every hop holds the simulation, those thread
+    switches were a measurable share of a mission's CPU."""
+    if direct:
+        return direct_publisher(topic, msg_class)
+    return rospy.Publisher(topic, msg_class, queue_size=queue_size)
 
 
 def limit_sends(pub, timeout):
@@ -322,6 +336,11 @@ class LockstepParticipant:
         self.pub = direct_publisher(ACK_TOPIC, LockstepAck, subscriber_listener=_Join(self))
         self.sub = Subscription(TICK_TOPIC, LockstepTick, self.on_tick, queue_size=10,
                                 tcp_nodelay=True)
+        # a cycle waits for ROS time too (a tick counts once its /clock has come; running free,
+        # ROS time passes the deadline): each /clock wakes it (this callback shares rospy's own
+        # /clock connection, after rospy has set the time)
+        self.clock_sub = rospy.Subscriber('/clock', Clock, self._on_clock, queue_size=None) \
+            if rospy.get_param('/use_sim_time', False) else None
         rospy.on_shutdown(self.leave)
         threading.Thread(target=self._join_when_ready, name='lockstep join', daemon=True).start()
 
@@ -399,6 +418,17 @@ class LockstepParticipant:
         return LockstepAck(node=self.name, stamp=rospy.Time(0),
                            period=rospy.Duration.from_sec(self.period))
 
+    def _on_clock(self, _):
+        with self.cond:     # (rospy has set the time: this callback comes after its own)
+            if self.core.claimed and self.core.next_cycle(self.clock.now()) is not None:
+                self.cond.notify_all()      # a cycle begins: wake tick()
+
+    def _nap(self, now):
+        """How long [s wall] :meth:`tick` may sleep at ROS time ``now`` [s]: until the next
+        deadline (ROS time without /use_sim_time is wall time; with it, /clock wakes the loop),
+        within [:data:`NAP`, :data:`WAKE`]."""
+        return min(max(self.core.deadline() - now, NAP), WAKE)
+
     def on_tick(self, msg):
         with self.cond:
             tick = Tick(msg.stamp.to_sec(), named=self.name in msg.waiting_for)
@@ -464,7 +494,7 @@ class LockstepParticipant:
                     last, since = now, clock.wall()
                 elif clock.wall() - since > self.stall:
                     return False
-                self.cond.wait(NAP)
+                self.cond.wait(self._nap(now))
         return False
 
     def answer(self, cmd=None):
@@ -512,7 +542,18 @@ class LockstepParticipant:
             try:
                 self._ack(rospy.Time.from_sec(self.clock.now()), cmd, leave=True)
             except rospy.ROSException:
-                pass        # shutting down: the simulator's timeout drops it instead
+                pass        # shutting down (or closed): the simulator's timeout drops it instead
+
+    def close(self):
+        """:meth:`leave` for good: also stop taking in the ticks (each costs this process and
+        the simulator a message), e.g. a client that took part only to place its goal on a
+        cycle. The participant cannot take part again."""
+        if self.ticker is None:
+            self.leave()
+            self.sub.unregister()
+            if self.clock_sub is not None:
+                self.clock_sub.unregister()
+            self.pub.unregister()
 
 
 class Peers:
@@ -523,6 +564,7 @@ class Peers:
     def __init__(self):
         self.cond = threading.Condition()
         self.newest = {}         # node -> its newest LockstepAck
+        self.awaited = set()     # the nodes whose answers :meth:`covering` waits for
         self.sub = rospy.Subscriber(ACK_TOPIC, LockstepAck, self.on_ack, queue_size=None,
                                     tcp_nodelay=True)
 
@@ -531,7 +573,8 @@ class Peers:
             old = self.newest.get(msg.node)
             if msg.leave or old is None or old.leave or msg.stamp >= old.stamp:
                 self.newest[msg.node] = msg
-            self.cond.notify_all()
+            if msg.node in self.awaited:    # (the others' answers wake nobody)
+                self.cond.notify_all()
 
     def covering(self, node, stamp, timeout):
         """``node``'s newest answer once it covers ``node``'s last deadline at or before
@@ -541,18 +584,22 @@ class Peers:
         t = stamp.to_sec()
         end = time.monotonic() + timeout
         with self.cond:
-            while True:
-                a = self.newest.get(node)
-                if a is None or a.leave:
-                    return None
-                period = a.period.to_sec()
-                due = math.floor(t / period + EPS) * period if period > 0 else t
-                if a.stamp.to_sec() >= due - EPS:
-                    return a
-                left = end - time.monotonic()
-                if left <= 0 or rospy.is_shutdown():
-                    return None
-                self.cond.wait(min(left, 0.1))
+            self.awaited.add(node)
+            try:
+                while True:
+                    a = self.newest.get(node)
+                    if a is None or a.leave:
+                        return None
+                    period = a.period.to_sec()
+                    due = math.floor(t / period + EPS) * period if period > 0 else t
+                    if a.stamp.to_sec() >= due - EPS:
+                        return a
+                    left = end - time.monotonic()
+                    if left <= 0 or rospy.is_shutdown():
+                        return None
+                    self.cond.wait(min(left, 0.1))
+            finally:
+                self.awaited.discard(node)
 
 
 class ClaimingActionServer(actionlib.SimpleActionServer):
