@@ -34,7 +34,7 @@ from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant,
-                                    ScanCache, goal_since, lookup_at, stream_publisher)
+                                    ScanCache, goal_since, lookup_at)
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.topics import Subscription
 
@@ -344,8 +344,7 @@ def main():
         rospy.logfatal('%s: %s; not starting the action server', NODE, missing)
         sys.exit(1)
     participant.wait_joined(params.startup_timeout)
-    # in lockstep the command is in the answer and cmd_vel is a copy for observers
-    cmd_pub = stream_publisher(params.cmd_vel_topic, Twist, 1, participant.enabled)
+    cmd_pub = rospy.Publisher(params.cmd_vel_topic, Twist, queue_size=1)
     node = CorridorServer(params, clock, None, cmd_pub, io, participant)
     node.server = ClaimingActionServer(NODE, CorridorAction, node.execute, participant)
     node.server.start()

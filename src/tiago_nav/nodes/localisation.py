@@ -34,7 +34,7 @@ from tiago_nav.localisation import Localiser, LocaliserConfig
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as rosparams
 from tiago_nav.ros.clock import RosClock
-from tiago_nav.ros.lockstep import CYCLE_WAIT, LockstepParticipant, lookup_at, stream_publisher
+from tiago_nav.ros.lockstep import CYCLE_WAIT, LockstepParticipant, lookup_at
 from tiago_nav.ros.conversions import (gridmap_from_msg, pose_from_msg, pose_from_transform,
                                        pose_msg, transform_stamped)
 from tiago_nav.ros.topics import Subscription
@@ -121,6 +121,7 @@ class LocalisationNode:
         self.sent = collections.deque(maxlen=64)    # recent stamps sent (tf refuses repeats)
         self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
         self.listener = tf2_ros.TransformListener(self.tf)
+        self.pub_tf = rospy.Publisher(params.tf_topic, TFMessage, queue_size=10)
         self.pub_pose = rospy.Publisher(params.pose_topic, PoseWithCovarianceStamped, queue_size=5)
         Subscription(params.map_topic, OccupancyGrid, self.on_map, queue_size=1)
         rospy.Subscriber(params.initialpose_topic, PoseWithCovarianceStamped, self.on_initialpose,
@@ -133,10 +134,6 @@ class LocalisationNode:
         # it takes part once it sends map -> odom (it has the map, a scan and the odometry tf)
         self.lockstep = LockstepParticipant(1.0 / params.republish_rate, ready=self.on_tick,
                                             inputs=lambda: self.map_to_odom is not None)
-        # in lockstep every tf listener's cycle may wait for this: written in this thread, not
-        # handed to a queue thread per listener (rospy's queued publish wakes each queue thread
-        # and yields the processor once per listener: five thread switches per correction)
-        self.pub_tf = stream_publisher(params.tf_topic, TFMessage, 10, self.lockstep.enabled)
         Subscription(params.scan_topic, LaserScan, self.on_scan,
                      queue_size=None if self.lockstep.enabled else 1, buff_size=2 ** 20)
 

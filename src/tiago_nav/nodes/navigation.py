@@ -33,9 +33,8 @@ from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, Goal
 from tiago_nav.params import nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, pose_stamped
-from tiago_nav.ros.lockstep import (CYCLE_WAIT, USE_LOCKSTEP, ClaimingActionServer,
-                                    LockstepParticipant, goal_since, lookup_at, stream_publisher,
-                                    wait_for_transform)
+from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant,
+                                    goal_since, lookup_at, wait_for_transform)
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.topics import Subscription, wait_for_message
 from tiago_nav.scan import FrozenScanCheck
@@ -130,9 +129,7 @@ class MoveBase:
         self.tf = tf2_ros.Buffer()
         self.listener = tf2_ros.TransformListener(self.tf)
         self.map_frame = p.global_frame
-        # in lockstep the command is in the answer and cmd_vel is a copy for observers
-        self.cmd_pub = stream_publisher(p.cmd_vel_topic, Twist, 1,
-                                        rospy.get_param(USE_LOCKSTEP, False))
+        self.cmd_pub = rospy.Publisher(p.cmd_vel_topic, Twist, queue_size=1)
         self.plan_pub = rospy.Publisher('~plan', Path, queue_size=1, latch=True)
         rospy.loginfo('move_base: waiting for %s', p.map_topic)
         try:

@@ -30,7 +30,7 @@ from tiago_nav.params import ParamError, nested, param, read_params, validate
 from tiago_nav.robot import BASE_LINK_HEIGHT
 from tiago_nav.ros import conversions
 from tiago_nav.ros.clock import RosClock
-from tiago_nav.ros.lockstep import ClockSource, LockstepHost, stream_publisher
+from tiago_nav.ros.lockstep import ClockSource, LockstepHost, direct_publisher
 from tiago_nav.sim.faults import FaultError, LaserFaults
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
@@ -134,7 +134,8 @@ def ros_outputs(params, use_sim_time):
         # in lockstep every controller waits for these before it answers: written in this
         # thread, not handed to a queue thread per subscriber (a thread switch each: 0.14-0.71 s
         # of a course mission's 2.7-4.1 s of wall time in four A/B rounds)
-        return stream_publisher(topic, cls, queue_size, params.lockstep)
+        return direct_publisher(topic, cls) if params.lockstep else \
+            rospy.Publisher(topic, cls, queue_size=queue_size)
 
     return Outputs(
         # /clock goes to every node 30-60 times per simulated second: written in this thread too
