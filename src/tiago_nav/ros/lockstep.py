@@ -60,17 +60,6 @@ def direct_publisher(topic, msg_class, subscriber_listener=None, send_timeout=SE
     return pub
 
 
-def stream_publisher(topic, msg_class, queue_size, direct):
-    """A publisher of a message stream: with ``direct`` (the node takes part in lockstep) a
-    :func:`direct_publisher`, else a plain ``rospy.Publisher`` with ``queue_size``. rospy's
-    queued publish hands each message to a queue thread per subscriber and yields the processor
-    once per subscriber; in lockstep, where every hop holds the simulation, those thread
-    switches were a measurable share of a mission's CPU."""
-    if direct:
-        return direct_publisher(topic, msg_class)
-    return rospy.Publisher(topic, msg_class, queue_size=queue_size)
-
-
 def limit_sends(pub, timeout):
     """Puts a send timeout of ``timeout`` [s] on the sockets of ``pub``'s subscriber
     connections that have none (rospy writes with a blocking ``sendall``)."""
