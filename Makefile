@@ -42,7 +42,9 @@ venv: $(VENV)/.done
 $(VENV)/.done: Makefile
 	@[ -x $(VENV)/bin/python ] || { echo "[setup] virtualenv $(VENV)"; $(SYS_PY) -m venv --system-site-packages $(VENV); }
 	@echo "[setup] pip install $(PIP_PACKAGES)"
-	@$(VENV)/bin/python -m pip install -q --disable-pip-version-check $(PIP_PACKAGES)
+	@# without the shell's PYTHONPATH: a sourced workspace (another clone's) can put its own
+	@# virtualenv's pybullet there, and pip then installs nothing into this one
+	@PYTHONPATH= $(VENV)/bin/python -m pip install -q --disable-pip-version-check $(PIP_PACKAGES)
 	@touch $@
 
 # .ws/src/tiago_nav is a folder of links to the repository's entries (not one link to the
