@@ -148,12 +148,9 @@ class Schedule:
         """Who must answer before simulated time may step past ``t`` [s]: the sorted names of
         participants whose deadline is at or before ``t``. One waited for longer than
         ``timeout`` (wall time ``wall`` [s]) is dropped with a warning instead."""
-        step = self.step_of(t)
         waiting = []
-        for name in sorted(self.members):
+        for name in sorted(self.due(t)):
             m = self.members[name]
-            if m.deadline > step:
-                continue
             if m.waiting_since is None:
                 m.waiting_since = wall
             if wall - m.waiting_since > self.timeout:
