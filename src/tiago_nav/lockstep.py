@@ -35,12 +35,14 @@ def grid_after(t, period):
 class Ack:
     """One participant's answer. ``stamp`` [s]: the cycle's time (sensor data up to it is
     covered); ``period`` [s]; ``command``: ``(v, w)`` [m/s, rad/s] in base_footprint, applied from
-    ``stamp`` on, or None; ``leave``: drop me (after applying ``command``)."""
+    ``stamp`` on, or None; ``leave``: drop me (after applying ``command``); ``busy``: I have
+    work, simulated time must go on (see :meth:`Schedule.wants_time`)."""
     node: str
     stamp: float
     period: float
     command: tuple = None
     leave: bool = False
+    busy: bool = False
 
 
 @dataclass
@@ -48,6 +50,7 @@ class _Member:
     period: int                 # [steps]
     answered: int               # [step] stamp of the last answer held
     waiting_since: float = None  # [s wall] when the simulator began to wait for it
+    busy: bool = False          # its newest answer says it has work
 
     @property
     def deadline(self):
@@ -68,13 +71,27 @@ class Schedule:
         timeout: [s wall] how long the simulator waits for a missing answer before it drops
             that participant (it rejoins with its next answer).
         log: ``log(level, text)`` with level ``'info'`` or ``'warn'``; silent by default.
+        wait_for_work: simulated time stands still while participants take part and none of
+            them is busy (and the simulator's own ``work()`` says nothing moves): every goal
+            then starts at the simulated instant the last one left, whenever it is sent.
+        expected: names of participants that must have joined before simulated time leaves
+            its start (the launch files name the controllers they start), so that nobody joins
+            at an instant that depends on the machine's speed.
+        expect_timeout: [s wall] after this long without one of them, time goes on (a warning
+            names the missing ones).
     """
 
-    def __init__(self, rate, timeout, log=None):
-        if not (rate > 0 and timeout > 0):
-            raise ValueError('rate and timeout must be > 0, got %r, %r' % (rate, timeout))
+    def __init__(self, rate, timeout, log=None, wait_for_work=False, expected=(),
+                 expect_timeout=60.0):
+        if not (rate > 0 and timeout > 0 and expect_timeout > 0):
+            raise ValueError('rate, timeout and expect_timeout must be > 0, got %r, %r, %r'
+                             % (rate, timeout, expect_timeout))
         self.rate, self.timeout = float(rate), float(timeout)
         self.log = log or (lambda level, text: None)
+        self.wait_for_work = bool(wait_for_work)
+        self.expected = set(expected)
+        self.expect_timeout = float(expect_timeout)
+        self._expect_since = None   # [s wall] when the simulator began to wait for them
         self.members = {}
         self._pending = []      # heap of (stamp step, sequence, node, v, w)
         self._seq = 0
@@ -114,6 +131,8 @@ class Schedule:
         ignored; an answer not newer than the last one held is ignored. Returns True when the
         answer was taken."""
         member = self.members.get(ack.node)
+        if member is not None and not ack.leave:
+            member.busy = bool(ack.busy)    # every answer says it: the newest one counts
         period = self.period_steps(ack.period)
         if period is None and not ack.leave:
             self.log('warn', 'lockstep: %s asks for a period of %g s, not a whole number of '
@@ -131,8 +150,11 @@ class Schedule:
                 self.log('info', 'lockstep: %s left' % ack.node)
             return True
         if member is None:
-            self.members[ack.node] = _Member(period, stamp)
+            self.members[ack.node] = _Member(period, stamp, busy=bool(ack.busy))
             self.log('info', 'lockstep: %s joined, period %g s' % (ack.node, period / self.rate))
+            if self.expected and ack.node in self.expected and self.expected <= set(self.members):
+                self.log('info', 'lockstep: every expected participant has joined')
+                self.expected = set()
         else:
             member.period, member.answered, member.waiting_since = period, stamp, None
         return True
@@ -162,6 +184,37 @@ class Schedule:
             else:
                 waiting.append(name)
         return waiting
+
+    def missing(self, wall):
+        """The sorted names of expected participants that have not joined yet, while the wait
+        for them lasts (``wall`` [s]: now); after ``expect_timeout`` a warning names them and
+        the simulator stops waiting for them."""
+        if not self.expected:
+            return []
+        if self._expect_since is None:
+            self._expect_since = wall
+        names = sorted(self.expected - set(self.members))
+        if names and wall - self._expect_since > self.expect_timeout:
+            self.log('warn', 'lockstep: %s did not join within %g s of wall time: simulated '
+                     'time goes on without %s' % (', '.join(names), self.expect_timeout,
+                                                  'it' if len(names) == 1 else 'them'))
+            self.expected, names = set(), []
+        return names
+
+    def busy(self):
+        """True while a participant's newest answer says it has work."""
+        return any(m.busy for m in self.members.values())
+
+    def wants_time(self, work=False):
+        """Whether simulated time may go on (nobody being due): not while an expected
+        participant is still missing (see :meth:`missing`), and with ``wait_for_work`` only
+        while someone is busy or ``work`` (the simulator's own: the base moves) holds. Without
+        participants time always goes on (an outside controller drives the base)."""
+        if self.expected and set(self.expected) - set(self.members):
+            return False
+        if not self.wait_for_work or not self.members:
+            return True
+        return bool(work) or self.busy()
 
     def commands(self, t):
         """The commands ``(v, w)`` due at time ``t`` [s] (stamped at or before it), in the order
@@ -242,13 +295,17 @@ class Gate:
         with self.cond:
             return bool(self.schedule.members)
 
-    def hold(self, t, tick):
+    def hold(self, t, tick, work=None):
         """Before stepping past simulated time ``t`` [s]: waits until every participant whose
-        deadline is at or before ``t`` has answered or has been dropped. ``tick(t, waiting)``
-        is called (to publish the tick) when the wait begins and again whenever a participant
-        is added to it, or ``retick`` has passed. Returns the commands ``(v, w)`` to apply at
-        ``t`` in order, or None on shutdown."""
+        deadline is at or before ``t`` has answered or has been dropped, and then, while
+        :meth:`Schedule.wants_time` says no, for work (a busy answer, ``work`` or a
+        participant joining). ``tick(t, waiting)`` is called (to publish the tick) when a wait
+        for answers begins and again whenever a participant is added to it, or ``retick`` has
+        passed. ``work(commands)``: True when the simulator itself has work once ``commands``
+        are applied (the base moves). Returns the commands ``(v, w)`` to apply at ``t`` in
+        order, or None on shutdown."""
         told, last, start, before = set(), None, None, ()
+        commands = []
         with self.cond:
             while not self.shutdown():
                 wall = self.wall()
@@ -256,7 +313,13 @@ class Gate:
                 if not waiting:
                     if start is not None:
                         self.schedule.record_wait(wall - start, before)
-                    return self.schedule.commands(t)
+                        start = None
+                    commands += self.schedule.commands(t)
+                    self.schedule.missing(wall)
+                    if self.schedule.wants_time(work is not None and work(commands)):
+                        return commands
+                    self.cond.wait(self.poll)       # every answer wakes it (no _held)
+                    continue
                 if start is None:
                     start = wall
                 before = waiting
@@ -373,3 +436,49 @@ class ParticipantCore:
             return stamp
         k = round((grid_after(stamp, self.idle_period) - stamp) / self.period - 1)
         return stamp + max(k, 0) * self.period
+
+
+class Settled:
+    """The newest of a stream of stamped values (another node's messages) as a participant's
+    cycle may use them: only values stamped up to ``lag`` [s] before the cycle, so that
+    whether one has arrived does not depend on timing (ROS orders nothing across topics: a
+    message sent in the cycle being held can still be on its way, while those of earlier
+    cycles were sent before the answers that let the simulator reach this one). Values
+    stamped before the last :meth:`reset` are ignored.
+
+    Args:
+        lag: [s] the participant's period (values of the cycle before are the newest used).
+        size: how many values are kept.
+    """
+
+    def __init__(self, lag, size=64):
+        self.lag = float(lag)
+        self.items = []
+        self.size = int(size)
+        self.since = -math.inf
+        self.lock = threading.Lock()
+
+    def reset(self, since):
+        """Forget everything; from now on only values stamped at or after ``since`` [s]."""
+        with self.lock:
+            self.items, self.since = [], float(since)
+
+    def add(self, stamp, value):
+        """A value stamped ``stamp`` [s] (in arrival order)."""
+        with self.lock:
+            if stamp >= self.since - EPS:
+                self.items.append((float(stamp), value))
+                del self.items[:-self.size]
+
+    def get(self, cycle=None):
+        """The newest value stamped at or before ``cycle - lag`` (``cycle`` [s]), or the
+        newest of all when ``cycle`` is None (running free); None when there is none."""
+        with self.lock:
+            if cycle is None:
+                return self.items[-1][1] if self.items else None
+            limit = cycle - self.lag + EPS
+            best = None
+            for stamp, value in self.items:
+                if stamp <= limit and (best is None or stamp >= best[0]):
+                    best = (stamp, value)
+            return best[1] if best else None

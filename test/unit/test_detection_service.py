@@ -39,6 +39,14 @@ class FakeSensors:
         return Scan(self.ranges, L.angle_min, L.angle_increment, L.range_min, L.range_max,
                     12.5, 'base_laser_link')
 
+    def scan_at(self, stamp, timeout):
+        """Like the node's: the first scan at or after ``stamp``; the one scan here is at 12.5 s."""
+        self.calls.append(('scan_at', stamp, timeout))
+        if self.ranges is None or stamp > 12.5:
+            return None
+        return Scan(self.ranges, L.angle_min, L.angle_increment, L.range_min, L.range_max,
+                    12.5, 'base_laser_link')
+
     def transform(self, target, source, stamp, timeout):
         self.calls.append(('tf', target, source, stamp, timeout))
         if target in self.missing:
@@ -69,6 +77,18 @@ def service(grid, **kw):
 
 def noisy_scan(clean, seed=3):
     return noisy(clean[0], 0.01, np.random.default_rng(seed), L.range_min, L.range_max)
+
+
+def test_a_request_with_a_scan_stamp_uses_the_scan_at_that_stamp_and_names_it(clean, grid):
+    sensors = FakeSensors(noisy_scan(clean))
+    a = service(grid).handle('', 0.0, 0.0, sensors, scan_stamp=12.5)
+    assert a.success, a.message
+    assert sensors.calls[0] == ('scan_at', 12.5, Params().scan_timeout)
+    assert a.stamp == 12.5 and 'on the scan at 12.500 s' in a.message
+    later = service(grid).handle('', 0.0, 0.0, FakeSensors(noisy_scan(clean)), scan_stamp=13.0)
+    assert not later.success
+    assert later.message == 'no /scan stamped at or after 13.000 s received within %.1f s' \
+        % Params().scan_timeout
 
 
 def test_good_request_returns_every_obstacle_in_both_frames_nearest_first(clean, grid):

@@ -33,7 +33,7 @@ class FakeHost:
         self.schedule = type('Schedule', (), {'drops': 0, 'lag_stats': lambda self: dict(
             count=0, max=0.0, p50=0.0, p95=0.0, p99=0.0), 'wait_summary': lambda self: ''})()
 
-    def hold(self, t, sensors):
+    def hold(self, t, sensors, work=None):
         self.holds.append(t)
         if self.participants and (len(self.holds) - 1) % self.tick_every == 0:
             self.ticks.append((t,) + tuple(sensors(t)))
@@ -354,8 +354,8 @@ def test_lookup_at_does_not_wait_for_data_tf_no_longer_holds():
 
 
 def test_the_clock_source_sets_its_own_time_instead_of_receiving_its_clock(monkeypatch):
-    """The simulator drops rospy's /clock subscription (it received its own /clock back) and
-    sets its ROS time as it publishes /clock."""
+    """The simulator drops rospy's /clock subscription (it received its own /clock back),
+    latches /clock and sets its ROS time as it publishes it."""
     from rosgraph_msgs.msg import Clock
     from rospy.impl import simtime
     from tiago_nav.ros import lockstep as roslockstep
@@ -363,13 +363,14 @@ def test_the_clock_source_sets_its_own_time_instead_of_receiving_its_clock(monke
     dropped, sent = [], []
     monkeypatch.setattr(simtime, '_clock_sub', type('Sub', (), {
         'unregister': lambda self: dropped.append(1)})(), raising=False)
-    monkeypatch.setattr(roslockstep, 'direct_publisher', lambda topic, cls: type('Pub', (), {
-        'publish': lambda self, msg: sent.append((topic, msg))})())
+    monkeypatch.setattr(roslockstep, 'direct_publisher', lambda topic, cls, **kw: type('Pub', (), {
+        'publish': lambda self, msg: sent.append((topic, msg, kw))})())
     monkeypatch.setattr(rospy.rostime, '_rostime_current', None)
     source = roslockstep.ClockSource()
     assert dropped == [1] and simtime._clock_sub is None
     source.publish(Clock(rospy.Time(12, 5)))
-    assert sent == [('/clock', Clock(rospy.Time(12, 5)))]
+    # latched: a node that starts while simulated time stands still still learns it
+    assert sent == [('/clock', Clock(rospy.Time(12, 5)), {'latch': True})]
     assert rospy.rostime._rostime_current == rospy.Time(12, 5)
 
 

@@ -12,6 +12,9 @@ seconds.
 
 * ``fresh_scan(timeout)``: the first :class:`Scan` stamped at or after the call, or None after
   ``timeout`` wall seconds;
+* ``scan_at(stamp, timeout)``: the first :class:`Scan` stamped at or after ``stamp`` (a request's
+  ``scan_stamp``), waiting up to ``timeout`` wall seconds for it; None when it does not come;
+  :class:`Failure` when it is no longer held;
 * ``transform(target, source, stamp, timeout)``: the pose ``(x, y, yaw)`` of frame ``source`` in
   frame ``target`` at ``stamp``, waiting up to ``timeout`` wall seconds; raises
   :class:`LookupError` (its text says why) when there is none.
@@ -80,6 +83,11 @@ def check_request(method, scan_minus_map_threshold, cluster_threshold, default_m
     return method
 
 
+def _seconds(stamp):
+    """A stamp (rospy.Time or seconds) as text, ``12.345 s``."""
+    return '%.3f s' % (stamp.to_sec() if hasattr(stamp, 'to_sec') else float(stamp))
+
+
 def check_scan(scan, min_fraction):
     """Raise :class:`Failure` when fewer than ``min_fraction`` of the beams of the :class:`Scan`
     say something (REP 117: a hit, no return or too close; NaN and finite values outside
@@ -124,6 +132,7 @@ class DetectionService:
         self.params = params
         self.detector = None
         self.map_error = 'no %s received yet' % params.map_topic
+        self.elapsed_ms = None      # [ms] of the pipeline in the last successful call
 
     def set_map(self, grid):
         """Use the :class:`tiago_nav.gridmap.GridMap` ``grid`` from now on."""
@@ -135,18 +144,27 @@ class DetectionService:
         self.map_error = 'unusable %s: %s' % (self.params.map_topic, reason)   # set before the
         self.detector = None                                                  # detector goes
 
-    def handle(self, method, scan_minus_map_threshold, cluster_threshold, sensors):
-        """Answer one request (the fields of DetectObstacles.srv) with ``sensors``."""
+    def handle(self, method, scan_minus_map_threshold, cluster_threshold, sensors,
+               scan_stamp=None):
+        """Answer one request (the fields of DetectObstacles.srv) with ``sensors``;
+        ``scan_stamp``: the request's (None or zero: the first scan after the call)."""
         try:
             method = check_request(method, scan_minus_map_threshold, cluster_threshold,
                                    self.params.method)
             detector = self.detector        # one map for the whole call (maps come meanwhile)
             if detector is None:
                 raise Failure(self.map_error)
-            scan = sensors.fresh_scan(self.params.scan_timeout)
-            if scan is None:
-                raise Failure('no %s received within %.1f s' % (self.params.scan_topic,
-                                                                 self.params.scan_timeout))
+            if scan_stamp:
+                scan = sensors.scan_at(scan_stamp, self.params.scan_timeout)
+                if scan is None:
+                    raise Failure('no %s stamped at or after %s received within %.1f s'
+                                  % (self.params.scan_topic, _seconds(scan_stamp),
+                                     self.params.scan_timeout))
+            else:
+                scan = sensors.fresh_scan(self.params.scan_timeout)
+                if scan is None:
+                    raise Failure('no %s received within %.1f s' % (self.params.scan_topic,
+                                                                     self.params.scan_timeout))
             check_scan(scan, self.params.min_informative_fraction)
             laser_in_map, laser_in_robot = self._poses(scan, sensors)
             return self._detect(detector, scan, laser_in_map, laser_in_robot, method,
@@ -178,7 +196,7 @@ class DetectionService:
         except Exception as e:   # never a crash: the caller learns what went wrong
             raise Failure('detection failed on this scan: %s: %s'
                           % (type(e).__name__, e)) from None
-        elapsed_ms = (time.perf_counter() - t0) * 1e3
-        obstacles = found_obstacles(found, laser_in_map, laser_in_robot)
-        return Answer(True, obstacles, '%d obstacle(s) found with %s in %.1f ms'
-                      % (len(obstacles), method, elapsed_ms), scan.stamp)
+        self.elapsed_ms = (time.perf_counter() - t0) * 1e3    # (not in the message: the same
+        obstacles = found_obstacles(found, laser_in_map, laser_in_robot)   # call, the same answer)
+        return Answer(True, obstacles, '%d obstacle(s) found with %s on the scan at %s'
+                      % (len(obstacles), method, _seconds(scan.stamp)), scan.stamp)

@@ -36,7 +36,7 @@ class MissionConfig:
     ``detection_timeout``: wall seconds (waiting for a server, one service call);
     ``clock_timeout``: wall seconds without ROS time advancing before a stage is abandoned.
     """
-    server_timeout: float = param(10.0, '[s wall] wait this long for each action server / the '
+    server_timeout: float = param(30.0, '[s wall] wait this long for each action server / the '
                                   'service, and for a fresh scan to judge the corridor, before a '
                                   'stage fails; in lockstep, at start-up, for the node\'s '
                                   'registration', gt=0)

@@ -34,7 +34,7 @@ from tiago_nav.localisation import Localiser, LocaliserConfig
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as rosparams
 from tiago_nav.ros.clock import RosClock
-from tiago_nav.ros.lockstep import CYCLE_WAIT, LockstepParticipant, lookup_at
+from tiago_nav.ros.lockstep import CYCLE_WAIT, STARTUP_WAIT, LockstepParticipant, lookup_at
 from tiago_nav.ros.conversions import (gridmap_from_msg, pose_from_msg, pose_from_transform,
                                        pose_msg, transform_stamped)
 from tiago_nav.ros.topics import Subscription
@@ -121,7 +121,10 @@ class LocalisationNode:
         self.sent = collections.deque(maxlen=64)    # recent stamps sent (tf refuses repeats)
         self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
         self.listener = tf2_ros.TransformListener(self.tf)
-        self.pub_tf = rospy.Publisher(params.tf_topic, TFMessage, queue_size=10)
+        # latched: a node that starts while simulated time stands still (the simulator waits
+        # for work or for everyone to join) still gets map -> odom
+        self.pub_tf = rospy.Publisher(params.tf_topic, TFMessage, queue_size=10, latch=True)
+        self.map_ready = threading.Event()
         self.pub_pose = rospy.Publisher(params.pose_topic, PoseWithCovarianceStamped, queue_size=5)
         Subscription(params.map_topic, OccupancyGrid, self.on_map, queue_size=1)
         rospy.Subscriber(params.initialpose_topic, PoseWithCovarianceStamped, self.on_initialpose,
@@ -149,6 +152,7 @@ class LocalisationNode:
             pose, odom = (self.localiser.pose, self.localiser.odom) if self.localiser is not None \
                 else (self.pose, (0.0, 0.0, 0.0))
             self.localiser = Localiser(grid, pose, self.p.localiser, odom)
+        self.map_ready.set()
         rospy.loginfo('localisation: map %dx%d at %.3f m; starting at (%.2f, %.2f, %.1f deg)',
                       msg.info.width, msg.info.height, msg.info.resolution, pose[0], pose[1],
                       math.degrees(pose[2]))
@@ -192,13 +196,23 @@ class LocalisationNode:
                 self.last_scan_stamp = msg.header.stamp
                 self.intake.notify_all()
 
+    def _startup_wait(self):
+        """[s wall] how long a scan waits for its map and transforms: in lockstep, until the
+        first scan is taken in, :data:`STARTUP_WAIT` (simulated time stands still at its start
+        until this node has joined, so a scan skipped then would never be followed by another;
+        the URDF's fixed frames and the map may come after the first scan), then
+        :data:`CYCLE_WAIT`."""
+        return STARTUP_WAIT if self.map_to_odom is None else CYCLE_WAIT
+
     def _lookup(self, target, source, stamp):
         if self.lockstep.enabled:
-            return lookup_at(self.tf, target, source, stamp, CYCLE_WAIT)
+            return lookup_at(self.tf, target, source, stamp, self._startup_wait())
         return self.tf.lookup_transform(target, source, stamp, rospy.Duration(self.p.tf_timeout))
 
     def _on_scan(self, msg):
         stamp = msg.header.stamp
+        if self.lockstep.enabled:
+            self.map_ready.wait(self._startup_wait())
         try:
             odom = pose_from_transform(self._lookup(self.p.odom_frame, self.p.base_frame, stamp).transform)
             laser = pose_from_transform(self._lookup(self.p.base_frame, msg.header.frame_id, stamp).transform)
@@ -225,7 +239,10 @@ class LocalisationNode:
         if rejected:
             rospy.logwarn_throttle(5.0, 'localisation: correction rejected (%s); following '
                                    'odometry', rejected)
-        self.send_transform(stamp)
+        # the first estimate also at the scan's own stamp, in the same (latched) message: sent
+        # only ahead of it, tf could not give map -> odom at the start, where simulated time
+        # may stand still
+        self.send_transform(stamp, also_now=not self.sent)
         self.publish_pose(stamp, pose, cov)
 
     def publish_pose(self, stamp, pose, covariance):
@@ -235,16 +252,18 @@ class LocalisationNode:
         out.pose.covariance = covariance_6x6(covariance)
         self.pub_pose.publish(out)
 
-    def send_transform(self, stamp):
-        """Send the latest ``map → odom`` stamped ``stamp + transform_tolerance``."""
-        stamp = stamp + rospy.Duration(self.p.transform_tolerance)
+    def send_transform(self, stamp, also_now=False):
+        """Send the latest ``map → odom`` stamped ``stamp + transform_tolerance`` (and, with
+        ``also_now``, ``stamp`` too, in the same message)."""
+        stamps = ([stamp] if also_now else []) + [stamp + rospy.Duration(self.p.transform_tolerance)]
         with self.lock:
             m2o = self.map_to_odom
-            if m2o is None or stamp in self.sent:   # tf refuses a repeated stamp
+            stamps = [t for t in stamps if t not in self.sent]     # tf refuses a repeated stamp
+            if m2o is None or not stamps:
                 return
-            self.sent.append(stamp)
-        self.pub_tf.publish(TFMessage([transform_stamped(m2o, self.p.map_frame,
-                                                         self.p.odom_frame, stamp)]))
+            self.sent.extend(stamps)
+        self.pub_tf.publish(TFMessage([transform_stamped(m2o, self.p.map_frame, self.p.odom_frame, t)
+                                       for t in stamps]))
 
     def run(self):
         ticker = Ticker(RosClock(), 1.0 / self.p.republish_rate)

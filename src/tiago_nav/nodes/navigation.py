@@ -33,8 +33,9 @@ from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, Goal
 from tiago_nav.params import nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, pose_stamped
-from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant,
-                                    goal_since, lookup_at, wait_for_transform)
+from tiago_nav.ros.lockstep import (CYCLE_WAIT, STARTUP_WAIT, ClaimingActionServer,
+                                    LockstepParticipant, goal_since, lookup_at,
+                                    wait_for_transform)
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.topics import Subscription, wait_for_message
 from tiago_nav.scan import FrozenScanCheck
@@ -261,6 +262,12 @@ class MoveBase:
                 self.intake.notify_all()
 
     def _add_scan(self, scan):
+        if self.lockstep.enabled and not self.lockstep.joined.is_set():
+            # simulated time stands still at its start until the expected participants have
+            # joined: a scan dropped now (the localisation not sending map -> odom yet) would
+            # never be followed by another
+            wait_for_transform(self.tf, self.map_frame, scan.header.frame_id, scan.header.stamp,
+                               STARTUP_WAIT)
         try:
             lp, _ = self._in_map(scan.header.frame_id, scan.header.stamp)
             t = self.tf.lookup_transform(self.p.robot_base_frame, scan.header.frame_id, scan.header.stamp)

@@ -6,10 +6,13 @@ Waits (all in wall time, each bounded):
 
 * start-up: the latched map, up to ``~map_timeout``; the service is advertised only once a
   usable map has arrived, otherwise the node logs a fatal error and exits with status 1;
-* in each call: a scan stamped at or after the call, up to ``~scan_timeout`` (so a call that
-  comes before the first scan waits for it), then each transform at the scan's time, up to
-  ``~tf_timeout``. Running out of either is an answer with ``success: false``, never a hang.
+* in each call: a scan stamped at or after the call, or at or after the request's
+  ``scan_stamp`` when it is not zero (the last :data:`SCANS_HELD` scans are held for this), up to
+  ``~scan_timeout`` (so a call that comes before the first scan waits for it), then each
+  transform at the scan's time, up to ``~tf_timeout``. Running out of either is an answer with
+  ``success: false``, never a hang.
 """
+import collections
 import sys
 import threading
 import time
@@ -23,7 +26,7 @@ from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
 from tiago_nav.detection import METHODS, DetectionParams
-from tiago_nav.detection.service import DetectionService, Scan
+from tiago_nav.detection.service import DetectionService, Failure, Scan
 from tiago_nav.msg import Obstacle
 from tiago_nav.params import nested, param, validate
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform
@@ -32,6 +35,8 @@ from tiago_nav.ros.markers import obstacle_markers
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.topics import Subscription
 from tiago_nav.srv import DetectObstacles, DetectObstaclesResponse
+
+SCANS_HELD = 64     # scans kept for requests with a scan_stamp (4 s of the 15 Hz laser)
 
 
 @dataclass(frozen=True)
@@ -78,16 +83,42 @@ class RosSensors:
     ``scan_topic`` and tf."""
 
     def __init__(self, scan_topic):
-        self.scan = None
+        self.scans = collections.deque(maxlen=SCANS_HELD)
         self.cond = threading.Condition()
         self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
         self.listener = tf2_ros.TransformListener(self.tf)
-        Subscription(scan_topic, LaserScan, self.on_scan, queue_size=1)
+        Subscription(scan_topic, LaserScan, self.on_scan, queue_size=SCANS_HELD)
+
+    @property
+    def scan(self):
+        """The newest scan, or None."""
+        return self.scans[-1] if self.scans else None
 
     def on_scan(self, msg):
         with self.cond:
-            self.scan = msg
+            if self.scans and msg.header.stamp < self.scans[-1].header.stamp:
+                self.scans.clear()          # ROS time went back (a restarted simulator)
+            self.scans.append(msg)
             self.cond.notify_all()
+
+    def scan_at(self, stamp, timeout):
+        """The first scan stamped at or after ``stamp`` (rospy.Time), waiting up to ``timeout``
+        wall seconds for it; None if it does not come; :class:`Failure` when the scans held
+        no longer reach back to it."""
+        deadline = time.monotonic() + timeout
+        with self.cond:
+            while not rospy.is_shutdown():
+                for i, s in enumerate(self.scans):
+                    if s.header.stamp >= stamp:
+                        if i == 0 and len(self.scans) == self.scans.maxlen and s.header.stamp > stamp:
+                            raise Failure('the scan at %.3f s is no longer held (the oldest held '
+                                          'is at %.3f s)' % (stamp.to_sec(), s.header.stamp.to_sec()))
+                        return _plain_scan(s)
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return None
+                self.cond.wait(min(left, 0.1))
+        return None
 
     def fresh_scan(self, timeout):
         """The first scan stamped at or after now (ROS time), or None after ``timeout`` wall
@@ -98,8 +129,7 @@ class RosSensors:
             while not rospy.is_shutdown():
                 s = self.scan
                 if s is not None and s.header.stamp >= after:
-                    return Scan(s.ranges, s.angle_min, s.angle_increment, s.range_min,
-                                s.range_max, s.header.stamp, s.header.frame_id)
+                    return _plain_scan(s)
                 left = deadline - time.monotonic()
                 if left <= 0:
                     return None
@@ -115,6 +145,12 @@ class RosSensors:
         except tf2_ros.TransformException as e:
             raise LookupError(str(e)) from None
         return pose_from_transform(t.transform)
+
+
+def _plain_scan(msg):
+    """sensor_msgs/LaserScan → :class:`tiago_nav.detection.service.Scan`."""
+    return Scan(msg.ranges, msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max,
+                msg.header.stamp, msg.header.frame_id)
 
 
 class DetectionNode:
@@ -153,9 +189,11 @@ class DetectionNode:
 
     def handle(self, req):
         answer = self.logic.handle(req.method, req.scan_minus_map_threshold,
-                                   req.cluster_threshold, self.sensors)
+                                   req.cluster_threshold, self.sensors, req.scan_stamp)
         obstacles = [obstacle_msg(o) for o in answer.obstacles]
         if answer.success:
+            rospy.logdebug('obstacle_detection: %s; pipeline %.1f ms', answer.message,
+                           self.logic.elapsed_ms)
             self.markers.publish(obstacle_markers(obstacles, self.params.map_frame, answer.stamp))
         else:
             rospy.logwarn('obstacle_detection: %s', answer.message)

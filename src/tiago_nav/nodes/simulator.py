@@ -37,6 +37,9 @@ from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.world import WorldError, load_world
 
 BEHIND = 0.5            # [s wall] a run this far behind its real_time_factor restarts its pacing
+LOCKSTEP_START = 1.0    # [s sim] in lockstep simulated time starts here, not at 0: it may stand
+                        # still at its start, and tf2 takes a stamp of 0 for "static" (a state
+                        # stamped 0 could not be looked up in time)
 WARN_EVERY = 5.0        # [s sim] at most one warning about bad commands per this long
 
 
@@ -82,6 +85,16 @@ class Params:
                            'until it answers (needs /use_sim_time)')
     lockstep_timeout: float = param(1.0, '[s wall] wait this long for a missing lockstep answer, '
                                     'then go on without that participant', gt=0)
+    wait_for_work: bool = param(True, 'in lockstep at real_time_factor 0: simulated time stands '
+                                'still while participants take part, none has work (a goal) '
+                                'and the base is still, so that every goal starts at the same '
+                                'simulated instant whenever it is sent')
+    lockstep_expect: str = param('', 'in lockstep: space-separated names of the participants '
+                                 '(relative to this node\'s namespace) that must join before '
+                                 'simulated time leaves its start; the launch files name the '
+                                 'controllers they start')
+    lockstep_expect_timeout: float = param(60.0, '[s wall] then time goes on without the missing '
+                                           'ones, with a warning', gt=0)
 
     def __post_init__(self):
         validate(self)
@@ -89,6 +102,17 @@ class Params:
         if s and (len(s) != 3 or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
                                          and math.isfinite(v) for v in s)):
             raise ParamError('expected [x, y, yaw_deg], got %r' % (s,), 'robot_start')
+
+    @property
+    def waits_for_work(self):
+        """Whether simulated time stands still while nothing has work (full speed only: at a
+        real-time factor time flows as on the real robot)."""
+        return self.lockstep and self.wait_for_work and self.real_time_factor == 0
+
+    def expected_participants(self, namespace='/'):
+        """``lockstep_expect`` as node names resolved in ``namespace``."""
+        ns = namespace if namespace.endswith('/') else namespace + '/'
+        return [n if n.startswith('/') else ns + n for n in self.lockstep_expect.split()]
 
     @property
     def start_pose(self):
@@ -133,8 +157,10 @@ def ros_outputs(params, use_sim_time):
     def stream(topic, cls, queue_size):
         # in lockstep every controller waits for these before it answers: written in this
         # thread, not handed to a queue thread per subscriber (a thread switch each: 0.14-0.71 s
-        # of a course mission's 2.7-4.1 s of wall time in four A/B rounds)
-        return direct_publisher(topic, cls) if params.lockstep else \
+        # of a course mission's 2.7-4.1 s of wall time in four A/B rounds); latched, so that a
+        # node that starts while simulated time stands still (at its start until the expected
+        # participants have joined, and between goals) still gets the robot's state
+        return direct_publisher(topic, cls, latch=True) if params.lockstep else \
             rospy.Publisher(topic, cls, queue_size=queue_size)
 
     return Outputs(
@@ -323,9 +349,13 @@ class SimulatorNode:
 
     # --- running --------------------------------------------------------------------------
     def start(self):
-        """Publish the state at time 0: the map, /tf_static, the collision count, the first
+        """Publish the state at the start (time 0; in lockstep :data:`LOCKSTEP_START`, the
+        robot at rest until then): the map, /tf_static, the collision count, the first
         odometry, tf and scan, and only then the first /clock, which nodes wait for."""
         with self.lock:
+            if self.lockstep is not None:
+                for _ in range(int(round(LOCKSTEP_START * self.params.sim.rate))):
+                    self.sim.step()
             stamp = self.stamp()
             self.publish_static(stamp)
             self.publish_collisions()
@@ -388,13 +418,25 @@ class SimulatorNode:
         apply their commands (in stamp order). False on shutdown."""
         if self.lockstep is None:
             return True
-        commands = self.lockstep.hold(self.stamp(), self.before_tick)
+        commands = self.lockstep.hold(self.stamp(), self.before_tick, self.has_work)
         if commands is None:
             return False
         with self.lock:
             for v, w in commands:
                 self.sim.command(v, w)
         return True
+
+    def has_work(self, commands):
+        """True when the base moves, or will once ``commands`` ``[(v, w), ...]`` (in order,
+        the last one stands) are applied: simulated time must go on for it even while no
+        lockstep participant is busy (an outside controller drives the base, or the base
+        brakes after a goal)."""
+        with self.lock:
+            if commands:
+                v, w = commands[-1]
+                if v or w:
+                    return True
+            return self.sim.in_motion
 
     def before_tick(self, stamp):
         """Just before a lockstep tick at ``stamp`` (rospy.Time, the current time): odometry at
@@ -426,7 +468,9 @@ def main():
     try:
         params, use_sim_time = read_config()
         outputs = ros_outputs(params, use_sim_time)
-        host = LockstepHost(params.sim.rate, params.lockstep_timeout, clock_pub=outputs.clock) \
+        host = LockstepHost(params.sim.rate, params.lockstep_timeout, clock_pub=outputs.clock,
+                            wait_for_work=params.waits_for_work,
+                            expected=params.expected_participants(rospy.get_namespace())) \
             if params.lockstep else None
         node = SimulatorNode(params, outputs, use_sim_time, lockstep=host)
     except (WorldError, ParamError, ValueError) as e:

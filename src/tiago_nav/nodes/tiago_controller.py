@@ -27,8 +27,9 @@ from visualization_msgs.msg import MarkerArray
 from tiago_nav import mission
 from tiago_nav.mission import DetectionError, Goal, MissionConfig, MissionRunner, Poll, StageError
 from tiago_nav.mission.entrance import corridor_ahead
-from tiago_nav.msg import (CorridorAction, CorridorGoal, TiagoTaskAction, TiagoTaskFeedback,
-                           TiagoTaskResult)
+from tiago_nav.lockstep import Settled
+from tiago_nav.msg import (CorridorAction, CorridorActionFeedback, CorridorGoal, TiagoTaskAction,
+                           TiagoTaskFeedback, TiagoTaskResult)
 from tiago_nav.params import nested, param, validate
 from tiago_nav.ros import params as ros_params
 from tiago_nav.ros.actions import server_connected
@@ -39,7 +40,6 @@ from tiago_nav.ros.markers import obstacle_markers
 from tiago_nav.scan import scan_to_points, usable_ranges
 from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
 
-FEEDBACK_HEAD_START = 0.1    # [s wall] between the last feedback and the result
 SERVICE_PROBE = 0.2          # [s wall] one try to reach the detection service
 SHUTDOWN_FLUSH = 0.3         # [s wall] on shutdown, time for the cancels and the stop to go out
 _TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException,
@@ -93,11 +93,16 @@ class RosBackend:
             'corridor': actionlib.SimpleActionClient(params.corridor_action, CorridorAction),
             'navigation': actionlib.SimpleActionClient(params.move_base_action, MoveBaseAction)}
         self.feedbacks = {}
+        # in lockstep, the plan and the corridor's feedback a cycle uses are those of the cycles
+        # before it (tiago_nav.lockstep.Settled): the newest ones may still be on their way
+        self.settled = {'path': Settled(params.lockstep_period),
+                        'corridor': Settled(params.lockstep_period)}
+        rospy.Subscriber(rospy.resolve_name(params.corridor_action) + '/feedback',
+                         CorridorActionFeedback, self._on_corridor_feedback, queue_size=None)
         self.tf = tf2_ros.Buffer(rospy.Duration(10.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf)
         self.cmd = rospy.Publisher(params.cmd_vel_topic, Twist, queue_size=1)
-        self._path = None
-        rospy.Subscriber(params.plan_topic, Path, self._on_path, queue_size=1)
+        rospy.Subscriber(params.plan_topic, Path, self._on_path, queue_size=None)
         self._scan = (None, -math.inf)    # the newest scan and its arrival [s wall]
         rospy.Subscriber(params.scan_topic, LaserScan, self._on_scan, queue_size=1)
         self.server = None            # the SimpleActionServer, set by the node
@@ -114,6 +119,7 @@ class RosBackend:
         self._sent = None             # the stage whose goal was sent in this cycle
         self._active = None           # the stage whose goal runs
         self._ran_at = {}             # stage -> True when its server was still at work at this cycle
+        self._cycle = None            # this mission's newest cycle's LockstepTick (exact stamps)
 
     # --- clock (tiago_nav.clock protocol) ------------------------------------------------------
     def now(self):
@@ -141,19 +147,41 @@ class RosBackend:
     # in a cycle is stamped with it and the cycle is answered only once the server has accepted
     # it (the server's participant claimed its cycles on arrival: ClaimingActionServer). Servers
     # that do not take part (no answers seen) are judged by their action state, as out of
-    # lockstep. Detection and everything after it run free.
-    def begin(self, stamp):
-        """A mission starts (its goal stamped ``stamp``, rospy.Time): in lockstep the proxy's
-        cycles after that stamp are its own."""
+    # lockstep. Detection and everything after it happen at the last cycle's instant: its
+    # answer says the proxy needs no more simulated time, so a simulator that waits for work
+    # stands still there; the scan detection uses and the reported pose are that cycle's.
+    def begin(self, stamp, use_corridor_law):
+        """A mission starts (its goal stamped ``stamp``, rospy.Time). In lockstep, once the
+        servers it needs are there (:meth:`wait_for_chain`; simulated time stands still
+        meanwhile when the simulator waits for work), the proxy's cycles after that stamp are
+        its own."""
         self._active, self._sent, self._stop, self._ran_at = None, None, False, {}
+        self._cycle = None
         if self.lockstep.enabled:
+            self.wait_for_chain(use_corridor_law)
             self.lockstep.claim(goal_since(stamp, self.lockstep.now()))
 
+    def wait_for_chain(self, use_corridor_law):
+        """Wait up to ``server_timeout`` wall seconds for the action servers and the service a
+        mission uses (a goal can come while they are still starting, e.g. on a loaded
+        machine); a stage whose server is still missing then fails with its own message."""
+        stages = (['corridor'] if use_corridor_law else []) + ['navigation']
+        service = rospy.resolve_name(self.p.detection_service)
+        t0 = time.monotonic()
+        while not rospy.is_shutdown() and time.monotonic() - t0 < self.cfg.server_timeout:
+            missing = [s for s in stages if not self.server_ready(s)]
+            if not missing and _service_registered(service):
+                return
+            rospy.loginfo_throttle(5.0, 'tiago_controller: the mission waits for %s' % ', '.join(
+                [self.p.corridor_action if s == 'corridor' else self.p.move_base_action
+                 for s in missing] + ([] if _service_registered(service) else [service])))
+            time.sleep(self.cfg.poll_period)
+
     def end(self):
-        """The mission is over (or going to run free): answer the open cycle and give the
-        cycles back."""
+        """The mission is over (or about to ask for detection): answer the open cycle, saying
+        that the proxy needs no more simulated time, and give the cycles back."""
         if self.lockstep.enabled:
-            self._finish_cycle()
+            self._finish_cycle(busy=False)
             self.lockstep.release()
 
     def _cycles(self):
@@ -167,6 +195,8 @@ class RosBackend:
         if not self.lockstep.tick():
             return                     # shutting down, or ROS time stopped: the runner's guards act
         self._in_cycle = True
+        if self.lockstep.lockstep:
+            self._cycle = self.lockstep.tick_msg
         stage = self._active
         if not self.lockstep.lockstep or stage is None:
             return
@@ -182,9 +212,9 @@ class RosBackend:
                     and not rospy.is_shutdown():
                 time.sleep(0.001)
 
-    def _finish_cycle(self):
+    def _finish_cycle(self, busy=True):
         """Answer the open cycle (with a stop when one was asked for), once a goal sent in it
-        has been accepted."""
+        has been accepted; ``busy`` False: the proxy needs no more simulated time."""
         if not self._in_cycle:
             return
         if self._sent is not None:
@@ -194,7 +224,7 @@ class RosBackend:
                     and not rospy.is_shutdown():
                 time.sleep(0.001)
             self._sent = None
-        self.lockstep.answer(Twist() if self._stop else None)
+        self.lockstep.answer(Twist() if self._stop else None, busy=busy)
         self._stop, self._in_cycle = False, False
 
     def _server_node(self, stage):
@@ -209,11 +239,21 @@ class RosBackend:
         return rospy.is_shutdown() or (self.server is not None and self.server.is_preempt_requested())
 
     # --- robot -------------------------------------------------------------------------------
+    def stamp(self):
+        """rospy.Time of what the proxy reports now: in lockstep, once the mission has had a
+        cycle, that cycle's (the last one's after the mission stopped taking part); else now."""
+        return self._cycle.odom_stamp if self._cycle is not None else rospy.Time.now()
+
     def pose(self):
+        """The robot's pose in the map: in lockstep at the mission's newest cycle (exact: the
+        same in every run), else the newest tf has."""
         try:
-            t = self.tf.lookup_transform(self.global_frame, self.robot_frame, rospy.Time(0))
-        except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
-                tf2_ros.ExtrapolationException):
+            if self._cycle is not None:
+                t = lookup_at(self.tf, self.global_frame, self.robot_frame,
+                              self._cycle.odom_stamp, CYCLE_WAIT)
+            else:
+                t = self.tf.lookup_transform(self.global_frame, self.robot_frame, rospy.Time(0))
+        except tf2_ros.TransformException:
             return None
         return pose_from_transform(t.transform)
 
@@ -222,10 +262,18 @@ class RosBackend:
 
     def _on_path(self, msg):
         if msg.header.frame_id in ('', self.global_frame, '/' + self.global_frame):
-            self._path = [(p.pose.position.x, p.pose.position.y) for p in msg.poses]
+            self.settled['path'].add(msg.header.stamp.to_sec(),
+                                     [(p.pose.position.x, p.pose.position.y) for p in msg.poses])
+
+    def _on_corridor_feedback(self, msg):
+        self.settled['corridor'].add(msg.header.stamp.to_sec(), msg.feedback)
+
+    def _cycle_stamp(self):
+        """[s] the open lockstep cycle's time, None out of one (running free)."""
+        return self.lockstep.stamp.to_sec() if self._in_cycle and self.lockstep.lockstep else None
 
     def path(self):
-        return self._path
+        return self.settled['path'].get(self._cycle_stamp())
 
     def stop_robot(self):
         self._stop = True             # in lockstep the stop travels in the cycle's answer
@@ -323,24 +371,32 @@ class RosBackend:
         """Send ``stage``'s goal; in lockstep inside a cycle, stamped with it."""
         self._begin_cycle()
         self.feedbacks[stage] = None
+        sent = self._cycle_stamp()
+        self.settled['corridor' if stage == 'corridor' else 'path'].reset(
+            sent if sent is not None else rospy.get_time())
         if stage == 'corridor':
             msg = CorridorGoal(max_speed=goal[0], max_distance=goal[1])
         else:
-            self._path = None
             msg = MoveBaseGoal(target_pose=pose_stamped(goal, self.global_frame, rospy.Time.now()))
         self.clients[stage].send_goal(msg, feedback_cb=lambda fb: self.feedbacks.__setitem__(stage, fb))
         if self._in_cycle:
             self._sent = stage
         self._active = stage
 
+    def _feedback(self, stage):
+        cycle = self._cycle_stamp()
+        if cycle is not None and stage in self.settled:
+            return self.settled[stage].get(cycle)
+        return self.feedbacks.get(stage)
+
     def poll(self, stage):
         c = self.clients[stage]
         if self._ran_at.get(stage):   # in lockstep: its server was still at work at this cycle
-            return Poll(mission.ACTIVE, feedback=self.feedbacks.get(stage))
+            return Poll(mission.ACTIVE, feedback=self._feedback(stage))
         status = _POLL.get(c.get_state(), mission.ACTIVE)
         if status == mission.ACTIVE:
-            return Poll(mission.ACTIVE, feedback=self.feedbacks.get(stage))
-        return Poll(status, c.get_goal_status_text(), c.get_result(), self.feedbacks.get(stage))
+            return Poll(mission.ACTIVE, feedback=self._feedback(stage))
+        return Poll(status, c.get_goal_status_text(), c.get_result(), self._feedback(stage))
 
     def cancel(self, stage):
         try:
@@ -350,15 +406,20 @@ class RosBackend:
 
     # --- detection ---------------------------------------------------------------------------
     def detect(self, timeout):
-        self.end()                    # the service waits for a fresh scan: let time run
+        """One obstacle_detection call; in lockstep on the scan of the mission's last cycle,
+        simulated time standing still at that cycle (see :meth:`end`)."""
+        self.end()
         name = self.p.detection_service
         self._wait_service(name)
         proxy = rospy.ServiceProxy(name, DetectObstacles)
+        request = DetectObstaclesRequest()
+        if self._cycle is not None:
+            request.scan_stamp = self._cycle.scan_stamp
         box = {}
 
         def call():
             try:
-                box['response'] = proxy(DetectObstaclesRequest())
+                box['response'] = proxy(request)
             except Exception as e:   # ServiceException, connection errors, ROSInterrupt
                 box['error'] = e
         worker = threading.Thread(target=call, daemon=True)
@@ -406,7 +467,7 @@ class RosBackend:
     def publish_feedback(self, state, status, pose):
         fb = TiagoTaskFeedback(state=state, status=status)
         if pose is not None:
-            fb.pose = pose_stamped(pose, self.global_frame, rospy.Time.now())
+            fb.pose = pose_stamped(pose, self.global_frame, self.stamp())
         if self.server is not None:
             self.server.publish_feedback(fb)
 
@@ -420,8 +481,8 @@ class TiagoController:
         self.runner = MissionRunner(self.backend, params.mission, log=rospy.loginfo)
         self.markers = rospy.Publisher('~obstacle_markers', MarkerArray, queue_size=1, latch=True)
         self.goal_pose = rospy.Publisher('~goal_pose', PoseStamped, queue_size=1, latch=True)
-        self.server = ClaimingActionServer(params.action_name, TiagoTaskAction, self.execute,
-                                           self.backend.lockstep)
+        # (the proxy claims its cycles itself, once the servers it needs are there: begin())
+        self.server = ClaimingActionServer(params.action_name, TiagoTaskAction, self.execute, None)
         self.backend.server = self.server
         rospy.on_shutdown(self.on_shutdown)
         # missions only once the simulator holds for the proxy: one begun before would decide
@@ -447,7 +508,7 @@ class TiagoController:
                 self.server.set_aborted(TiagoTaskResult(message=message), message)
 
     def _execute(self, goal):
-        self.backend.begin(self.server.current_goal.get_goal_id().stamp)
+        self.backend.begin(self.server.current_goal.get_goal_id().stamp, goal.use_corridor_law)
         try:
             self._run(goal)
         finally:
@@ -460,13 +521,13 @@ class TiagoController:
                                                 self.p.global_frame, rospy.Time.now()))
         outcome = self.runner.run(Goal(goal.x, goal.y, goal.yaw_deg, goal.use_corridor_law))
         self.backend.end()
-        result = TiagoTaskResult(obstacles=outcome.obstacles, message=outcome.message)
+        # feedback and result travel on separate topics, and a client drops feedback that
+        # comes after the result: the result carries the last feedback state too
+        result = TiagoTaskResult(obstacles=outcome.obstacles, message=outcome.message,
+                                 state=self.runner.state if self.runner.state is not None else 0)
         if outcome.final_pose is not None:
             result.final_pose = pose_stamped(outcome.final_pose, self.p.global_frame,
-                                             rospy.Time.now())
-        # feedback and result travel on separate topics: give the last feedback a head start, or
-        # clients (whose goal is then done) drop it
-        time.sleep(FEEDBACK_HEAD_START)
+                                             self.backend.stamp())
         try:
             if outcome.status == mission.SUCCEEDED:
                 rospy.loginfo('task succeeded: %s', outcome.message)
@@ -488,6 +549,15 @@ class TiagoController:
 
     def publish_markers(self, obstacles):
         self.markers.publish(obstacle_markers(obstacles, self.p.global_frame, labels=True))
+
+
+def _service_registered(name):
+    """True when the master knows a provider of the service ``name`` (resolved)."""
+    try:
+        rosgraph.Master(rospy.get_name()).lookupService(name)
+        return True
+    except (rosgraph.MasterError, OSError):
+        return False
 
 
 def main():

@@ -32,6 +32,8 @@ TIMEOUT = 1.0     # [s wall] the simulator's default wait for a missing answer; 
                   # after which a participant takes ROS time standing still for a dead simulator
 CYCLE_WAIT = 2.0  # [s wall] in a held cycle, the longest wait for its scan, tf or pose: the
                   # simulator has published them, so only a starved process waits at all
+STARTUP_WAIT = 30.0  # [s wall] before a node has joined, the longest wait for the data it needs
+                    # (simulated time stands still at its start until the expected have joined)
 GOAL_LEAD = 1.0  # [s] a goal stamped up to this far ahead of a server's ROS time is on its clock
 SEND_TIMEOUT = 1.0  # [s wall] the longest write of a direct publisher to one subscriber
 JOIN_POLL = 0.01  # [s wall] how often a participant not registered yet looks at its inputs
@@ -92,7 +94,9 @@ class ClockSource:
     :func:`direct_publisher` that also sets this process's own ROS time. rospy subscribes every
     node to /clock under /use_sim_time, the simulator too, which then received each of its
     own /clock messages back (a thread wake-up and a deserialisation, in the process every
-    lockstep hold waits on): that subscription is dropped here."""
+    lockstep hold waits on): that subscription is dropped here. /clock is latched: a node
+    that starts while simulated time stands still (the simulator waits for work) still learns
+    the time."""
 
     def __init__(self):
         from rospy.impl import simtime
@@ -100,7 +104,7 @@ class ClockSource:
         if sub is not None:
             sub.unregister()
             simtime._clock_sub = None
-        self.pub = direct_publisher('/clock', Clock)
+        self.pub = direct_publisher('/clock', Clock, latch=True)
 
     def publish(self, msg):
         self.pub.publish(msg)
@@ -120,7 +124,7 @@ def _log(level, text):
 def ack_from_msg(msg):
     """LockstepAck -> :class:`tiago_nav.lockstep.Ack`."""
     cmd = (msg.cmd.linear.x, msg.cmd.angular.z) if msg.has_command else None
-    return Ack(msg.node, msg.stamp.to_sec(), msg.period.to_sec(), cmd, msg.leave)
+    return Ack(msg.node, msg.stamp.to_sec(), msg.period.to_sec(), cmd, msg.leave, msg.busy)
 
 
 class LockstepHost:
@@ -133,12 +137,15 @@ class LockstepHost:
             held time when that was not the last /clock sent, and a repeated tick by /clock
             again, so that a participant whose /clock subscription connected after that time
             was published still sees ROS time reach its cycle.
+        wait_for_work, expected, expect_timeout: see :class:`tiago_nav.lockstep.Schedule`.
     """
 
-    def __init__(self, rate, timeout=TIMEOUT, clock_pub=None):
+    def __init__(self, rate, timeout=TIMEOUT, clock_pub=None, wait_for_work=False, expected=(),
+                 expect_timeout=60.0):
         self.clock_pub = clock_pub
         self.clock_stamp = None     # the newest /clock sent (rospy.Time)
-        self.gate = Gate(Schedule(rate, timeout, _log), time.monotonic, rospy.is_shutdown)
+        self.gate = Gate(Schedule(rate, timeout, _log, wait_for_work, expected, expect_timeout),
+                         time.monotonic, rospy.is_shutdown)
         self.pub = direct_publisher(TICK_TOPIC, LockstepTick)
         self.sub = rospy.Subscriber(ACK_TOPIC, LockstepAck, self.on_ack, queue_size=None,
                                     tcp_nodelay=True)
@@ -160,12 +167,13 @@ class LockstepHost:
         header = getattr(msg, '_connection_header', None) or {}
         return self.gate.is_participant(header.get('callerid', ''))
 
-    def hold(self, t, sensors):
+    def hold(self, t, sensors, work=None):
         """Before stepping past simulated time ``t`` (rospy.Time): waits for the missing
-        answers (ticks published as needed). Returns the commands ``(v, w)`` to apply now, in
-        order, or None on shutdown. ``sensors(t)``, called before each tick, publishes what the
-        tick needs and returns the rospy.Time ``(scan_stamp, odom_stamp)`` of the newest scan
-        and odometry published at or before ``t`` (None: none yet)."""
+        answers (ticks published as needed), then for work (:meth:`Gate.hold`, ``work``).
+        Returns the commands ``(v, w)`` to apply now, in order, or None on shutdown.
+        ``sensors(t)``, called before each tick, publishes what the tick needs and returns the
+        rospy.Time ``(scan_stamp, odom_stamp)`` of the newest scan and odometry published at
+        or before ``t`` (None: none yet)."""
         ticks = []
 
         def tick(_, waiting):
@@ -176,7 +184,7 @@ class LockstepHost:
             self.pub.publish(LockstepTick(stamp=t, scan_stamp=scan_stamp or rospy.Time(),
                                           odom_stamp=odom_stamp or rospy.Time(),
                                           waiting_for=waiting))
-        return self.gate.hold(t.to_sec(), tick)
+        return self.gate.hold(t.to_sec(), tick, work)
 
     def publish_clock(self, t):
         """/clock for ``t`` (rospy.Time), the simulator's only way to send it in lockstep."""
@@ -321,6 +329,7 @@ class LockstepParticipant:
         self._msgs = {}          # tick stamp [s] -> LockstepTick, for the newest tick
         self._answered = True
         self._left = False
+        self._busy = False       # what the last answer sent said of work (Ack.busy)
         self.joined = threading.Event()     # registered: the inputs flow (see ``inputs``)
         self.pub = direct_publisher(ACK_TOPIC, LockstepAck, subscriber_listener=_Join(self))
         self.sub = Subscription(TICK_TOPIC, LockstepTick, self.on_tick, queue_size=10,
@@ -394,18 +403,20 @@ class LockstepParticipant:
         return self.tick_msg.odom_stamp if self.tick_msg else None
 
     # --- the protocol ---------------------------------------------------------------------------
-    def _ack(self, stamp, cmd=None, leave=False):
+    def _ack(self, stamp, cmd=None, leave=False, busy=False):
         msg = LockstepAck(node=self.name, stamp=stamp, period=rospy.Duration.from_sec(self.period),
-                          has_command=cmd is not None, cmd=cmd or Twist(), leave=leave)
+                          has_command=cmd is not None, cmd=cmd or Twist(), leave=leave,
+                          busy=busy)
+        self._busy = busy
         self.pub.publish(msg)
         return msg
 
     def join_msg(self):
         """The registration: stamped 0, so that the simulator holds at once at its current time
         and the participant's answer to that tick sets its place (a simulator that already
-        knows the participant ignores it)."""
+        knows the participant only takes its ``busy``: whether a control loop owns it)."""
         return LockstepAck(node=self.name, stamp=rospy.Time(0),
-                           period=rospy.Duration.from_sec(self.period))
+                           period=rospy.Duration.from_sec(self.period), busy=self.core.claimed)
 
     def _on_clock(self, _):
         with self.cond:     # (rospy has set the time: this callback comes after its own)
@@ -470,6 +481,11 @@ class LockstepParticipant:
             if not self.core.claimed:       # a loop without claim(): it owns every later cycle
                 self._left = False
                 self.core.claim(self.core.last)
+            if not self._busy and self.joined.is_set():
+                # a simulator that waits for work stands still until a participant says it has
+                # some: say so once, in a registration (stamped 0: it moves no deadline)
+                self.pub.publish(self.join_msg())
+                self._busy = True
             while not clock.shutdown():
                 now = clock.now()
                 cycle = self.core.next_cycle(now)
@@ -486,10 +502,12 @@ class LockstepParticipant:
                 self.cond.wait(self._nap(now))
         return False
 
-    def answer(self, cmd=None):
+    def answer(self, cmd=None, busy=True):
         """Answers the current cycle; ``cmd`` (geometry_msgs/Twist) is its base command, which
-        the simulator applies from the cycle's stamp on. Returns the LockstepAck sent (None
-        when not taking part or already answered)."""
+        the simulator applies from the cycle's stamp on; ``busy`` False: this loop needs no
+        more simulated time for now (a simulator that waits for work may stand still at this
+        cycle, e.g. while the mission proxy asks for detection). Returns the LockstepAck sent
+        (None when not taking part or already answered)."""
         if self.ticker is not None:
             return None
         with self.cond:
@@ -499,7 +517,7 @@ class LockstepParticipant:
             self.core.answered(self.stamp.to_sec())
             if not self.joined.is_set():
                 return None     # not registered: the simulator does not wait for this cycle
-            return self._ack(self.stamp, cmd)
+            return self._ack(self.stamp, cmd, busy=busy)
 
     def wait_until_still(self, pose, stop, monitor, timeout):
         """:func:`tiago_nav.motion.wait_until_still` for a claimed control loop: each cycle
@@ -608,6 +626,31 @@ class ClaimingActionServer(actionlib.SimpleActionServer):
         if part is not None and part.enabled and not self.is_active():
             part.claim(goal_since(goal.get_goal_id().stamp, part.now()))
         super().internal_goal_callback(goal)
+
+    def start(self):
+        """Starts the server; each new subscriber of its status then gets the status at once.
+        actionlib publishes it on a timer in ROS time, which stands still while the simulator
+        waits for work, and a client waits for a status before it sends a goal."""
+        super().start()
+        self.action_server.status_pub.impl.add_subscriber_listener(_StatusOnConnect(self))
+
+
+class _StatusOnConnect(rospy.SubscribeListener):
+    """Publishes an action server's status when a client subscribes to it (from a thread of
+    its own: the listener runs inside rospy's connection set-up)."""
+
+    def __init__(self, server):
+        super().__init__()
+        self.server = server
+
+    def peer_subscribe(self, topic_name, topic_publish, peer_publish):
+        threading.Thread(target=self._publish, name='status on connect', daemon=True).start()
+
+    def _publish(self):
+        try:
+            self.server.action_server.publish_status()
+        except rospy.ROSException:
+            pass            # shutting down
 
 
 class _Join(rospy.SubscribeListener):

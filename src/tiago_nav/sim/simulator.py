@@ -111,10 +111,14 @@ class Simulator:
         self._cmd_time = self.time
         return True
 
+    def _command_in_force(self):
+        """The command ``(v, w)`` the next step applies: the last one, until ``cmd_timeout``."""
+        return self._cmd if self.time - self._cmd_time <= self.config.cmd_timeout else (0.0, 0.0)
+
     def step(self):
         """Advance one step. Returns ``(scan_due, odom_due)`` for the new time."""
         dt = self.config.dt
-        v, w = self._cmd if self.time - self._cmd_time <= self.config.cmd_timeout else (0.0, 0.0)
+        v, w = self._command_in_force()
         before = self.base.pose
         pose = self.base.step(v, w, dt)
         self.scene.set_robot_pose(pose)
@@ -157,6 +161,13 @@ class Simulator:
     def velocity(self):
         """Current ``(v, w)`` [m/s, rad/s] of the base."""
         return (self.base.v, self.base.w)
+
+    @property
+    def in_motion(self):
+        """True while the base moves or a non-zero command is in force (the next step would
+        move it)."""
+        v, w = self._command_in_force()
+        return bool(self.base.v or self.base.w or v or w)
 
     def scan(self):
         """One laser scan from the current pose: ranges [m] (REP 117 values) as
