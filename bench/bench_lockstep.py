@@ -3,16 +3,18 @@
 ``real_time_factor:=0``, with and without lockstep, on an idle machine and with a busy loop on
 each core.
 
-Each run is a fresh demo.launch (same world, same seed), so that runs can be compared: success,
-collisions, wall time per mission, simulated/wall ratio, the final pose (ground truth and
-odometry, to the last bit), the CPU time the launch's processes used during the mission (divided
-by the cores: the least wall time the mission could take on this machine) and, with lockstep,
-the simulator's figures for the lag between a command's cycle and its application (its log line
-``lockstep: N commands, lag max ...``).
+Each run is a fresh demo.launch (same world, same seed) whose goal a plain actionlib
+SimpleActionClient sends after a random wall delay (0 to ``--max-delay`` s), as a user's script
+would, so that runs can be compared: success, collisions, wall time per mission, simulated/wall
+ratio, the final pose (ground truth and odometry, to the last bit), the spread of the result's
+final pose and obstacle centres, the CPU time the launch's processes used during the mission, in
+all and per process (divided by the cores: the least wall time the mission could take on this
+machine) and, with lockstep, the simulator's figures for the lag between a command's cycle and
+its application (its log line ``lockstep: N commands, lag max ...``).
 Writes bench/results/lockstep.json and lockstep.png.
 
 Usage: bench/bench_lockstep.py [--n 20] [--nav 2] [--modes on,off] [--loads idle,busy]
-                               [--task mission|nav] [--out bench/results/lockstep.json]
+                               [--task mission|nav] [--max-delay 3] [--out bench/results/lockstep.json]
 """
 import argparse
 import json
@@ -28,70 +30,61 @@ RESULTS = os.path.join(ROOT, 'bench', 'results')
 WORLD = os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml')
 COURSE = (11.0, 0.0, -45.0)
 TARGET_WALL = 3.0
-NAV_START = 60.0    # [s sim] the 'nav' task's goal is sent at the first 0.1 s cycle after this
 LAG_LINE = re.compile(r'lockstep: (\d+) commands, lag max ([\d.]+) s, p95 ([\d.]+) s, (\d+) drops')
 
 
-def nav_goal(client, h, x, y, yaw_deg, participant=None):
-    """One move_base goal to ``(x, y, yaw_deg)`` in map: its record. With a lockstep
-    ``participant`` (claimed), the goal is sent inside its next cycle, which is answered once
-    move_base has accepted the goal: so the goal starts at the same simulated instant in
-    every run (how an outside controller takes part, see README)."""
+def nav_goal(client, h, x, y, yaw_deg):
+    """One move_base goal to ``(x, y, yaw_deg)`` in map, from a plain SimpleActionClient: its
+    record."""
     import rospy
     from actionlib_msgs.msg import GoalStatus
     from move_base_msgs.msg import MoveBaseGoal
     from tiago_nav.ros.conversions import pose_stamped
-    if participant is not None and not participant.tick():
-        raise RuntimeError('no lockstep cycle')
     c0, t0, s0 = h.collisions or 0, time.monotonic(), rospy.get_time()
     client.send_goal(MoveBaseGoal(target_pose=pose_stamped((x, y, math.radians(yaw_deg)), 'map',
                                                            rospy.Time.now())))
-    if participant is not None:
-        while client.get_state() == GoalStatus.PENDING and time.monotonic() - t0 < 5.0:
-            time.sleep(0.001)
-        participant.answer()
-        participant.close()     # the goal is placed: the simulator need not wait for us any more
     done = client.wait_for_result(rospy.Duration(120.0))
     return {'goal': [x, y, yaw_deg], 'succeeded': done and client.get_state() == GoalStatus.SUCCEEDED,
             'wall_s': time.monotonic() - t0, 'sim_s': rospy.get_time() - s0,
             'collisions': (h.collisions or 0) - c0, 'text': client.get_goal_status_text()}
 
 
-def mission_in_cycle(h, x, y, yaw_deg):
-    """The course mission sent as a lockstep participant inside its cycle at the first 0.1 s
-    deadline after :data:`NAV_START` (answered once the proxy has accepted the goal), so that
-    the mission starts at the same simulated instant in every run; its record."""
+def mission_plain(h, x, y, yaw_deg):
+    """The course mission from a plain actionlib SimpleActionClient (as a user's script sends
+    it: no lockstep participation), timed from the goal to the result; its record with the
+    result's final pose and obstacle centres, and the CPU each process used meanwhile."""
+    import actionlib
     import rospy
     from actionlib_msgs.msg import GoalStatus
-    from tiago_nav.msg import TiagoTaskGoal
-    from tiago_nav.ros.actions import TaskClient
-    from tiago_nav.ros.lockstep import LockstepParticipant
-    client = TaskClient('tiago_controller')
-    if not client.wait_for_server(10.0):
+    from tiago_nav.msg import TiagoTaskAction, TiagoTaskGoal
+    client = actionlib.SimpleActionClient('tiago_controller', TiagoTaskAction)
+    if not client.wait_for_server(rospy.Duration(30.0)):
         raise RuntimeError('no tiago_controller server')
-    part = LockstepParticipant(0.1, enabled=True)
-    part.claim(rospy.Time(NAV_START))
-    if not part.tick():
-        raise RuntimeError('no lockstep cycle')
-    cpu0 = h.cpu_seconds()      # (a walk over /proc: before the clock starts)
+    cpu0 = h.cpu_by_process()       # (a walk over /proc: before the clock starts)
     c0, t0, s0 = h.collisions or 0, time.monotonic(), rospy.get_time()
     client.send_goal(TiagoTaskGoal(x=x, y=y, yaw_deg=yaw_deg, use_corridor_law=True))
-    while client.get_state() == GoalStatus.PENDING and time.monotonic() - t0 < 5.0:
-        time.sleep(0.001)
-    part.answer()
-    part.close()        # the mission is placed: the simulator need not wait for us any more
-    done = client.wait_for_result(180.0)
-    wall, cpu = time.monotonic() - t0, h.cpu_seconds() - cpu0
+    done = client.wait_for_result(rospy.Duration(180.0))
+    wall = time.monotonic() - t0
+    cpu1 = h.cpu_by_process()
+    by_process = {k: v - cpu0.get(k, 0.0) for k, v in cpu1.items() if v - cpu0.get(k, 0.0) > 0}
     result = client.get_result()
-    return {'succeeded': bool(done) and client.get_state() == GoalStatus.SUCCEEDED,
-            'message': client.get_goal_status_text(), 'wall_s': wall, 'cpu_s': cpu,
-            'sim_s': rospy.get_time() - s0, 'collisions': (h.collisions or 0) - c0,
-            'obstacles': len(result.obstacles) if result else 0, 'mission_start_s': s0}
+    rec = {'succeeded': bool(done) and client.get_state() == GoalStatus.SUCCEEDED,
+           'message': client.get_goal_status_text(), 'wall_s': wall,
+           'cpu_s': sum(by_process.values()), 'cpu_by_process_s': by_process,
+           'sim_s': rospy.get_time() - s0, 'collisions': (h.collisions or 0) - c0,
+           'obstacles': len(result.obstacles) if result else 0, 'mission_start_s': s0}
+    if result is not None:
+        rec['result_pose'] = _pose_of(result.final_pose.pose)
+        rec['centres'] = [[o.center.x, o.center.y] for o in result.obstacles]
+    return rec
+
+
+def _pose_of(p):
+    return [p.position.x, p.position.y, 2 * math.atan2(p.orientation.z, p.orientation.w)]
 
 
 def _pose(m):
-    q = m.pose.pose.orientation
-    return [m.pose.pose.position.x, m.pose.pose.position.y, 2 * math.atan2(q.z, q.w)]
+    return _pose_of(m.pose.pose)
 
 
 def settle_pose(last, timeout=10.0):
@@ -115,9 +108,10 @@ def settle_pose(last, timeout=10.0):
     return out
 
 
-def run_one(lockstep, nav_goals, seed, task, launch_args=()):
-    """Child process: one launch, the course mission (``task`` 'mission') or one move_base goal
-    to pose B ('nav'), then ``nav_goals`` move_base goals; prints ``RESULT <json>`` last."""
+def run_one(lockstep, nav_goals, seed, task, launch_args=(), delay=0.0):
+    """Child process: one launch, then after ``delay`` wall seconds the course mission
+    (``task`` 'mission') or one move_base goal to pose B ('nav'), from a plain client, then
+    ``nav_goals`` move_base goals; prints ``RESULT <json>`` last."""
     import actionlib
     import numpy as np
     import rospy
@@ -137,27 +131,14 @@ def run_one(lockstep, nav_goals, seed, task, launch_args=()):
         if task == 'nav' or nav_goals:      # a move_base client only where it sends goals
             client = actionlib.SimpleActionClient('move_base', MoveBaseAction)
             client.wait_for_server(rospy.Duration(10.0))
+        time.sleep(delay)
+        rec['delay_s'] = delay
         if task == 'nav':
-            part = None
-            if lockstep:
-                from tiago_nav.ros.lockstep import LockstepParticipant
-                part = LockstepParticipant(0.1, enabled=True)
-                part.claim(rospy.Time(NAV_START))   # its first cycle: the first after NAV_START
-                rec['joined_at_s'] = rospy.get_time()
-            g = nav_goal(client, h, *COURSE, participant=part)
-            rec['goal_stamp_s'] = client.gh.comm_state_machine.action_goal.goal_id.stamp.to_sec()
+            g = nav_goal(client, h, *COURSE)
             rec.update(succeeded=g['succeeded'], message=g['text'], wall_s=g['wall_s'],
                        sim_s=g['sim_s'], collisions=g['collisions'])
-        elif lockstep:
-            rec.update(mission_in_cycle(h, *COURSE))
         else:
-            c0, t_sim, cpu0 = h.collisions or 0, rospy.get_time(), h.cpu_seconds()
-            lines = []
-            code, _, result, wall = h.mission(*COURSE, True, out=lines.append)
-            rec.update(succeeded=code == 0, message=lines[-1] if lines else '', wall_s=wall,
-                       cpu_s=h.cpu_seconds() - cpu0,
-                       sim_s=rospy.get_time() - t_sim, collisions=(h.collisions or 0) - c0,
-                       obstacles=len(result.obstacles) if result else 0)
+            rec.update(mission_plain(h, *COURSE))
         # subscribed only now: a mission's client does not read odometry (nor /scan or /tf,
         # which the harness leaves alone here: observe=False)
         for topic in ('/sim/ground_truth', '/mobile_base_controller/odom'):
@@ -198,9 +179,15 @@ def summarise(runs):
     nav = [g for r in runs for g in r.get('nav', [])]
     truths = [r['truth'] for r in ok if r.get('truth')]
     odoms = [tuple(r['odom']) for r in ok if r.get('odom')]
-    spread = None
-    if truths:
-        spread = max(math.hypot(a[0] - b[0], a[1] - b[1]) for a in truths for b in truths)
+    spread = _spread(truths)
+    centres = [r['centres'] for r in ok if r.get('centres') is not None]
+    counts = {len(c) for c in centres}
+    centre_spread = max((_spread([c[i] for c in centres]) for i in range(min(counts))),
+                        default=None) if len(counts) == 1 and centres else None
+    by_process = {}
+    for r in runs:
+        for k, v in r.get('cpu_by_process_s', {}).items():
+            by_process.setdefault(k, []).append(v)
     lags = [r['lag'] for r in runs if 'lag' in r]
     loads = [r['loadavg_1min'] for r in runs if 'loadavg_1min' in r]
     cpus = [r['cpu_s'] for r in runs if 'cpu_s' in r]
@@ -212,6 +199,10 @@ def summarise(runs):
             'cpu_s_mean': sum(cpus) / len(cpus) if cpus else None,
             'sim_per_wall_mean': sum(ratios) / len(ratios) if ratios else None,
             'final_pose_spread_m': spread,
+            'result_pose_spread_m': _spread([r['result_pose'] for r in ok if r.get('result_pose')]),
+            'obstacle_counts': sorted(counts),
+            'centre_spread_m': centre_spread,
+            'cpu_by_process_s_mean': {k: sum(v) / len(v) for k, v in sorted(by_process.items())},
             'distinct_final_odometry': len(set(odoms)),
             'nav_goals': len(nav), 'nav_succeeded': sum(1 for g in nav if g['succeeded']),
             'nav_collisions': sum(g['collisions'] for g in nav),
@@ -219,11 +210,19 @@ def summarise(runs):
             'drops': sum(x['drops'] for x in lags) if lags else None}
 
 
+def _spread(points):
+    """[m] the largest distance between two of ``points`` ``[(x, y, ...)]``, None for none."""
+    if not points:
+        return None
+    return max(math.hypot(a[0] - b[0], a[1] - b[1]) for a in points for b in points)
+
+
 def table(report):
     """The summary as markdown lines, one row per condition."""
     rows = ['| condition | course %ss ok | collisions | wall/mission mean (max) | sim/wall | '
-            'final pose spread | distinct final odometry | nav goals ok | lag max | drops | '
-            'load average |' % report['task'], '|---' * 11 + '|']
+            'true final pose spread | reported pose spread | centre spread | distinct final '
+            'odometry | nav goals ok | lag max | drops | load average |' % report['task'],
+            '|---' * 13 + '|']
     for c in report['conditions']:
         s = c['summary']
         spread = s['final_pose_spread_m']
@@ -232,6 +231,8 @@ def table(report):
                  '%s (%s) s' % (fmt(s['wall_s_mean']), fmt(s['wall_s_max'])),
                  fmt(s['sim_per_wall_mean'], '%.1f'),
                  '-' if spread is None else '%.3f mm' % (spread * 1000),
+                 fmt(s.get('result_pose_spread_m'), '%.3f m'),
+                 fmt(s.get('centre_spread_m'), '%.3f m'),
                  str(s['distinct_final_odometry']), '%d/%d' % (s['nav_succeeded'], s['nav_goals']),
                  fmt(s['lag_max_s'], '%.3f s'), fmt(s['drops'], '%d'),
                  fmt(s.get('loadavg_1min_mean'), '%.1f')]
@@ -249,6 +250,10 @@ def cpu_lines(report):
             lines.append('%s: %.2f s of CPU per mission (every node, roscore and roslaunch); on %d '
                          'cores no mission can take less than %.2f s of wall time'
                          % (c['label'], cpu, cores, cpu / cores))
+            per = c['summary'].get('cpu_by_process_s_mean') or {}
+            if per:
+                lines.append('  by process: ' + ', '.join(
+                    '%s %.2f s' % kv for kv in sorted(per.items(), key=lambda kv: -kv[1])))
     return lines
 
 
@@ -301,11 +306,17 @@ def main():
     ap.add_argument('--out', default=os.path.join(RESULTS, 'lockstep.json'))
     ap.add_argument('--launch-args', default='', help='more demo.launch arguments, e.g. '
                     '"localisation:=ground_truth odometry_model:=ideal"')
+    ap.add_argument('--max-delay', type=float, default=3.0,
+                    help='[s wall] each run sends its goal after a random delay up to this')
     ap.add_argument('--run', choices=('on', 'off'), help=argparse.SUPPRESS)
+    ap.add_argument('--delay', type=float, default=0.0, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.run:
-        run_one(args.run == 'on', args.nav, args.seed, args.task, args.launch_args.split())
+        run_one(args.run == 'on', args.nav, args.seed, args.task, args.launch_args.split(),
+                args.delay)
         return 0
+    import numpy as np
+    delays = np.random.default_rng(args.seed).uniform(0.0, args.max_delay, size=10 ** 4)
     report = {'task': args.task, 'n': args.n, 'nav_goals_per_run': args.nav, 'seed': args.seed,
               'cores': os.cpu_count(), 'conditions': []}
     t0 = time.monotonic()
@@ -317,9 +328,11 @@ def main():
             runs = []
             try:
                 for i in range(args.n):
+                    delay = float(delays[i % len(delays)])
                     out = subprocess.run([sys.executable, os.path.abspath(__file__), '--run', mode,
                                           '--nav', str(args.nav), '--seed', str(args.seed),
-                                          '--task', args.task, '--launch-args', args.launch_args],
+                                          '--task', args.task, '--launch-args', args.launch_args,
+                                          '--delay', repr(delay)],
                                          stdout=subprocess.PIPE, text=True).stdout
                     rec = next((json.loads(l[7:]) for l in out.splitlines()
                                 if l.startswith('RESULT ')), {'succeeded': False, 'error': 'no result'})

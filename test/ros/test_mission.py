@@ -95,6 +95,15 @@ class MissionTest(unittest.TestCase):
         drove = any(line.startswith('in the corridor') for line in lines)
         self.assertEqual((said_no, drove), (not ahead, ahead), lines)
 
+    def at_rest(self):
+        """The first /sim/ground_truth message whose velocity is zero (wall-bounded wait)."""
+        end = time.monotonic() + WAIT
+        while time.monotonic() < end:
+            msg = rospy.wait_for_message('/sim/ground_truth', Odometry, timeout=10)
+            if msg.twist.twist.linear.x == 0.0 and msg.twist.twist.angular.z == 0.0:
+                return msg
+        self.fail('the base did not come to rest within %g s' % WAIT)
+
     def collisions(self):
         return rospy.wait_for_message('/sim/collisions', UInt32, timeout=10).data
 
@@ -203,8 +212,8 @@ class MissionFailuresTest(MissionTest):
         self.assertEqual(state, GoalStatus.PREEMPTED, text)
         self.assertIn('cancelled', result.message)
         p1 = self.pose()
-        rospy.sleep(1.0)
-        p2 = self.pose()
+        # at real_time_factor 0 simulated time runs on only while the base still moves
+        p2 = pose_from_msg(self.at_rest().pose.pose)
         self.assertLess(math.hypot(p2[0] - p1[0], p2[1] - p1[1]), 0.02)    # stopped
         self.assertTrue(any(t >= t_cancel[0] and v == 0 and w == 0 for t, v, w in self.cmds))
         self.assertEqual(self.collisions(), 0)

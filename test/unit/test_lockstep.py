@@ -473,3 +473,96 @@ def test_gate_wakes_its_hold_only_for_an_answer_that_ends_the_wait_or_adds_to_it
     gate.receive(Ack('/b', t_of(12), 0.1))
     gate.receive(Ack('/c', 0.0, 0.1))
     assert woken[1:] == [['/a', '/c']]          # a newcomer due now must be sent the tick
+
+
+# --- waiting for work and for the expected participants (real_time_factor 0) ---------------
+def test_with_wait_for_work_time_goes_on_only_while_someone_is_busy_or_the_base_moves():
+    s = Schedule(RATE, 1.0, Log(), wait_for_work=True)
+    assert s.wants_time()                       # nobody takes part: an outside node drives
+    s.receive(Ack('/a', 0.0, 0.1), 0.0)
+    s.receive(Ack('/b', 0.0, 0.1), 0.0)
+    assert not s.wants_time()                   # both idle: simulated time stands still
+    assert s.wants_time(work=True)              # ... unless the base moves
+    s.receive(Ack('/a', 0.0, 0.1, busy=True), 0.0)     # a status (not newer): busy all the same
+    assert s.wants_time() and s.deadline('/a') == pytest.approx(0.1)
+    s.receive(Ack('/a', 0.1, 0.1, command=(0.1, 0.0), busy=True), 0.0)
+    assert s.wants_time()
+    s.receive(Ack('/a', 0.2, 0.1), 0.0)          # its goal ended: its answers are idle again
+    assert not s.wants_time()
+    assert Schedule(RATE, 1.0, Log()).wants_time()     # without wait_for_work: always
+
+
+def test_time_leaves_its_start_only_once_the_expected_participants_have_joined():
+    log = Log()
+    s = Schedule(RATE, 1.0, log, expected=['/a', '/b'], expect_timeout=5.0)
+    s.receive(Ack('/a', 0.0, 0.1, busy=True), 0.0)
+    assert s.missing(100.0) == ['/b'] and not s.wants_time()
+    s.receive(Ack('/b', 0.0, 0.1), 0.0)
+    assert s.missing(101.0) == [] and s.wants_time()
+    assert ('info', 'lockstep: every expected participant has joined') in log.lines
+
+
+def test_an_expected_participant_that_never_joins_is_given_up_with_a_warning():
+    log = Log()
+    s = Schedule(RATE, 1.0, log, expected=['/a', '/gone'], expect_timeout=5.0)
+    s.receive(Ack('/a', 0.0, 0.1, busy=True), 0.0)
+    assert s.missing(10.0) == ['/gone'] and not s.wants_time()
+    assert s.missing(15.1) == [] and s.wants_time()
+    assert log.warnings() == ['lockstep: /gone did not join within 5 s of wall time: simulated '
+                              'time goes on without it']
+
+
+def test_gate_holds_for_work_and_a_busy_answer_releases_it():
+    """The step loop stands still while nobody has work, the commands of the answers at that
+    time kept; a claiming participant's status (busy, stamped 0) lets it go on at once."""
+    s = Schedule(RATE, 1.0, Log(), wait_for_work=True)
+    gate = Gate(s, wall=time.monotonic, poll=0.005)
+    gate.receive(Ack('/a', 0.0, 0.1))
+    gate.receive(Ack('/a', t_of(6), 0.1, command=(0.0, 0.0)))
+    looked = []
+
+    def work(commands):
+        looked.append(list(commands))
+        if len(looked) == 3:
+            gate.receive(Ack('/a', 0.0, 0.1, busy=True))
+        return False
+    assert gate.hold(t_of(6), lambda t, w: None, work) == [(0.0, 0.0)]
+    assert len(looked) == 3 and looked[0] == [(0.0, 0.0)]
+
+
+def test_gate_goes_on_while_the_base_moves_with_nobody_busy():
+    s = Schedule(RATE, 1.0, Log(), wait_for_work=True)
+    gate = Gate(s, wall=time.monotonic, poll=0.005)
+    gate.receive(Ack('/a', 0.0, 0.1))
+    assert gate.hold(t_of(1), lambda t, w: None, lambda commands: True) == []
+
+
+def test_the_simulator_is_in_motion_while_a_command_is_in_force_or_the_base_moves():
+    sim = Simulator(World(name='empty', resolution=0.05, bounds=(-5, -5, 5, 5),
+                          robot_start=(0.0, 0.0, 0.0)), SimConfig(laser_model='ideal'))
+    try:
+        assert not sim.in_motion
+        sim.command(0.3, 0.0)
+        assert sim.in_motion
+        sim.step()
+        sim.command(0.0, 0.0)
+        assert sim.in_motion                    # still rolling: it brakes at its limits
+        for _ in range(60):
+            sim.step()
+        assert not sim.in_motion and sim.velocity == (0.0, 0.0)
+    finally:
+        sim.close()
+
+
+def test_settled_values_are_those_of_the_cycles_before():
+    from tiago_nav.lockstep import Settled
+    s = Settled(0.1)
+    s.add(1.0, 'a')
+    s.add(1.1, 'b')
+    s.add(1.2, 'c')                             # sent in the cycle at 1.2: maybe not here yet
+    assert s.get(1.2) == 'b' and s.get(1.15) == 'a' and s.get(None) == 'c'
+    assert s.get(1.05) is None
+    s.reset(1.1)
+    s.add(1.0, 'old')                           # a message of the goal before, late
+    s.add(1.1, 'd')
+    assert s.get(1.3) == 'd' and s.get(None) == 'd'

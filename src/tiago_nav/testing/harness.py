@@ -295,6 +295,11 @@ class Harness:
                 dead.append(name)
         return dead
 
+    def cpu_by_process(self):
+        """CPU time [s] used so far by each process of the launch, by node name
+        (:func:`tree_cpu_by_process`)."""
+        return tree_cpu_by_process((self.core.pid, self.launch.pid))
+
     def cpu_seconds(self):
         """CPU time [s] used so far by roscore and by roslaunch and its nodes (Linux only: see
         :func:`tree_cpu_seconds`). Over a mission, its difference is the work the mission cost:
@@ -358,6 +363,29 @@ def tree_cpu_seconds(roots):
     their descendants (roslaunch and every node it started, each in a session of its own), read
     from Linux's ``/proc``. Processes that have exited are not counted: take differences over a
     window in which they all run."""
+    return sum(tree_cpu_by_process(roots).values())
+
+
+def _process_name(pid):
+    """A process's ROS node name (its ``__name:=`` argument) or its program's name."""
+    try:
+        with open('/proc/%d/cmdline' % pid, 'rb') as f:
+            args = [a.decode(errors='replace') for a in f.read().split(b'\0') if a]
+    except OSError:
+        return str(pid)
+    for a in args:
+        if a.startswith('__name:='):
+            return a[len('__name:='):]
+    for a in args:                  # python3 /path/rosmaster ...: the script's name
+        base = os.path.basename(a)
+        if base and not base.startswith('python'):
+            return base
+    return os.path.basename(args[0]) if args else str(pid)
+
+
+def tree_cpu_by_process(roots):
+    """CPU time [s] so far of each live process under ``roots`` (see
+    :func:`tree_cpu_seconds`), by node name (processes of the same name added up)."""
     tick = os.sysconf('SC_CLK_TCK')
     parent, cpu = {}, {}
     for pid in os.listdir('/proc'):
@@ -373,14 +401,15 @@ def tree_cpu_seconds(roots):
         parent[int(pid)] = int(fields[1])
         cpu[int(pid)] = int(fields[11]) + int(fields[12])
     roots = set(roots)
-    total = 0
+    out = {}
     for pid, ticks in cpu.items():
         p = pid
         while p not in roots and p in parent:    # up the tree to a root, or past init (ppid 0)
             p = parent[p]
         if p in roots:
-            total += ticks
-    return total / tick
+            name = _process_name(pid)
+            out[name] = out.get(name, 0.0) + ticks / tick
+    return out
 
 
 def stop_process(proc):
