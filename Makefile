@@ -77,8 +77,17 @@ bench: setup
 	@mkdir -p bench/results
 	@$(ROS_ENV) && for b in $(ROOT)/bench/bench_*.py; do echo "== $$(basename $$b)"; $(SYS_PY) $$b || exit 1; done
 
+# catkin_test_changelog parses CHANGELOG.rst (REP 132) but skips sections it cannot read, so the
+# next line also checks that the topmost version section is package.xml's version.
 lint: setup
 	@$(ROS_ENV) && catkin_lint --strict -W2 $(WS)/src/tiago_nav
+	@catkin_test_changelog $(ROOT)/CHANGELOG.rst 2>&1 >/dev/null \
+	  | { grep -v '^DEBUG:changelog:Ignored non-compliant title' || true; } >&2
+	@$(SYS_PY) -c 'import sys; from catkin_pkg.changelog import get_changelog_from_path as g; \
+	  from catkin_pkg.package import parse_package as p; \
+	  v = [x for x, _, _ in g(sys.argv[1]).foreach_version()]; w = p(sys.argv[2]).version; \
+	  sys.exit(0 if v[:1] == [w] else "CHANGELOG.rst: topmost version section %s, package.xml %s" % (v[:1], w))' \
+	  $(ROOT)/CHANGELOG.rst $(ROOT)
 
 clean:
 	rm -rf $(WS) $(VENV)
