@@ -10,7 +10,7 @@ import pytest
 
 from tiago_nav import benchmarks, docs
 from tiago_nav.params import param_fields
-from tiago_nav.ros_api import NODES, SECTIONS
+from tiago_nav.interfaces import NODES, SECTIONS
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 README_MAX_LINES = 300
@@ -40,10 +40,10 @@ def test_every_interface_parameter_is_declared(entry):
     cls = docs.node_params(entry)
     declared = docs.referenced_params(entry)
     missing = [n for n in docs.interface_params(cls) if n not in declared]
-    assert not missing, '%s: parameters %s name ROS interfaces that src/tiago_nav/ros_api.py ' \
+    assert not missing, '%s: parameters %s name ROS interfaces that src/tiago_nav/interfaces.py ' \
         'does not declare' % (entry['node'], missing)
     unknown = declared - {n for n, _ in param_fields(cls)}
-    assert not unknown, '%s: ros_api.py names {%s}, not parameters of %s.Params' \
+    assert not unknown, '%s: interfaces.py names {%s}, not parameters of %s.Params' \
         % (entry['node'], ', '.join(sorted(unknown)), entry['params'])
 
 
