@@ -166,3 +166,12 @@ def test_table_title_names_the_frame():
     lines = obstacle_table(centres_in_frame([(10.0, -1.0, 1.2, -0.5, 0.183, 42)],
                                             (6.58, -1.37, 0.0)))
     assert lines[2].split()[1:3] == ['3.42', '0.37']
+
+
+def test_known_frames_names_children_and_parents():
+    pytest.importorskip('tf2_ros')
+    from tiago_nav.nodes.client import known_frames
+    text = ("world: \n  parent: 'map'\n  broadcaster: 'x'\n  rate: 10000.000\n"
+            "odom: \n  parent: 'map'\n  broadcaster: 'x'\n")
+    assert known_frames(text) == {'world', 'odom', 'map'}
+    assert known_frames('') == set()

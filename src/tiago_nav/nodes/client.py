@@ -32,6 +32,17 @@ _NAMES = {GoalStatus.ABORTED: 'ABORTED', GoalStatus.PREEMPTED: 'PREEMPTED',
           GoalStatus.LOST: 'LOST'}
 
 
+def known_frames(yaml_text):
+    """The frame names in tf2's ``all_frames_as_yaml()``: each child and its parent."""
+    names = set()
+    for line in yaml_text.splitlines():
+        if line and not line[0].isspace() and line.rstrip().endswith(':'):
+            names.add(line.rstrip()[:-1].strip('\'"'))
+        elif line.strip().startswith('parent:'):
+            names.add(line.split(':', 1)[1].strip().strip('\'"'))
+    return names - {''}
+
+
 class FrameLookup:
     """The pose of a frame in ``map`` from tf (a listener started at construction)."""
 
@@ -51,8 +62,7 @@ class FrameLookup:
             except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
                     tf2_ros.ExtrapolationException) as e:
                 if time.monotonic() > t_end or rospy.is_shutdown():
-                    known = sorted(f.split(':')[0] for f in self.tf.all_frames_as_yaml().splitlines()
-                                   if f and not f.startswith(' '))
+                    known = sorted(known_frames(self.tf.all_frames_as_yaml()))
                     return ('unknown frame %r: no transform %s -> %s within %g s (%s); frames tf '
                             'knows: %s' % (self.frame, MAP_FRAME, self.frame, timeout, e,
                                            ', '.join(known) or 'none'))
