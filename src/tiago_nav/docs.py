@@ -107,9 +107,17 @@ def node_section(entry):
                   'in `config/`). Units in brackets.' % entry['params'], '',
                   markdown_table(cls), '']
     else:
-        from tiago_nav.mission.client import USAGE
-        lines += ['### Command line', '', '```', USAGE, '```', '']
+        lines += ['### Command line', '', '```', client_usage(), '```', '']
     return lines
+
+
+def client_usage(width=100):
+    """The client's ``--help``, wrapped at a fixed width (argparse would follow the terminal's,
+    and the page must not depend on where it is generated)."""
+    from tiago_nav.mission import client
+    parser = client._parser()
+    parser.formatter_class = lambda prog: argparse.HelpFormatter(prog, width=width)
+    return parser.format_help().rstrip()
 
 
 def launch_args(path):
