@@ -74,10 +74,10 @@ unit: setup
 rostest: setup
 	@$(ROS_ENV) && $(SYS_PY) $(ROOT)/test/run_all.py --rostest-only
 
-# every JSON under bench/results/ that docs/benchmarks.md shows (then `make docs` renders it)
+# every JSON under bench/results/ that docs/benchmarks.md shows, then that page again
 bench: setup
 	@mkdir -p bench/results
-	@$(ROS_ENV) && $(SYS_PY) -m tiago_nav.benchmarks $(BENCH)
+	@$(ROS_ENV) && $(SYS_PY) -m tiago_nav.benchmarks $(BENCH) && $(SYS_PY) -m tiago_nav.docs
 
 # the generated pages: docs/ros_api.md (from the code) and docs/benchmarks.md (from bench/results)
 docs: setup
