@@ -13,15 +13,14 @@ same). Sources:
 """
 import argparse
 import importlib
-import json
 import os
 import re
 import sys
 import xml.etree.ElementTree as ET
 
 from tiago_nav import benchmarks
-from tiago_nav.params import defaults, markdown_table, param_fields
 from tiago_nav.interfaces import NODES, SECTIONS
+from tiago_nav.params import defaults, markdown_table, param_fields
 
 ROOT = os.path.normpath(os.path.join(os.path.dirname(os.path.realpath(__file__)), '..', '..'))
 ROS_API = os.path.join('docs', 'ros_api.md')
