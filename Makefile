@@ -22,9 +22,10 @@ PIP_PACKAGES := pybullet==3.2.7
 # What the workspace build depends on (file(GLOB) lists are re-read when these change).
 WS_INPUTS := CMakeLists.txt package.xml setup.py $(wildcard msg/* srv/* action/* nodes/* test/*.test env-hooks/*)
 ROS_ENV := source $(WS)/devel/setup.bash
-BENCH ?= simulator
+# `make bench BENCH=detection` runs one benchmark (names: src/tiago_nav/benchmarks.py)
+BENCH ?= all
 
-.PHONY: setup apt venv ws demo test unit rostest bench lint clean
+.PHONY: setup apt venv ws demo test unit rostest bench docs lint clean
 .DEFAULT_GOAL := setup
 
 setup: apt venv ws
@@ -73,9 +74,14 @@ unit: setup
 rostest: setup
 	@$(ROS_ENV) && $(SYS_PY) $(ROOT)/test/run_all.py --rostest-only
 
+# every JSON under bench/results/ that docs/benchmarks.md shows, then that page again
 bench: setup
 	@mkdir -p bench/results
-	@$(ROS_ENV) && for b in $(ROOT)/bench/bench_*.py; do echo "== $$(basename $$b)"; $(SYS_PY) $$b || exit 1; done
+	@$(ROS_ENV) && $(SYS_PY) -m tiago_nav.benchmarks $(BENCH) && $(SYS_PY) -m tiago_nav.docs
+
+# the generated pages: docs/ros_api.md (from the code) and docs/benchmarks.md (from bench/results)
+docs: setup
+	@$(ROS_ENV) && $(SYS_PY) -m tiago_nav.docs
 
 # catkin_test_changelog parses CHANGELOG.rst (REP 132) but skips sections it cannot read, so the
 # next line also checks that the topmost version section is package.xml's version.

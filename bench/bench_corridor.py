@@ -36,6 +36,7 @@ except ImportError:        # not sourced: the library from the source tree (in-p
     sys.path.insert(0, os.path.join(ROOT, 'src'))
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
+from tiago_nav.benchmarks import launch_models, meta  # noqa: E402
 from tiago_nav.corridor import CorridorParams  # noqa: E402
 from tiago_nav.geometry import wrap_angle  # noqa: E402
 from tiago_nav.robot import ROBOT_RADIUS  # noqa: E402
@@ -389,6 +390,11 @@ def main():
         'faster_than_move_base': (all(w.get('faster_than_move_base') for w in out['worlds'].values())
                                   if use_ros else None)}
     plot(out['worlds'], tracks, os.path.join(RESULTS, 'corridor.png'))
+    laser, odometry = launch_models()
+    out['meta'] = meta(vars(args), quick=args.quick,
+                       real_time_factor='in process; ROS trials %g' % args.rtf if use_ros else 'in process',
+                       laser_model='ideal in process' + ('; %s in ROS trials' % laser if use_ros else ''),
+                       odometry_model='ideal in process' + ('; %s in ROS trials' % odometry if use_ros else ''))
     with open(os.path.join(RESULTS, 'corridor.json'), 'w') as f:
         json.dump(out, f, indent=2)
     if not use_ros:

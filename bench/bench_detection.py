@@ -34,6 +34,7 @@ from tiago_nav.testing.harness import free_port, stop_process  # noqa: E402
 from tiago_nav.detection import METHODS, DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.detection.subtraction import MapDistance, brute_force_distance  # noqa: E402
 from tiago_nav import robot  # noqa: E402
+from tiago_nav.benchmarks import meta  # noqa: E402
 from tiago_nav.geometry import compose, inverse, transform_points, wrap_angle  # noqa: E402
 from tiago_nav.scan import scan_to_points  # noqa: E402
 from tiago_nav.sim.laser import LaserModel  # noqa: E402
@@ -504,6 +505,11 @@ def main():
     stem = 'detection' if args.laser_model == 'ideal' else 'detection_' + args.laser_model
     out['laser_model'] = args.laser_model
     plot(os.path.join(RESULTS, stem + '.png'), runs, rows)
+    out['meta'] = meta({k: v for k, v in vars(args).items() if k != 'service_child'},
+                       quick=args.quick, laser_model=args.laser_model,
+                       odometry_model='n/a (scans from set poses)',
+                       real_time_factor='in process' + ('' if args.no_service else
+                                                        '; service run at 1.0'))
     with open(os.path.join(RESULTS, stem + '.json'), 'w') as f:
         json.dump(out, f, indent=2)
     print('wrote bench/results/%s.json and %s.png' % (stem, stem))

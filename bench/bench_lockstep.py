@@ -354,6 +354,10 @@ def main():
                                          'summary': s, 'runs': runs})
             print('  => %s' % json.dumps(s), flush=True)
     report['bench_wall_s'] = time.monotonic() - t0
+    from tiago_nav.benchmarks import launch_models, meta
+    laser, odometry = launch_models(args.launch_args.split())
+    report['meta'] = meta({k: v for k, v in vars(args).items() if k != 'run'}, quick=False,
+                          real_time_factor=0.0, laser_model=laser, odometry_model=odometry)
     os.makedirs(os.path.dirname(args.out), exist_ok=True)
     with open(args.out, 'w') as f:
         json.dump(report, f, indent=2)

@@ -170,6 +170,10 @@ def main():
         report['runs'].append({'real_time_factor': rtf, 'summary': s, 'missions': missions})
     report['bench_wall_s'] = time.monotonic() - t0
     os.makedirs(RESULTS, exist_ok=True)
+    from tiago_nav.benchmarks import launch_models, meta
+    laser, odometry = launch_models()
+    report['meta'] = meta({k: v for k, v in vars(args).items() if k != 'run'}, quick=args.quick,
+                          real_time_factor=rtfs, laser_model=laser, odometry_model=odometry)
     with open(os.path.join(RESULTS, 'mission.json'), 'w') as f:
         json.dump(report, f, indent=2)
     plot(report['runs'], os.path.join(RESULTS, 'mission.png'))

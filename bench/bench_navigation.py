@@ -27,6 +27,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
+from tiago_nav.benchmarks import meta  # noqa: E402
 from tiago_nav.gridmap import distance_to_mask  # noqa: E402
 from tiago_nav.nav.costmap import MapScan  # noqa: E402
 from tiago_nav.nav.navigator import SUCCEEDED, NavConfig, Navigator  # noqa: E402
@@ -239,6 +240,8 @@ def main():
                  s['lower_bound_ratio_mean'], s['lower_bound_ratio_max'],
                  s['length_ratio_mean'], s['wall_per_goal_s']))
     os.makedirs(RESULTS, exist_ok=True)
+    out['meta'] = meta(vars(args), quick=args.quick, real_time_factor='in process (simulated time)',
+                       laser_model='ideal', odometry_model='ideal')
     with open(os.path.join(RESULTS, 'navigation.json'), 'w') as f:
         json.dump(out, f, indent=1)
     plot(results, os.path.join(RESULTS, 'navigation.png'))

@@ -19,6 +19,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
+from tiago_nav.benchmarks import launch_models, meta  # noqa: E402
 from tiago_nav.geometry import transform_points  # noqa: E402
 from tiago_nav.scan import scan_to_points  # noqa: E402
 from tiago_nav.testing.harness import free_port, stop_process  # noqa: E402
@@ -144,6 +145,10 @@ def main():
     out['target_node_real_time_factor'] = 20.0
     out['node_real_time_factor_min'] = min(v['node_real_time_factor'] for v in out['worlds'].values())
     plot(load_world(os.path.join(ROOT, 'worlds', WORLDS[0])), os.path.join(RESULTS, 'simulator.png'))
+    laser, odometry = launch_models()
+    out['meta'] = meta({k: v for k, v in vars(args).items() if k != 'node'}, quick=args.quick,
+                       real_time_factor=0.0, laser_model='ideal in process; %s in the node' % laser,
+                       odometry_model='ideal in process; %s in the node' % odometry)
     with open(os.path.join(RESULTS, 'simulator.json'), 'w') as f:
         json.dump(out, f, indent=2)
     print('node real-time factor (min over worlds): %.1fx (target >= 20x)'

@@ -211,6 +211,10 @@ def main():
     print('target (0 hangs, 0 collisions, 0 node deaths, every non-success explained): %s'
           % ('met' if met else 'MISSED'))
     os.makedirs(RESULTS, exist_ok=True)
+    from tiago_nav.benchmarks import launch_models, meta
+    laser, odometry = launch_models()
+    report['meta'] = meta({k: v for k, v in vars(args).items() if k != 'run'}, quick=args.quick,
+                          real_time_factor=args.rtf, laser_model=laser, odometry_model=odometry)
     with open(os.path.join(RESULTS, 'soak.json'), 'w') as f:
         json.dump(report, f, indent=2)
     plot(missions, os.path.join(RESULTS, 'soak.png'))

@@ -21,6 +21,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 try:            # from the workspace (source .ws/devel/setup.bash): tiago_nav with its messages
     from tiago_nav.testing.evaluation import plot_run, truth_table, visible_truth
     from tiago_nav.testing.harness import Harness, HarnessError
+    from tiago_nav.benchmarks import launch_models, meta
     from tiago_nav.sim.world import load_world
     import tiago_nav.msg  # noqa: F401
 except ImportError as e:
@@ -87,6 +88,9 @@ def main():
                    'recall': s['recall'], 'false_positives': s['false_positives'],
                    'rms_error_m': s['rms_error'], 'max_error_m': s['max_error'],
                    'localisation_error': loc}
+        laser, odometry = launch_models(args.launch_arg)
+        summary['meta'] = meta(vars(args), real_time_factor=args.rtf, laser_model=laser,
+                               odometry_model=odometry)
         with open(os.path.splitext(args.png)[0] + '.json', 'w') as f:
             json.dump(summary, f, indent=2)
         ok = code == 0 and not collisions

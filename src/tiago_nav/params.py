@@ -250,10 +250,14 @@ def _range(f):
 
 
 def markdown_table(cls):
-    """A README table (``| param | default | meaning |``) of every parameter of ``cls``."""
-    lines = ['| param | default | meaning |', '|---|---|---|']
+    """A Markdown table (``| parameter | type | default | meaning |``) of every parameter of
+    ``cls`` (nested flattened), for the generated reference (docs/ros_api.md)."""
+    def cell(text):
+        return str(text).replace('|', '\\|')
+    lines = ['| parameter | type | default | meaning |', '|---|---|---|---|']
     for n, f, d in _walk(cls):
         doc = f.metadata.get('doc', '')
-        lines.append('| `~%s` | %s | %s |' % (n, _yaml_value(d) if d != '' else '""',
-                                             '; '.join(x for x in (doc, _range(f)) if x)))
+        lines.append('| `~%s` | %s | `%s` | %s |' % (
+            n, _kind(f).__name__, cell(_yaml_value(d) if d != '' else '""'),
+            cell('; '.join(x for x in (doc, _range(f)) if x))))
     return '\n'.join(lines)

@@ -1,18 +1,24 @@
 """The command-line client's ROS-free parts: its arguments, its feedback lines and the obstacle
 table (the node, with the run loop, is :mod:`tiago_nav.nodes.client`).
 
-``rosrun tiago_nav client X Y YAW_DEG [--corridor | --no-corridor] [--server-timeout S]``
+``rosrun tiago_nav client X Y YAW_DEG [--corridor | --no-corridor] [--server-timeout S]
+[--frame FRAME]``
 Exit codes: 0 the task succeeded, 1 it was aborted or preempted (or the server never came),
-2 bad input (nothing was sent).
+2 bad input (nothing was sent), including a ``--frame`` that tf does not know.
+The obstacle table shows the centres in ``--frame`` (``map`` by default; e.g. ``base_footprint``
+or a world file's ``world_frame``): :func:`centres_in_frame` moves them there.
 """
 import argparse
+import math
 
+from tiago_nav.geometry import inverse, transform_points
 from tiago_nav.mission.goals import GoalError, parse_number, validate_goal
 from tiago_nav.mission.runner import STATE_NAMES
 from tiago_nav.mission.sentences import fmt_pose
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 SERVER_TIMEOUT = 15.0        # [s wall] default wait for the tiago_controller server
+MAP_FRAME = 'map'            # the frame of the result's obstacle centres (and default --frame)
 PROMPTS = ('x [m]: ', 'y [m]: ', 'yaw [deg]: ')
 _TRUE, _FALSE = ('true', '1', 'yes', 'on'), ('false', '0', 'no', 'off')
 
@@ -36,9 +42,20 @@ def _server_timeout(text):
     return value
 
 
+def _frame(text):
+    """A tf frame name: not empty, no spaces (a leading '/' is dropped, as tf2 wants)."""
+    name = text.strip()
+    name = name[1:] if name.startswith('/') else name
+    if not name or any(c.isspace() for c in name) or name.startswith('/'):
+        raise argparse.ArgumentTypeError('expected a tf frame name (e.g. map, base_footprint, '
+                                         'world), got %r' % text)
+    return name
+
+
 def _parser():
     p = _Parser(prog='rosrun tiago_nav client', add_help=False, allow_abbrev=False, usage=(
-                '%(prog)s X Y YAW_DEG [--corridor | --no-corridor] [--server-timeout SECONDS]'),
+                '%(prog)s X Y YAW_DEG [--corridor | --no-corridor] [--server-timeout SECONDS] '
+                '[--frame FRAME]'),
                 description='Send pose B to the tiago_controller proxy, print its feedback and '
                 'the obstacles it found.')
     p.add_argument('values', nargs='*', metavar='X Y YAW_DEG',
@@ -52,6 +69,9 @@ def _parser():
     p.add_argument('--server-timeout', type=_server_timeout, default=SERVER_TIMEOUT,
                    metavar='SECONDS', help='how long to wait for the tiago_controller server [s] '
                    '(default %g)' % SERVER_TIMEOUT)
+    p.add_argument('--frame', type=_frame, default=MAP_FRAME, metavar='FRAME',
+                   help='show the obstacles\' centres in this tf frame (default %s; e.g. '
+                   'base_footprint, or the world file\'s world_frame such as world)' % MAP_FRAME)
     p.add_argument('-h', '--help', action='store_true', help='show this help and exit')
     return p
 
@@ -94,7 +114,7 @@ def parse_client_args(argv, interactive=False, ask=input):
     Missing X/Y/YAW are asked for with ``ask(prompt)`` when ``interactive`` (a terminal);
     otherwise they are a :class:`UsageError`. Every value is validated
     (:func:`tiago_nav.mission.goals.validate_goal`). Returns a dict with ``x``, ``y``,
-    ``yaw_deg``, ``use_corridor_law``, ``server_timeout`` or ``{'help': True}``.
+    ``yaw_deg``, ``use_corridor_law``, ``server_timeout``, ``frame`` or ``{'help': True}``.
     """
     args, unknown = _parser().parse_known_intermixed_args(_prepare(argv))
     if args.help:
@@ -119,7 +139,7 @@ def parse_client_args(argv, interactive=False, ask=input):
     except GoalError as e:
         raise UsageError(str(e)) from None
     return {'x': x, 'y': y, 'yaw_deg': yaw, 'use_corridor_law': args.use_corridor_law,
-            'server_timeout': args.server_timeout}
+            'server_timeout': args.server_timeout, 'frame': args.frame}
 
 
 def feedback_line(t, state, status, pose=None):
@@ -134,11 +154,33 @@ def obstacle_rows(obstacles):
             for o in obstacles]
 
 
+def centres_in_frame(rows, frame_pose):
+    """Rows of :func:`obstacle_rows` with their map-frame centres moved into another frame.
+
+    ``frame_pose``: ``(x, y, yaw)`` [m, m, rad], the pose of that frame's origin in the map
+    (what tf's ``lookup_transform('map', frame)`` gives), so a centre ``p_map`` becomes
+    ``inverse(frame_pose) ∘ p_map``. The robot-frame columns are kept.
+    """
+    if not rows:
+        return []
+    for v in frame_pose:
+        if not math.isfinite(v):
+            raise ValueError('frame pose %r is not finite' % (frame_pose,))
+    xy = transform_points(inverse(frame_pose), [(r[0], r[1]) for r in rows])
+    return [(float(p[0]), float(p[1])) + tuple(r[2:]) for p, r in zip(xy, rows)]
+
+
+def table_title(frame=MAP_FRAME):
+    """The line above the obstacle table."""
+    return 'obstacles (%s frame, and robot frame base_footprint at scan time):' % frame
+
+
 def obstacle_table(rows):
     """Format obstacles as a text table.
 
     ``rows``: sequence of ``(x, y, x_robot, y_robot, radius, num_points)`` [m, m, m, m, m, -]
-    (map frame, then base_footprint at scan time). Returns the lines (header first).
+    (map frame, or the frame of :func:`centres_in_frame`; then base_footprint at scan time).
+    Returns the lines (header first).
     """
     lines = [' #   x [m]   y [m]  x_robot  y_robot  radius [m]  points',
              '--  ------  ------  -------  -------  ----------  ------']

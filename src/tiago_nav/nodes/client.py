@@ -1,8 +1,10 @@
 """The ``client`` node: sends pose B to the tiago_controller proxy and follows the task.
 
-``rosrun tiago_nav client X Y YAW_DEG [--corridor | --no-corridor] [--server-timeout S]``
-validates pose B before anything is sent (exit 2 on bad input), prints each feedback change on
-one line and then the obstacles found; Ctrl-C cancels the task and waits for the robot to stop.
+``rosrun tiago_nav client X Y YAW_DEG [--corridor | --no-corridor] [--server-timeout S]
+[--frame FRAME]`` validates pose B before anything is sent (exit 2 on bad input, and on a
+``--frame`` that tf does not know within :data:`FRAME_WAIT`), prints each feedback change on one
+line and then the obstacles found, their centres in FRAME (``map`` by default; transformed with
+tf); Ctrl-C cancels the task and waits for the robot to stop.
 Exit 0 when the task succeeded, 1 when it was aborted or preempted. The ROS-free parts
 (arguments, lines, table) are :mod:`tiago_nav.mission.client`.
 """
@@ -10,31 +12,78 @@ import sys
 import time
 
 import rospy
+import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 
-from tiago_nav.mission.client import (EXIT_FAILED, EXIT_OK, EXIT_USAGE, SERVER_TIMEOUT, USAGE,
-                                      UsageError, feedback_line, obstacle_rows, obstacle_table,
-                                      parse_client_args)
+from tiago_nav.mission.client import (EXIT_FAILED, EXIT_OK, EXIT_USAGE, MAP_FRAME,
+                                      SERVER_TIMEOUT, USAGE, UsageError, centres_in_frame,
+                                      feedback_line, obstacle_rows, obstacle_table,
+                                      parse_client_args, table_title)
 from tiago_nav.mission.sentences import fmt_pose
 from tiago_nav.ros.actions import TaskClient, server_connected, wait_server
-from tiago_nav.ros.conversions import pose_from_msg
+from tiago_nav.ros.conversions import pose_from_msg, pose_from_transform
 
 CANCEL_TIMEOUT = 15.0     # [s wall] after Ctrl-C, wait this long for the server to confirm
 SERVER_LOST = 3.0         # [s wall] a task whose server has been gone this long is lost
+FRAME_WAIT = 5.0          # [s wall] wait this long for tf to know --frame (before sending)
 _ACTIVE = (GoalStatus.PENDING, GoalStatus.ACTIVE, GoalStatus.PREEMPTING, GoalStatus.RECALLING)
 _NAMES = {GoalStatus.ABORTED: 'ABORTED', GoalStatus.PREEMPTED: 'PREEMPTED',
           GoalStatus.REJECTED: 'REJECTED', GoalStatus.RECALLED: 'RECALLED',
           GoalStatus.LOST: 'LOST'}
 
 
-def run(goal, out=print, server_timeout=SERVER_TIMEOUT, action='tiago_controller', on_result=None):
+def known_frames(yaml_text):
+    """The frame names in tf2's ``all_frames_as_yaml()``: each child and its parent."""
+    names = set()
+    for line in yaml_text.splitlines():
+        if line and not line[0].isspace() and line.rstrip().endswith(':'):
+            names.add(line.rstrip()[:-1].strip('\'"'))
+        elif line.strip().startswith('parent:'):
+            names.add(line.split(':', 1)[1].strip().strip('\'"'))
+    return names - {''}
+
+
+class FrameLookup:
+    """The pose of a frame in ``map`` from tf (a listener started at construction)."""
+
+    def __init__(self, frame):
+        self.frame = frame
+        self.tf = tf2_ros.Buffer()
+        self.listener = tf2_ros.TransformListener(self.tf)
+
+    def wait(self, timeout=FRAME_WAIT):
+        """'' once tf can transform map -> frame, else a sentence naming the frame (after
+        ``timeout`` wall seconds)."""
+        t_end = time.monotonic() + timeout
+        while True:
+            try:
+                self.tf.lookup_transform(MAP_FRAME, self.frame, rospy.Time(0))
+                return ''
+            except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
+                    tf2_ros.ExtrapolationException) as e:
+                if time.monotonic() > t_end or rospy.is_shutdown():
+                    known = sorted(known_frames(self.tf.all_frames_as_yaml()))
+                    return ('unknown frame %r: no transform %s -> %s within %g s (%s); frames tf '
+                            'knows: %s' % (self.frame, MAP_FRAME, self.frame, timeout, e,
+                                           ', '.join(known) or 'none'))
+            time.sleep(0.05)
+
+    def pose(self):
+        """``(x, y, yaw)`` of the frame in map, now (tf exceptions propagate)."""
+        return pose_from_transform(self.tf.lookup_transform(MAP_FRAME, self.frame, rospy.Time(0),
+                                                            rospy.Duration(1.0)).transform)
+
+
+def run(goal, out=print, server_timeout=SERVER_TIMEOUT, action='tiago_controller', on_result=None,
+        frame=None):
     """Send ``goal`` (dict from :func:`tiago_nav.mission.client.parse_client_args`) to the
     TiagoTask server ``action`` and follow it, printing with ``out``; return the exit code.
 
     Needs an initialised rospy node (started with ``disable_signals=True`` so that Ctrl-C
     arrives here as KeyboardInterrupt: the goal is then cancelled and the client waits, up to
     ``CANCEL_TIMEOUT``, for the server to confirm the robot stopped). ``on_result(state,
-    result)``, when given, receives the final GoalStatus and TiagoTaskResult.
+    result)``, when given, receives the final GoalStatus and TiagoTaskResult. ``frame``, a
+    :class:`FrameLookup`, shows the obstacles in its frame (None: in map).
     """
     from tiago_nav.msg import TiagoTaskGoal    # generated: only in a built workspace, and
     # bad input is refused (exit 2) before this is needed
@@ -87,8 +136,16 @@ def run(goal, out=print, server_timeout=SERVER_TIMEOUT, action='tiago_controller
     if state == GoalStatus.SUCCEEDED and result is not None:
         out('SUCCEEDED: %s' % (result.message or text))
         out('final pose: %s' % fmt_pose(pose_from_msg(result.final_pose.pose)))
-        out('obstacles (map frame, and robot frame base_footprint at scan time):')
-        for line in obstacle_table(obstacle_rows(result.obstacles)):
+        rows = obstacle_rows(result.obstacles)
+        shown = MAP_FRAME
+        if frame is not None and frame.frame != MAP_FRAME:
+            try:
+                rows, shown = centres_in_frame(rows, frame.pose()), frame.frame
+            except (tf2_ros.TransformException, ValueError) as e:
+                out('error: cannot show the obstacles in frame %r (%s); in %s instead:'
+                    % (frame.frame, e, MAP_FRAME))
+        out(table_title(shown))
+        for line in obstacle_table(rows):
             out(line)
         return EXIT_OK
     name = _NAMES.get(state, 'not finished (state %d)' % state)
@@ -116,7 +173,14 @@ def main():
     def out(line):
         print(line, flush=True)
     try:
-        return run(goal, out=out, server_timeout=goal['server_timeout'])
+        frame = None
+        if goal['frame'] != MAP_FRAME:
+            frame = FrameLookup(goal['frame'])
+            problem = frame.wait()
+            if problem:
+                sys.stderr.write('client: error: --frame %s: %s\n' % (goal['frame'], problem))
+                return EXIT_USAGE
+        return run(goal, out=out, server_timeout=goal['server_timeout'], frame=frame)
     except KeyboardInterrupt:
         out('interrupted before the goal was sent')
         return EXIT_FAILED

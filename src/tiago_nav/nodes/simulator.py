@@ -8,7 +8,8 @@ publishers it is given, so a unit test drives it with fakes; :func:`main` does t
 
 Frames: ``map`` → ``odom`` → ``base_footprint`` → ``base_link`` → ``base_laser_link`` (the last
 two fixed, on /tf_static, unless ``publish_robot_frames`` is false; ``map`` → ``odom`` is the
-ground truth unless ``publish_map_to_odom`` is false). By default the laser is the ``tiago``
+ground truth unless ``publish_map_to_odom`` is false; ``map`` → the world file's ``world_frame``,
+when it declares one, on /tf_static too). By default the laser is the ``tiago``
 model and odometry drifts (``odometry_model`` drift); /sim/ground_truth is the truth. Everything a consumer needs (the latched map, /tf_static, the first
 odometry, tf and scan) is published before the first /clock; after that /clock leads each step.
 """
@@ -135,6 +136,17 @@ def check_time_source(params, use_sim_time):
                          'parameter ~lockstep: needs /use_sim_time true')
 
 
+def check_world_frame(world, params):
+    """Raise :class:`WorldError` when the world file's ``world_frame`` takes the name of one
+    of the frames the simulator publishes (tf would get two parents for it)."""
+    wf = world.world_frame
+    own = (params.map_frame, params.odom_frame, params.base_frame, params.base_link_frame,
+           params.laser_frame)
+    if wf is not None and wf.name in own:
+        raise WorldError('%s: world_frame.name %r is one of the simulator\'s own frames (%s)'
+                         % (world.source, wf.name, ', '.join(own)))
+
+
 @dataclass
 class Outputs:
     """The node's publishers (anything with ``publish(msg)``); ``clock`` is not used (and may
@@ -235,6 +247,7 @@ class SimulatorNode:
         self.params, self.out, self.log = params, outputs, log
         self.use_sim_time, self._now = use_sim_time, now or rospy.Time.now
         self.world = load_world(params.world)
+        check_world_frame(self.world, params)
         self.sim = Simulator(self.world, params.sim, start_pose=params.start_pose, gui=params.gui)
         self.lock = threading.Lock()
         self.faults = LaserFaults(params.sim.laser.num_beams)
@@ -288,20 +301,28 @@ class SimulatorNode:
         return s
 
     def publish_static(self, stamp):
-        """The latched map and (with ``publish_robot_frames``) the fixed transforms base →
-        base_link (:data:`BASE_LINK_HEIGHT` up, as in urdf/tiago_base.urdf) → laser."""
+        """The latched map and, in one latched /tf_static message, the fixed transforms: (with
+        ``publish_robot_frames``) base → base_link (:data:`BASE_LINK_HEIGHT` up, as in
+        urdf/tiago_base.urdf) → laser, and (when the world file declares ``world_frame``)
+        map → that frame, at its ``offset``."""
         p = self.params
         msg = conversions.gridmap_to_msg(rasterise_world(self.world), p.map_frame, stamp)
         self.out.map.publish(msg)
         self.out.map_metadata.publish(msg.info)
-        if not p.publish_robot_frames:
-            return
-        body = conversions.transform_stamped((0.0, 0.0, 0.0), p.base_frame, p.base_link_frame, stamp)
-        body.transform.translation.z = BASE_LINK_HEIGHT
-        laser = conversions.transform_stamped((p.sim.laser.offset, 0.0, 0.0), p.base_link_frame,
-                                              p.laser_frame, stamp)
-        laser.transform.translation.z = p.sim.laser.height - BASE_LINK_HEIGHT
-        self.out.tf_static.publish(TFMessage([body, laser]))
+        transforms = []
+        if p.publish_robot_frames:
+            body = conversions.transform_stamped((0.0, 0.0, 0.0), p.base_frame, p.base_link_frame,
+                                                 stamp)
+            body.transform.translation.z = BASE_LINK_HEIGHT
+            laser = conversions.transform_stamped((p.sim.laser.offset, 0.0, 0.0), p.base_link_frame,
+                                                  p.laser_frame, stamp)
+            laser.transform.translation.z = p.sim.laser.height - BASE_LINK_HEIGHT
+            transforms += [body, laser]
+        wf = self.world.world_frame
+        if wf is not None:
+            transforms.append(conversions.transform_stamped(wf.pose, p.map_frame, wf.name, stamp))
+        if transforms:
+            self.out.tf_static.publish(TFMessage(transforms))
 
     def publish_collisions(self):
         """/sim/collisions once per change of the count (and a warning per new contact)."""

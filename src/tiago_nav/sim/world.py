@@ -1,7 +1,9 @@
 """World files (``worlds/*.yaml``): the one source of geometry for simulator, map and tests.
 
 The format is fixed by DESIGN.md. All lengths are metres, headings degrees in the file and
-radians in code (``yaw`` properties); the world frame is the map frame.
+radians in code (``yaw`` properties); coordinates are in the map frame. An optional
+``world_frame`` names another frame and gives its origin in the map (the simulator publishes
+it on /tf_static), e.g. the Gazebo world the file was measured from.
 :func:`load_world` validates a file and raises :class:`WorldError` naming the file and the field.
 """
 import math
@@ -52,6 +54,21 @@ class Corridor:
     width: float
 
 
+@dataclass(frozen=True)
+class WorldFrame:
+    """Another named frame of the world, e.g. the frame of the Gazebo world a world file was
+    measured from: ``name`` and ``offset`` ``(x [m], y [m], yaw [deg])``, the pose of its
+    origin in the map frame (so a point ``p_map = offset ∘ p_world``)."""
+    name: str
+    offset: Tuple[float, float, float]
+
+    @property
+    def pose(self):
+        """``offset`` as ``(x, y, yaw)`` in metres and radians."""
+        x, y, yaw_deg = self.offset
+        return (x, y, math.radians(yaw_deg))
+
+
 @dataclass
 class World:
     name: str
@@ -62,6 +79,7 @@ class World:
     static_cylinders: List[Cylinder] = field(default_factory=list)
     movable_obstacles: List[Cylinder] = field(default_factory=list)
     corridor: Optional[Corridor] = None
+    world_frame: Optional[WorldFrame] = None
     source: str = '<dict>'
 
     @property
@@ -77,7 +95,7 @@ class World:
 
 
 _TOP_KEYS = ('name', 'resolution', 'bounds', 'robot_start', 'walls', 'static_cylinders',
-             'movable_obstacles', 'corridor')
+             'movable_obstacles', 'corridor', 'world_frame')
 
 
 def load_world(path):
@@ -183,4 +201,19 @@ def _parse(data, src):
     return World(name=name, resolution=resolution, bounds=bounds, robot_start=start, walls=walls,
                  static_cylinders=_cylinders(src, data, 'static_cylinders'),
                  movable_obstacles=_cylinders(src, data, 'movable_obstacles'),
-                 corridor=corridor, source=src)
+                 corridor=corridor, world_frame=_world_frame(src, data.get('world_frame')),
+                 source=src)
+
+
+def _world_frame(src, wf):
+    """The optional ``world_frame: {name: NAME, offset: [x, y, yaw_deg]}``: a tf frame name
+    (no spaces, no leading '/') and the pose of its origin in the map frame."""
+    if wf is None:
+        return None
+    _record(src, 'world_frame', wf, ('name', 'offset'))
+    name = wf['name']
+    if not isinstance(name, str) or not name or name != name.strip() or any(c.isspace() for c in name) \
+            or name.startswith('/'):
+        raise WorldError('%s: world_frame.name must be a tf frame name (not empty, no spaces, no '
+                         'leading /), got %r' % (src, name))
+    return WorldFrame(name, _vector(src, 'world_frame.offset', wf['offset'], 3))

@@ -1,0 +1,334 @@
+"""The benchmarks: which commands write which bench/results/*.json, the ``meta`` block each JSON
+carries, and the rendering of docs/benchmarks.md from those files.
+
+``make bench`` runs ``python3 -m tiago_nav.benchmarks all`` (``make bench BENCH=detection``:
+one benchmark); each benchmark's commands are listed once, in :data:`BENCHMARKS`, and the docs
+page shows them above the figures they wrote. The page is rendered from the JSON files as they
+are (nothing is re-run); a JSON written before meta blocks existed shows "meta: not recorded".
+"""
+import datetime
+import json
+import math
+import os
+import shlex
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+ROOT = os.path.normpath(os.path.join(os.path.dirname(os.path.realpath(__file__)), '..', '..'))
+
+# name -> title, and the runs: (command line relative to the package root, JSON files written)
+BENCHMARKS = (
+    ('simulator', 'Simulator speed', [
+        ('bench/bench_simulator.py', ['simulator.json'])]),
+    ('detection', 'Obstacle detection', [
+        ('bench/bench_detection.py', ['detection.json']),
+        ('bench/bench_detection.py --laser-model tiago --no-service', ['detection_tiago.json'])]),
+    ('navigation', 'Navigation (move_base)', [
+        ('bench/bench_navigation.py', ['navigation.json'])]),
+    ('corridor', 'Corridor law against move_base', [
+        ('bench/bench_corridor.py', ['corridor.json'])]),
+    ('mission', 'Whole mission', [
+        ('bench/bench_mission.py', ['mission.json'])]),
+    ('demo', 'Course mission and localisation (the demo)', [
+        ('scripts/run_demo.py', ['demo.json'])]),
+    ('lockstep', 'Lockstep', [
+        ('bench/bench_lockstep.py --n 20 --nav 0 --modes on --loads idle '
+         '--out bench/results/lockstep_idle.json', ['lockstep_idle.json']),
+        ('bench/bench_lockstep.py --n 20 --nav 0 --modes on --loads busy '
+         '--out bench/results/lockstep_loaded.json', ['lockstep_loaded.json']),
+        ('bench/bench_lockstep.py --n 3 --nav 1 --out bench/results/lockstep.json',
+         ['lockstep.json']),
+        ('bench/bench_lockstep.py --task nav --n 3 --nav 0 --modes on '
+         '--out bench/results/lockstep_nav.json', ['lockstep_nav.json'])]),
+    ('soak', 'Soak', [
+        ('bench/bench_soak.py', ['soak.json'])]),
+)
+NAMES = [b[0] for b in BENCHMARKS]
+
+
+# --- the meta block ------------------------------------------------------------------------
+def commit(root=ROOT):
+    """``git rev-parse HEAD`` of ``root``, with ``-dirty`` when a tracked file outside
+    bench/results differs from it (results written earlier in the same ``make bench`` do not
+    count); None outside a git checkout."""
+    try:
+        head = subprocess.run(['git', '-C', root, 'rev-parse', 'HEAD'], stdout=subprocess.PIPE,
+                              stderr=subprocess.DEVNULL, text=True, check=True).stdout.strip()
+        dirty = subprocess.run(['git', '-C', root, 'status', '--porcelain', '--untracked-files=no',
+                                '--', '.', ':(exclude)bench/results'], stdout=subprocess.PIPE,
+                               stderr=subprocess.DEVNULL, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return head + ('-dirty' if dirty else '')
+
+
+def launch_defaults(root=ROOT, launch='sim.launch'):
+    """``{arg: default}`` of a launch file's own arguments."""
+    tree = ET.parse(os.path.join(root, 'launch', launch)).getroot()
+    return {a.get('name'): a.get('default') for a in tree.findall('arg') if 'default' in a.attrib}
+
+
+def launch_models(launch_args=(), root=ROOT):
+    """``(laser_model, odometry_model)`` a launch runs with: sim.launch's defaults unless
+    ``launch_args`` (``name:=value`` strings) set them."""
+    d = launch_defaults(root)
+    given = dict(a.split(':=', 1) for a in launch_args if ':=' in a)
+    return (given.get('laser_model', d.get('laser_model')),
+            given.get('odometry_model', d.get('odometry_model')))
+
+
+def meta(options=None, *, real_time_factor=None, laser_model=None, odometry_model=None,
+         quick=False, argv=None, root=ROOT):
+    """The ``meta`` block of a benchmark's JSON: the code (commit), when (UTC), the command line,
+    the machine (cores, load average) and the conditions (real-time factor, laser and odometry
+    models, quick run); ``options`` (e.g. ``vars(args)``) are the benchmark's own options.
+    A value that does not apply is given as a string saying why (e.g. ``'in process'``)."""
+    argv = list(sys.argv if argv is None else argv)
+    if argv:
+        script = os.path.abspath(argv[0])
+        argv[0] = os.path.relpath(script, root) if script.startswith(root + os.sep) else argv[0]
+    opts = {k: v for k, v in (options or {}).items() if v is not None and not k.startswith('_')}
+    return {'commit': commit(root),
+            'date': datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0)
+            .isoformat().replace('+00:00', 'Z'),
+            'command': ' '.join(shlex.quote(a) for a in argv),
+            'cores': os.cpu_count(),
+            'loadavg': [round(x, 2) for x in os.getloadavg()],
+            'real_time_factor': real_time_factor,
+            'laser_model': laser_model,
+            'odometry_model': odometry_model,
+            'quick': bool(quick),
+            'options': opts}
+
+
+# --- running them --------------------------------------------------------------------------
+def commands(names, root=ROOT):
+    """The command lines (argv lists) of the named benchmarks (``all``: every one), in order."""
+    wanted = NAMES if 'all' in names else names
+    unknown = [n for n in wanted if n not in NAMES]
+    if unknown:
+        raise ValueError('unknown benchmark(s) %s (known: %s, all)'
+                         % (', '.join(unknown), ', '.join(NAMES)))
+    out = []
+    for name, _, runs in BENCHMARKS:
+        if name in wanted:
+            for cmd, _ in runs:
+                argv = shlex.split(cmd)
+                out.append([sys.executable, os.path.join(root, argv[0])] + argv[1:])
+    return out
+
+
+def main(argv=None):
+    names = (sys.argv[1:] if argv is None else argv) or ['all']
+    if names[0] in ('-h', '--help'):
+        print('usage: python3 -m tiago_nav.benchmarks [all | %s ...]' % ' | '.join(NAMES))
+        return 0
+    try:
+        cmds = commands(names)
+    except ValueError as e:
+        print('benchmarks: %s' % e, file=sys.stderr)
+        return 2
+    os.makedirs(os.path.join(ROOT, 'bench', 'results'), exist_ok=True)
+    for cmd in cmds:
+        print('== %s' % ' '.join(shlex.quote(os.path.relpath(a, ROOT) if i == 1 else a)
+                                 for i, a in enumerate(cmd[1:], 1)), flush=True)
+        rc = subprocess.call(cmd, cwd=ROOT)
+        if rc:
+            print('benchmarks: %s exited %d' % (cmd[1], rc), file=sys.stderr)
+            return rc
+    return 0
+
+
+# --- docs/benchmarks.md --------------------------------------------------------------------
+def _f(v, fmt='%.3g'):
+    if v is None:
+        return '–'
+    if isinstance(v, bool):
+        return 'yes' if v else 'no'
+    if isinstance(v, float):
+        return fmt % v if math.isfinite(v) else str(v)
+    return str(v)
+
+
+def _pct(v):
+    return '–' if v is None else '%.1f %%' % (100 * v)
+
+
+def _table(head, rows):
+    lines = ['| %s |' % ' | '.join(head), '|%s' % ('---|' * len(head))]
+    lines += ['| %s |' % ' | '.join(_f(c) for c in row) for row in rows]
+    return lines
+
+
+def meta_lines(data):
+    m = data.get('meta') if isinstance(data, dict) else None
+    if not m:
+        return ['meta: not recorded']
+    load = m.get('loadavg')
+    return ['meta: commit `%s`, %s, `%s`, %s cores, load average %s, real-time factor %s, laser '
+            'model %s, odometry model %s, quick %s'
+            % (m.get('commit'), m.get('date'), m.get('command'), m.get('cores'),
+               ' / '.join('%.2f' % x for x in load) if load else '–',
+               _f(m.get('real_time_factor')), _f(m.get('laser_model')),
+               _f(m.get('odometry_model')), _f(m.get('quick')))]
+
+
+def render_simulator(d):
+    rows = [(w, v.get('library_real_time_factor'), v.get('node_real_time_factor'))
+            for w, v in d.get('worlds', {}).items()]
+    return _table(('world', 'library (× real time)', 'ROS node (× real time)'), rows) + [
+        '', 'Target for the node: ≥ %s× real time (lowest: %s×).'
+        % (_f(d.get('target_node_real_time_factor')), _f(d.get('node_real_time_factor_min')))]
+
+
+def render_detection(d):
+    rows = []
+    for w, v in d.get('worlds', {}).items():
+        for method, m in v.get('methods', {}).items():
+            rows.append((w, method, m.get('poses', v.get('poses')), _pct(m.get('recall_clear')),
+                         _pct(m.get('recall_in_view')), m.get('false_positives'),
+                         m.get('rms_error_clear_m'), m.get('rms_error_m'),
+                         m.get('latency_ms_median'), m.get('latency_ms_p95')))
+    out = _table(('world', 'method', 'poses', 'recall (clear view)', 'recall (in view)',
+                  'false positives', 'RMS error clear [m]', 'RMS error in view [m]',
+                  'latency median [ms]', 'latency p95 [ms]'), rows)
+    o = d.get('circle_fit_overall')
+    if o:
+        out += ['', 'circle_fit overall: recall %s (clear view), %s (in view), %s false positives, '
+                'RMS error %s m, latency %s ms (p95 %s ms), map subtraction %s× faster than '
+                'brute force.' % (_pct(o.get('recall_clear')), _pct(o.get('recall_in_view')),
+                                  _f(o.get('false_positives')), _f(o.get('rms_error_m')),
+                                  _f(o.get('latency_ms')), _f(o.get('latency_ms_p95')),
+                                  _f(o.get('subtraction_speedup')))]
+    met = d.get('targets_met')
+    if met:
+        out += ['', 'Targets met: %s.' % ', '.join('%s %s' % (k, _f(v)) for k, v in met.items())]
+    s = d.get('service')
+    if s:
+        out += ['', 'Service round trip (%s calls): median %s ms, p95 %s ms (processing %s ms).'
+                % (_f(s.get('calls')), _f(s.get('round_trip_ms_median')),
+                   _f(s.get('round_trip_ms_p95')), _f(s.get('processing_ms_median')))]
+    return out
+
+
+def render_navigation(d):
+    worlds = dict(d.get('worlds', {}))
+    if d.get('overall'):
+        worlds['all'] = d['overall']
+    rows = [(w, v.get('goals'), _pct(v.get('success_rate')), v.get('collisions'),
+             v.get('time_ratio_mean'), v.get('time_ratio_median'),
+             v.get('time_ratio_long_paths_mean'), v.get('length_ratio_mean'),
+             v.get('wall_per_goal_s')) for w, v in worlds.items()]
+    return _table(('world', 'goals', 'success', 'collisions', 'time ratio mean',
+                   'time ratio median', 'time ratio (long paths)', 'length ratio mean',
+                   'wall per goal [s]'), rows)
+
+
+def render_corridor(d):
+    rows = []
+    for w, v in d.get('worlds', {}).items():
+        for how in ('corridor_law', 'ros_corridor', 'ros_move_base'):
+            s = v.get(how)
+            if s:
+                rows.append((w, how, s.get('trials'), _pct(s.get('success_rate')),
+                             s.get('time_to_exit_mean'), s.get('time_to_stop_mean'),
+                             s.get('lateral_rms_max'), s.get('min_clearance')))
+    out = _table(('corridor', 'run', 'trials', 'success', 'time to exit [s]',
+                  'time to stop [s]', 'lateral RMS max [m]', 'min clearance [m]'), rows)
+    if d.get('met'):
+        out += ['', 'Targets met: %s.' % ', '.join('%s %s' % (k, _f(v)) for k, v in d['met'].items())]
+    return out
+
+
+def render_mission(d):
+    rows = [(r.get('real_time_factor'), s.get('missions'), s.get('succeeded'),
+             s.get('within_target'), s.get('wall_s_mean'), s.get('wall_s_max'),
+             _pct(s.get('recall')), s.get('false_positives'), s.get('rms_error_m'),
+             s.get('collisions'))
+            for r in d.get('runs', []) for s in [r.get('summary', {})]]
+    return _table(('real-time factor', 'missions', 'succeeded', 'within 20 s',
+                   'wall mean [s]', 'wall max [s]', 'recall', 'false positives',
+                   'RMS error [m]', 'collisions'), rows)
+
+
+def render_demo(d):
+    out = _table(('world', 'pose B', 'corridor law', 'real-time factor', 'succeeded', 'wall [s]',
+                  'collisions', 'recall', 'false positives', 'RMS error [m]', 'max error [m]'),
+                 [(d.get('world'), ', '.join(_f(v) for v in d.get('goal', [])),
+                   d.get('use_corridor_law'), d.get('real_time_factor'), d.get('succeeded'),
+                   d.get('wall_time_s'), d.get('collisions'), _pct(d.get('recall')),
+                   d.get('false_positives'), d.get('rms_error_m'), d.get('max_error_m'))])
+    loc = d.get('localisation_error')
+    if loc:
+        out += ['', 'Localisation error over the mission (%s samples): p95 %s m / %s deg, max %s m '
+                '/ %s deg.' % (_f(loc.get('samples')), _f(loc.get('p95_m')),
+                               _f(loc.get('p95_deg')), _f(loc.get('max_m')),
+                               _f(loc.get('max_deg')))]
+    return out
+
+
+def render_lockstep(d):
+    rows = [(c.get('label'), s.get('runs'), s.get('succeeded'), s.get('collisions'),
+             s.get('wall_s_mean'), s.get('wall_s_max'), s.get('cpu_s_mean'),
+             s.get('final_pose_spread_m'), s.get('distinct_final_odometry'),
+             s.get('loadavg_1min_mean'))
+            for c in d.get('conditions', []) for s in [c.get('summary', {})]]
+    return ['%s: %s runs per condition, %s navigation goals after each, seed %s.'
+            % (d.get('task'), _f(d.get('n')), _f(d.get('nav_goals_per_run')), _f(d.get('seed'))),
+            ''] + _table(('condition', 'runs', 'succeeded', 'collisions', 'wall mean [s]',
+                          'wall max [s]', 'CPU mean [s]', 'final pose spread [m]',
+                          'distinct final odometry', 'load (1 min)'), rows)
+
+
+def render_soak(d):
+    s = d.get('summary', {})
+    out = ['%s missions per world, real-time factor %s, seed %s.'
+           % (_f(d.get('missions_per_world')), _f(d.get('real_time_factor')), _f(d.get('seed'))),
+           '']
+    rows = [(w, v.get('missions'), v.get('succeeded'), v.get('hangs'), v.get('collisions'),
+             v.get('node_deaths'), v.get('unexplained'))
+            for w, v in d.get('by_world', {}).items()]
+    rows.append(('all', s.get('missions'), s.get('succeeded'), s.get('hangs'),
+                 s.get('collisions'), s.get('node_deaths'), s.get('unexplained')))
+    out += _table(('world / corridor law', 'missions', 'succeeded', 'hangs', 'collisions',
+                   'node deaths', 'unexplained'), rows)
+    for f in s.get('failures', []):
+        out += ['', '- %s, pose B %s: %s' % (f.get('world'), f.get('goal'), f.get('message'))]
+    return out
+
+
+RENDER = {'simulator': render_simulator, 'detection': render_detection,
+          'navigation': render_navigation, 'corridor': render_corridor,
+          'mission': render_mission, 'demo': render_demo, 'lockstep': render_lockstep,
+          'soak': render_soak}
+
+
+def render_page(results, header):
+    """docs/benchmarks.md from the JSON files in ``results``."""
+    lines = [header, '', '# Benchmarks', '',
+             'The current figures, rendered from `bench/results/*.json` by `make docs`. Each table '
+             'is headed by the command that regenerates its JSON (`make bench` runs them all; the '
+             'benchmarks do not run in the test suite). Each JSON\'s `meta` block says which code, '
+             'machine and conditions it comes from. Targets: DESIGN.md\'s quality bars.', '']
+    for name, title, runs in BENCHMARKS:
+        lines += ['## %s' % title, '']
+        for cmd, files in runs:
+            for fname in files:
+                path = os.path.join(results, fname)
+                lines += ['### `make bench BENCH=%s`: %s' % (name, fname), '',
+                          'Command: `%s`' % cmd, '']
+                if not os.path.exists(path):
+                    lines += ['not written yet', '']
+                    continue
+                with open(path) as f:
+                    data = json.load(f)
+                lines += RENDER[name](data) + [''] + meta_lines(data) + ['']
+                png = os.path.splitext(fname)[0] + '.png'
+                if os.path.exists(os.path.join(results, png)):
+                    lines += ['![%s](../bench/results/%s)' % (fname, png), '']
+    return '\n'.join(lines).rstrip('\n') + '\n'
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,203 @@
+"""The documentation: the generated pages are what the code generates (``make docs`` rewrites
+them), the ROS API declaration covers every interface parameter, no relative link is broken,
+the README stays short, and ``make bench`` writes every result the pages show."""
+import glob
+import importlib
+import os
+import re
+
+import pytest
+
+from tiago_nav import benchmarks, docs
+from tiago_nav.params import param_fields
+from tiago_nav.interfaces import NODES, SECTIONS
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+README_MAX_LINES = 300
+
+
+def _read(rel):
+    with open(os.path.join(ROOT, rel)) as f:
+        return f.read()
+
+
+def test_ros_api_page_is_what_the_code_generates():
+    assert _read(docs.ROS_API) == docs.ros_api_page(ROOT), \
+        'docs/ros_api.md is stale: run `make docs` and commit it'
+
+
+def test_benchmarks_page_is_the_render_of_the_results():
+    assert _read(docs.BENCHMARKS) == docs.benchmarks_page(ROOT), \
+        'docs/benchmarks.md is stale: run `make docs` and commit it'
+
+
+def test_docs_check_mode_agrees(capsys):
+    assert docs.main(['--check', '--root', ROOT]) == 0
+
+
+@pytest.mark.parametrize('entry', [e for e in NODES if e['params']], ids=lambda e: e['node'])
+def test_every_interface_parameter_is_declared(entry):
+    cls = docs.node_params(entry)
+    declared = docs.referenced_params(entry)
+    missing = [n for n in docs.interface_params(cls) if n not in declared]
+    assert not missing, '%s: parameters %s name ROS interfaces that src/tiago_nav/interfaces.py ' \
+        'does not declare' % (entry['node'], missing)
+    unknown = declared - {n for n, _ in param_fields(cls)}
+    assert not unknown, '%s: interfaces.py names {%s}, not parameters of %s.Params' \
+        % (entry['node'], ', '.join(sorted(unknown)), entry['params'])
+
+
+def test_every_node_module_is_declared():
+    """A node module with a Params dataclass is on the page (the client has none)."""
+    modules = {os.path.splitext(os.path.basename(p))[0]
+               for p in glob.glob(os.path.join(ROOT, 'src', 'tiago_nav', 'nodes', '*.py'))}
+    modules -= {'__init__', '__main__'}
+    declared = {e['params'].rsplit('.', 1)[1] for e in NODES if e['params']} | \
+        {e['executable'] for e in NODES if not e['params']}
+    assert modules <= declared | {e['executable'] for e in NODES}, modules - declared
+    for e in NODES:
+        assert os.path.exists(os.path.join(ROOT, 'nodes', e['executable'])), e['executable']
+        assert os.path.exists(os.path.join(ROOT, 'launch', e['launch'])), e['launch']
+        assert set(e) <= {'node', 'executable', 'params', 'launch', 'summary'} | \
+            {k for k, _ in SECTIONS}, e['node']
+        if e['params']:
+            importlib.import_module(e['params']).Params
+
+
+def test_every_launch_argument_is_documented():
+    for path in sorted(glob.glob(os.path.join(ROOT, 'launch', '*.launch'))):
+        for name, _, doc, _ in docs.launch_args(path):
+            assert doc.strip(), '%s: <arg name="%s"> has no doc=' % (os.path.basename(path), name)
+
+
+# --- links and length ----------------------------------------------------------------------
+_LINK = re.compile(r'!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+"[^"]*")?\s*\)')
+_FENCE = re.compile(r'^(```|~~~).*?^\1', re.S | re.M)
+_CODE = re.compile(r'`[^`\n]*`')
+
+
+def slug(heading):
+    """GitHub's anchor of a heading."""
+    text = re.sub(r'[^\w\- ]', '', heading.strip().lower())
+    return text.replace(' ', '-')
+
+
+def anchors(path):
+    with open(path) as f:
+        text = _FENCE.sub('', f.read())
+    seen, out = {}, set()
+    for m in re.finditer(r'^#{1,6}\s+(.*?)\s*#*\s*$', text, re.M):
+        s = slug(m.group(1))
+        n = seen.get(s, 0)
+        seen[s] = n + 1
+        out.add(s if n == 0 else '%s-%d' % (s, n))
+    out.update(re.findall(r'<a\s+(?:name|id)="([^"]+)"', text))
+    return out
+
+
+def broken_links(path):
+    """The relative links of a Markdown file whose target (or heading anchor) does not exist."""
+    with open(path) as f:
+        text = _CODE.sub('', _FENCE.sub('', f.read()))
+    bad = []
+    for target in _LINK.findall(text):
+        if re.match(r'^[a-z][a-z0-9+.-]*:', target, re.I):     # http:, mailto:, ...
+            continue
+        rel, _, anchor = target.partition('#')
+        dest = os.path.normpath(os.path.join(os.path.dirname(path), rel)) if rel else path
+        if not os.path.exists(dest):
+            bad.append(target)
+        elif anchor and dest.endswith('.md') and anchor not in anchors(dest):
+            bad.append(target + ' (no such heading)')
+    return bad
+
+
+def _markdown_files():
+    return [p for p in [os.path.join(ROOT, 'README.md')] +
+            sorted(glob.glob(os.path.join(ROOT, 'docs', '*.md'))) if os.path.exists(p)]
+
+
+@pytest.mark.parametrize('path', _markdown_files(), ids=lambda p: os.path.relpath(p, ROOT))
+def test_no_broken_relative_link(path):
+    bad = broken_links(path)
+    assert not bad, '%s: broken links: %s' % (os.path.relpath(path, ROOT), ', '.join(bad))
+
+
+def test_broken_link_finder(tmp_path):
+    (tmp_path / 'a.md').write_text('# Top\n## Two words\n[ok](a.md#two-words) [self](#top) '
+                                   '[gone](b.md) [bad anchor](#nope) [web](https://x.org/y) '
+                                   '`[code](c.md)`\n```\n[fenced](d.md)\n```\n')
+    assert broken_links(str(tmp_path / 'a.md')) == ['b.md', '#nope (no such heading)']
+
+
+def test_readme_is_short():
+    n = len(_read('README.md').splitlines())
+    assert n <= README_MAX_LINES, 'README.md has %d lines (at most %d: the reference belongs ' \
+        'in docs/)' % (n, README_MAX_LINES)
+
+
+# --- benchmarks ----------------------------------------------------------------------------
+def test_every_benchmark_script_is_run_by_make_bench():
+    run = {cmd.split()[0] for _, _, runs in benchmarks.BENCHMARKS for cmd, _ in runs}
+    scripts = {os.path.relpath(p, ROOT) for p in glob.glob(os.path.join(ROOT, 'bench', 'bench_*.py'))}
+    assert scripts <= run, 'not run by make bench: %s' % (scripts - run)
+    for script in run:
+        assert os.path.exists(os.path.join(ROOT, script)), script
+
+
+def test_make_bench_writes_every_result_the_docs_cite():
+    written = {f for _, _, runs in benchmarks.BENCHMARKS for _, files in runs for f in files}
+    cited = set()
+    for path in _markdown_files():
+        with open(path) as f:
+            cited.update(re.findall(r'bench/results/(\w+\.json)', f.read()))
+    assert cited <= written, 'cited but not written by make bench: %s' % (cited - written)
+    for f in written:
+        assert os.path.exists(os.path.join(ROOT, 'bench', 'results', f)), f
+
+
+def test_each_benchmark_command_names_its_output():
+    """A run that writes somewhere other than its script's default says so with --out."""
+    for name, _, runs in benchmarks.BENCHMARKS:
+        for cmd, files in runs:
+            if '--out' in cmd:
+                assert cmd.split('--out', 1)[1].split()[0] == 'bench/results/' + files[0]
+
+
+def test_bench_scripts_record_meta():
+    for path in glob.glob(os.path.join(ROOT, 'bench', 'bench_*.py')) + \
+            [os.path.join(ROOT, 'scripts', 'run_demo.py')]:
+        with open(path) as f:
+            assert "['meta'] = " in f.read(), '%s writes no meta block' % path
+
+
+def test_meta_block():
+    m = benchmarks.meta({'quick': True, 'n': 3}, real_time_factor=0.0, laser_model='tiago',
+                        odometry_model='drift', quick=True,
+                        argv=[os.path.join(ROOT, 'bench', 'bench_x.py'), '--quick'])
+    assert set(m) == {'commit', 'date', 'command', 'cores', 'loadavg', 'real_time_factor',
+                      'laser_model', 'odometry_model', 'quick', 'options'}
+    assert m['command'] == 'bench/bench_x.py --quick'
+    assert re.match(r'^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ$', m['date'])
+    assert m['cores'] == os.cpu_count() and len(m['loadavg']) == 3
+    assert m['quick'] is True and m['options'] == {'quick': True, 'n': 3}
+    if m['commit'] is not None:
+        assert re.match(r'^[0-9a-f]{40}(-dirty)?$', m['commit'])
+
+
+def test_launch_models_follow_launch_arguments():
+    assert benchmarks.launch_models([], ROOT) == ('tiago', 'drift')
+    assert benchmarks.launch_models(['laser_model:=ideal'], ROOT) == ('ideal', 'drift')
+
+
+def test_benchmarks_page_says_when_meta_is_missing():
+    assert benchmarks.meta_lines({'x': 1}) == ['meta: not recorded']
+    line = benchmarks.meta_lines({'meta': benchmarks.meta(argv=['bench/b.py'])})[0]
+    assert line.startswith('meta: commit') and '`bench/b.py`' in line
+
+
+def test_unknown_benchmark_is_refused():
+    with pytest.raises(ValueError):
+        benchmarks.commands(['nope'])
+    assert len(benchmarks.commands(['lockstep'])) == 4
+    assert len(benchmarks.commands(['all'])) == sum(len(r) for _, _, r in benchmarks.BENCHMARKS)
