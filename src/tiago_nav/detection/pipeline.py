@@ -10,6 +10,16 @@ obstacles when those agree within ``radius_spread``; otherwise the free fit stan
 ``discontinuity``: the classic pipeline on the raw scan, without the map: range-jump segmentation,
 each segment that stands out in front of its neighbours is an obstacle whose closest point is
 pushed back by a fixed depth along its beam.
+
+Pose correction (``correct_pose``, circle_fit and centroid): a centre in the map frame inherits
+the error of the laser pose it is placed with (the localisation's estimate at the scan's time).
+The scan's static part (the points the map subtraction explains) is already matched to the map,
+so before clustering it is registered to the map's distance field with the localisation's own
+registration (:func:`tiago_nav.localisation.register`, started from the given pose) and the
+obstacles are placed with the corrected pose. Too few static points (``min_static_points``) or
+a registration its gate rejects leave the given pose (:class:`PoseCorrection` says why).
+``discontinuity`` is the classic map-free baseline: it reads no map, so it places its centres
+with the given pose, uncorrected (its PoseCorrection says so).
 """
 import math
 from dataclasses import dataclass, field, replace
@@ -19,7 +29,8 @@ import numpy as np
 from tiago_nav.detection.centres import centroid, circle_fit, radius_std
 from tiago_nav.detection.clustering import centroid_clusters
 from tiago_nav.detection.subtraction import MapDistance, subtract
-from tiago_nav.geometry import transform_points
+from tiago_nav.geometry import transform_points, wrap_angle
+from tiago_nav.localisation import DistanceField, LocaliserConfig, register
 from tiago_nav.params import ParamError, param, validate
 from tiago_nav.scan import beam_angles, hits, scan_to_points, usable_ranges
 
@@ -54,6 +65,15 @@ class DetectionParams:
     jump: float = param(0.15, '[m] discontinuity method: range jump between segments', ge=0)
     depth: float = param(0.2, '[m] discontinuity method: closest point pushed back this far', ge=0)
     max_width: float = param(1.0, '[m] discontinuity method: wider segments are walls', ge=0)
+    # the pose correction
+    correct_pose: bool = param(
+        True, 'register the scan\'s static part (points within scan_minus_map_threshold of the '
+        'map) to the map and place the obstacles with the corrected laser pose (circle_fit, '
+        'centroid; discontinuity reads no map and is never corrected)')
+    min_static_points: int = param(
+        80, '[points] fewer static points than this (or fewer within 0.1 m of the map after '
+        'registering): too little map to register, the given pose is kept and the answer says '
+        'so', ge=3)
 
     def __post_init__(self):
         validate(self)
@@ -71,24 +91,83 @@ class Detection:
     points: np.ndarray = field(repr=False, default=None)
 
 
+@dataclass(frozen=True)
+class PoseCorrection:
+    """What the pose correction did to one scan's laser pose (map frame).
+
+    ``applied``: whether the obstacles were placed with the corrected pose; ``laser_pose``:
+    the pose they were placed with ``(x, y, yaw)`` [m, m, rad] (the given one when not
+    applied); ``delta``: ``laser_pose`` minus the given pose, ``(dx, dy, dyaw)`` [m, m, rad]
+    (zeros when not applied); ``static_points``: scan points the map explains; ``inliers``:
+    of them, within the localisation's ``inlier_distance`` of the map after registering;
+    ``reason``: why no correction was applied ('' when it was).
+    """
+    applied: bool
+    laser_pose: tuple
+    delta: tuple = (0.0, 0.0, 0.0)
+    static_points: int = 0
+    inliers: int = 0
+    reason: str = ''
+
+    def describe(self):
+        """One phrase for a service answer's message."""
+        if self.applied:
+            return ('pose corrected by (%+.3f m, %+.3f m, %+.2f deg) from %d static points'
+                    % (self.delta[0], self.delta[1], math.degrees(self.delta[2]),
+                       self.static_points))
+        return 'pose not corrected: %s' % self.reason
+
+
+@dataclass
+class Result:
+    """One scan's detections and the pose correction they were placed with."""
+    detections: list
+    correction: PoseCorrection
+
+
+# The registration of the static part: the localisation's, with its gate (a correction larger
+# than max_correction / max_correction_yaw_deg is implausible at a stop); every static point
+# is used (no subsampling).
+REGISTRATION = LocaliserConfig(max_points=10000)
+
+
 class ObstacleDetector:
-    """Holds the map's distance transform (computed once per map) and runs the pipeline."""
+    """Holds the map's distance transform (computed once per map), and its signed distance
+    field for the pose correction (built at the first correction), and runs the pipeline."""
 
     def __init__(self, grid, params=DetectionParams()):
         self.grid = grid
         self.params = params
         self.distance = MapDistance(grid)
+        self._field = None
+        if params.correct_pose:        # a per-map cost: paid with the map, not by the first call
+            self.field
+
+    @property
+    def field(self):
+        """The map's :class:`tiago_nav.localisation.DistanceField` (built once, when first
+        needed)."""
+        if self._field is None:
+            self._field = DistanceField(self.grid)
+        return self._field
 
     def detect(self, ranges, angle_min, angle_increment, range_min, range_max, laser_pose,
                method='circle_fit', laser_in_base=None, **overrides):
-        """Obstacles in one scan.
+        """Obstacles in one scan: the :class:`Detection` s of :meth:`locate` (see there)."""
+        return self.locate(ranges, angle_min, angle_increment, range_min, range_max, laser_pose,
+                           method, laser_in_base, **overrides).detections
+
+    def locate(self, ranges, angle_min, angle_increment, range_min, range_max, laser_pose,
+               method='circle_fit', laser_in_base=None, **overrides):
+        """Obstacles in one scan, and the pose correction they were placed with.
 
         ``ranges`` [m] of beams from ``angle_min`` [rad] in steps of ``angle_increment`` in
         base_laser_link; ``laser_pose`` ``(x, y, yaw)`` is base_laser_link in the map frame at the
         scan's time, ``laser_in_base`` in base_footprint (from tf; None: no body to filter).
         Only the beams :func:`tiago_nav.scan.usable_ranges` keeps are used (no self-hits, no
         veils; the classic ``discontinuity`` method keeps the veils: it reads the raw scan). ``overrides`` replace fields of the params for this call (0 or None keeps the
-        default). Returns :class:`Detection` s sorted by distance from the laser.
+        default). Returns a :class:`Result`: :class:`Detection` s sorted by distance from the
+        laser, and the :class:`PoseCorrection` (``correct_pose``).
         Raises ValueError for an unknown method.
         """
         if method not in METHODS:
@@ -108,11 +187,45 @@ class ObstacleDetector:
             found = _discontinuity(r[keep], beam_angles(angle_min, angle_increment, len(r))[keep],
                                    angle_increment, range_min, min(range_max, p.max_range),
                                    laser_pose, p)
+            correction = PoseCorrection(False, tuple(laser_pose),
+                                        reason='the discontinuity method reads no map')
         else:
-            found = self._clusters(r, angle_min, angle_increment, range_min, range_max,
-                                   min(range_max, p.max_range), laser_pose, method, p)
-        lx, ly = laser_pose[0], laser_pose[1]
-        return sorted(found, key=lambda d: math.hypot(d.center[0] - lx, d.center[1] - ly))
+            found, correction = self._clusters(r, angle_min, angle_increment, range_min,
+                                               range_max, min(range_max, p.max_range),
+                                               tuple(laser_pose), method, p)
+        lx, ly = correction.laser_pose[0], correction.laser_pose[1]
+        return Result(sorted(found, key=lambda d: math.hypot(d.center[0] - lx, d.center[1] - ly)),
+                      correction)
+
+    def correct(self, local, laser_pose, static, p):
+        """The :class:`PoseCorrection` of the laser pose ``laser_pose`` (map) from the scan
+        points ``local`` [m] (laser frame) the map explains (mask ``static``)."""
+        n = int(np.count_nonzero(static))
+        if not p.correct_pose:
+            return PoseCorrection(False, laser_pose, static_points=n,
+                                  reason='correct_pose is off')
+        if n < p.min_static_points:
+            return PoseCorrection(False, laser_pose, static_points=n,
+                                  reason='only %d scan points on the map (min_static_points %d)'
+                                  % (n, p.min_static_points))
+        c = REGISTRATION
+        pose, _, res = register(self.field, local[static], laser_pose, c)
+        inliers = int(np.sum(np.abs(res) < c.inlier_distance))
+        delta = (pose[0] - laser_pose[0], pose[1] - laser_pose[1],
+                 wrap_angle(pose[2] - laser_pose[2]))
+        reason = ''
+        if inliers < p.min_static_points:
+            reason = ('only %d of %d static points within %.2f m of the map after registering '
+                      '(min_static_points %d)' % (inliers, n, c.inlier_distance,
+                                                  p.min_static_points))
+        elif math.hypot(delta[0], delta[1]) > c.max_correction \
+                or abs(delta[2]) > math.radians(c.max_correction_yaw_deg):
+            reason = ('the registration\'s correction (%.2f m, %.1f deg) is implausible'
+                      % (math.hypot(delta[0], delta[1]), math.degrees(abs(delta[2]))))
+        if reason:
+            return PoseCorrection(False, laser_pose, static_points=n, inliers=inliers,
+                                  reason=reason)
+        return PoseCorrection(True, pose, delta, n, inliers)
 
     def _clusters(self, r, angle_min, inc, rmin, laser_max, rmax, laser_pose, method, p):
         local, beam = scan_to_points(r, angle_min, inc, rmin, rmax)
@@ -121,6 +234,11 @@ class ObstacleDetector:
         holes = np.diff(np.concatenate(([-1], beam))) - 1
         pts = transform_points(laser_pose, local)
         keep = subtract(pts, self.distance, p.scan_minus_map_threshold)
+        correction = self.correct(local, laser_pose, ~keep, p)
+        if correction.applied:
+            laser_pose = correction.laser_pose
+            pts = transform_points(laser_pose, local)
+            keep = subtract(pts, self.distance, p.scan_minus_map_threshold)
         pts, beam, holes = pts[keep], beam[keep], holes[keep]
         sensor = np.array(laser_pose[:2])
         rng = np.hypot(*(pts - sensor).T) if len(pts) else np.empty(0)
@@ -153,7 +271,7 @@ class ObstacleDetector:
                 if frms <= p.max_fit_rms:
                     cx, cy, rad = fx, fy, frad
             out.append(Detection((cx, cy), rad, len(c), c))
-        return out
+        return out, correction
 
 
 def _gap(ranges, inc, gap, holes=0):
