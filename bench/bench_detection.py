@@ -8,10 +8,12 @@ pybullet ray cast plus seeded 0.01 m Gaussian range noise, exactly what the simu
 Ground truth: the world file's movable obstacles; "in view" is Scene.visible_obstacles (hit by
 >= 5 beams of the noise-free cast); "in clear view" also asks the obstacle to be within the
 detector's max_range and unoccluded (hit by >= 80 % of the beams its silhouette spans).
+The scans are placed with their exact poses, so the pose correction is off unless
+--correct-pose (bench_detection_sensing.py measures it under the localisation's error).
 Latency is one library call (scan ranges -> obstacles in the map frame); the service round trip
 (ROS, the wait for a fresh scan, tf) is measured separately with the node on its own master.
 Writes bench/results/detection.json and detection.png.
-Usage: bench/bench_detection.py [--quick] [--no-service] [--laser-model ideal|tiago]
+Usage: bench/bench_detection.py [--quick] [--no-service] [--laser-model ideal|tiago] [--correct-pose]
 """
 import argparse
 import dataclasses
@@ -123,10 +125,11 @@ def match(found, world, visible):
 
 
 # --- the measurement ----------------------------------------------------------------------
-def evaluate_world(path, n_poses, seed, repeats, laser_model=LaserModel(laser_model='ideal')):
+def evaluate_world(path, n_poses, seed, repeats, laser_model=LaserModel(laser_model='ideal'),
+                   correct_pose=False):
     world = load_world(path)
     grid = rasterise_world(world)
-    params = DetectionParams()
+    params = DetectionParams(correct_pose=correct_pose)
     t0 = time.perf_counter()
     detector = ObstacleDetector(grid, params)
     dt_build_ms = (time.perf_counter() - t0) * 1e3
@@ -381,7 +384,7 @@ def plot(path, runs, scale_rows):
             laser = scene.laser_pose(pose)
             visible = scene.visible_obstacles(pose)
         ranges = noisy(clean, NOISE, np.random.default_rng(1), cfg.range_min, cfg.range_max)
-        det = ObstacleDetector(grid)
+        det = ObstacleDetector(grid, DetectionParams(correct_pose=False))   # exact poses
         x0, y0, x1, y1 = grid.bounds
         ax.imshow(grid.data, origin='lower', extent=(x0, x1, y0, y1), cmap='gray_r', vmin=0, vmax=140)
         local, _ = scan_to_points(ranges, cfg.angle_min, cfg.angle_increment, cfg.range_min, cfg.range_max)
@@ -445,6 +448,11 @@ def main():
     ap.add_argument('--laser-model', choices=('ideal', 'tiago'), default='ideal',
                     help="the simulated laser: ideal (exact cast + noise, today's figures) or tiago "
                          "(self-hits, mixed pixels, dropouts); tiago writes detection_tiago.*")
+    ap.add_argument('--correct-pose', action='store_true',
+                    help='run with the pose correction (off by default here: the scans are placed '
+                         'with their exact poses, so a correction could only add the map '
+                         'raster\'s bias; bench_detection_sensing.py measures it with the '
+                         'localisation\'s error)')
     ap.add_argument('--service-child', nargs=4, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.service_child:
@@ -455,13 +463,14 @@ def main():
     n = args.poses or (12 if args.quick else 60)
     repeats = 1 if args.quick else 3
     out = {'machine': {'cores': os.cpu_count()}, 'noise_std_m': NOISE, 'seed': args.seed,
-           'targets_circle_fit': TARGETS, 'params': dataclasses.asdict(DetectionParams()),
+           'targets_circle_fit': TARGETS,
+           'params': dataclasses.asdict(DetectionParams(correct_pose=args.correct_pose)),
            'worlds': {}}
     runs = []
     for j, name in enumerate(WORLDS):
         summary, world, grid, poses, example = evaluate_world(
             os.path.join(ROOT, 'worlds', name), n, args.seed + j, repeats,
-            LaserModel(laser_model=args.laser_model))
+            LaserModel(laser_model=args.laser_model), args.correct_pose)
         out['worlds'][world.name] = summary
         runs.append((summary, world, grid, poses, example))
         print('\n%s: %d poses with obstacles in view (%d drawn), %d occupied cells, transform '
