@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """obstacle_detection under the default sensing, at library level (no ROS): the tiago laser
 (self-hits, mixed pixels, dropouts, 1 mm quantisation, 0.01 m noise) and the localisation's
-error at the detection instant, with the pose correction on and off.
+error at the detection instant: the pose correction on and off, and ``before`` (neither the
+pose correction nor the shared radius: the pipeline as it was).
 
 The localisation's error is emulated with the localisation library, as the live chain makes
 it at a stop: the odometry's drift leaves a predicted pose off by a random error (std
@@ -75,6 +76,9 @@ class Sensing:
         self.grid = rasterise_world(self.world)
         self.on = ObstacleDetector(self.grid, DetectionParams())
         self.off = ObstacleDetector(self.grid, DetectionParams(correct_pose=False))
+        # the pipeline as it was before the pose correction and the shared radius
+        self.before = ObstacleDetector(self.grid, DetectionParams(correct_pose=False,
+                                                                  shared_radius=False))
         self.loc = Localiser(self.grid, (0.0, 0.0, 0.0))
         self.scene = Scene(self.world)
 
@@ -106,7 +110,7 @@ class Sensing:
         out = {'pose': [round(v, 4) for v in pose], 'beams': beams,
                'localisation_error_m': math.hypot(loc_err[0], loc_err[1]),
                'localisation_error_deg': math.degrees(loc_err[2])}
-        for name, det in (('on', self.on), ('off', self.off)):
+        for name, det in (('on', self.on), ('off', self.off), ('before', self.before)):
             t, c = time.perf_counter(), time.process_time()
             res = det.locate(r, cfg.angle_min, cfg.angle_increment, cfg.range_min,
                              cfg.range_max, compose(est, lib), 'circle_fit', laser_in_base=lib)
@@ -183,7 +187,8 @@ def main():
                      'localisation_error_m_rms': round(float(np.sqrt(np.mean(loc ** 2))), 4),
                      'localisation_error_m_max': round(float(loc.max()), 4),
                      'correction_on': summarise(rows, 'on'),
-                     'correction_off': summarise(rows, 'off')}
+                     'correction_off': summarise(rows, 'off'),
+                     'before': summarise(rows, 'before')}
     # the course scene with a pose error of the live mission's size instead (2-D error p95
     # 2.4 cm: x and y std 1 cm; yaw std 0.3 deg)
     s = Sensing(os.path.join(ROOT, 'worlds', name))
@@ -199,7 +204,8 @@ def main():
                               'localisation_error_m_rms': round(float(np.sqrt(np.mean(loc ** 2))), 4),
                               'localisation_error_m_max': round(float(loc.max()), 4),
                               'correction_on': summarise(rows, 'on'),
-                              'correction_off': summarise(rows, 'off')}
+                              'correction_off': summarise(rows, 'off'),
+                              'before': summarise(rows, 'before')}
     # mission scenes over the worlds
     tmp = tempfile.mkdtemp()
     paths = ([os.path.join(ROOT, 'worlds', w) for w in bench_detection.WORLDS]
@@ -220,11 +226,12 @@ def main():
                        'localisation_error_m_rms': round(float(np.sqrt(np.mean(loc ** 2))), 4),
                        'localisation_error_m_p95': round(float(np.percentile(loc, 95)), 4),
                        'correction_on': summarise(scenes, 'on'),
-                       'correction_off': summarise(scenes, 'off')}
+                       'correction_off': summarise(scenes, 'off'),
+                       'before': summarise(scenes, 'before')}
     for part in ('course', 'course_injected', 'missions'):
         o = out[part]
         print('%s: localisation error (emulated) rms %.2f cm' % (part, 100 * o['localisation_error_m_rms']))
-        for k in ('correction_off', 'correction_on'):
+        for k in ('before', 'correction_off', 'correction_on'):
             m = o[k]
             print('  %-15s %3d scenes, %3d/%3d found (>= %d beams), %d FP, RMS %.2f cm, max %.2f cm, '
                   '%d beyond %.0f cm, corrected %.0f %%, call %.2f ms median, p95 %.2f ms '
