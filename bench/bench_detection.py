@@ -545,6 +545,9 @@ def main():
              100 * met['max_error_in_view_m'], met['latency_ms'], met['latency_ms_p95'],
              met['subtraction_speedup']))
     print('targets: ' + ', '.join('%s %s' % (k, 'met' if v else 'MISSED') for k, v in ok.items()))
+    # latencies are wall time on a shared machine: say how busy it was
+    out['load_average_1_5_15'] = [round(v, 2) for v in os.getloadavg()]
+    print('load average %s on %d cores' % (out['load_average_1_5_15'], os.cpu_count()))
     stem = 'detection' if args.laser_model == 'ideal' else 'detection_' + args.laser_model
     out['laser_model'] = args.laser_model
     plot(os.path.join(RESULTS, stem + '.png'), runs, rows)
