@@ -8,10 +8,12 @@ pybullet ray cast plus seeded 0.01 m Gaussian range noise, exactly what the simu
 Ground truth: the world file's movable obstacles; "in view" is Scene.visible_obstacles (hit by
 >= 5 beams of the noise-free cast); "in clear view" also asks the obstacle to be within the
 detector's max_range and unoccluded (hit by >= 80 % of the beams its silhouette spans).
+The scans are placed with their exact poses, so the pose correction is off unless
+--correct-pose (bench_detection_sensing.py measures it under the localisation's error).
 Latency is one library call (scan ranges -> obstacles in the map frame); the service round trip
 (ROS, the wait for a fresh scan, tf) is measured separately with the node on its own master.
 Writes bench/results/detection.json and detection.png.
-Usage: bench/bench_detection.py [--quick] [--no-service] [--laser-model ideal|tiago]
+Usage: bench/bench_detection.py [--quick] [--no-service] [--laser-model ideal|tiago] [--correct-pose]
 """
 import argparse
 import dataclasses
@@ -124,10 +126,11 @@ def match(found, world, visible):
 
 
 # --- the measurement ----------------------------------------------------------------------
-def evaluate_world(path, n_poses, seed, repeats, laser_model=LaserModel(laser_model='ideal')):
+def evaluate_world(path, n_poses, seed, repeats, laser_model=LaserModel(laser_model='ideal'),
+                   correct_pose=False):
     world = load_world(path)
     grid = rasterise_world(world)
-    params = DetectionParams()
+    params = DetectionParams(correct_pose=correct_pose)
     t0 = time.perf_counter()
     detector = ObstacleDetector(grid, params)
     dt_build_ms = (time.perf_counter() - t0) * 1e3
@@ -310,9 +313,10 @@ def measure_service(world_path, start, calls, rtf):
             resp = call(DetectObstaclesRequest())
             rt.append((time.perf_counter() - t) * 1e3)
             found.append(len(resp.obstacles))
-            ms = [float(w) for w in resp.message.replace('(', ' ').split() if _is_float(w)]
-            if resp.success and len(ms) >= 2:
-                proc.append(ms[-1])
+            # "N obstacle(s) found with M in T ms; pose ...": T is the node's processing time
+            head = resp.message.split(';')[0].split()
+            if resp.success and len(head) >= 2 and head[-1] == 'ms' and _is_float(head[-2]):
+                proc.append(float(head[-2]))
         return {'calls': calls, 'real_time_factor': rtf,
                 'round_trip_ms_median': round(float(np.median(rt)), 2),
                 'round_trip_ms_p95': round(float(np.percentile(rt, 95)), 2),
@@ -321,6 +325,39 @@ def measure_service(world_path, start, calls, rtf):
     finally:
         for p in (node, launch):
             stop_process(p)
+
+
+def obstacle_detector_available():
+    """``(True, path)`` when tysik/obstacle_detector (not a Debian package) is installed in the
+    ROS environment, found with ``rospack find obstacle_detector``; ``(False, why)`` otherwise."""
+    try:
+        out = subprocess.run(['rospack', 'find', 'obstacle_detector'], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, timeout=30)
+    except FileNotFoundError:
+        return False, 'rospack is not on PATH (source the workspace\'s devel/setup.bash)'
+    except subprocess.TimeoutExpired:
+        return False, 'rospack find obstacle_detector did not answer within 30 s'
+    if out.returncode != 0:
+        why = (out.stderr.strip().splitlines() or ['not found'])[-1]
+        return False, ('obstacle_detector is not installed (rospack find obstacle_detector: %s); '
+                       'it is not a Debian package: build tysik/obstacle_detector in a catkin '
+                       'workspace and source it to compare' % why)
+    return True, out.stdout.strip()
+
+
+def obstacle_detector_comparison(laser_model):
+    """The live-scan comparison with obstacle_detector under ``laser_model``: skipped, with the
+    reason, when the package is not installed. When it is, the comparison itself (its
+    obstacle_extractor on the simulator's /scan beside this package's service, both judged
+    against the world file) is still to be written: the package was never available here."""
+    ok, info = obstacle_detector_available()
+    if not ok:
+        print('\nobstacle_detector comparison (%s laser): skipped: %s' % (laser_model, info))
+        return {'skipped': True, 'reason': info, 'laser_model': laser_model}
+    print('\nobstacle_detector comparison (%s laser): obstacle_detector found at %s, but the '
+          'live comparison is not implemented yet' % (laser_model, info))
+    return {'skipped': True, 'installed_at': info, 'laser_model': laser_model,
+            'reason': 'installed, but the live comparison is not implemented yet'}
 
 
 def _is_float(w):
@@ -348,7 +385,7 @@ def plot(path, runs, scale_rows):
             laser = scene.laser_pose(pose)
             visible = scene.visible_obstacles(pose)
         ranges = noisy(clean, NOISE, np.random.default_rng(1), cfg.range_min, cfg.range_max)
-        det = ObstacleDetector(grid)
+        det = ObstacleDetector(grid, DetectionParams(correct_pose=False))   # exact poses
         x0, y0, x1, y1 = grid.bounds
         ax.imshow(grid.data, origin='lower', extent=(x0, x1, y0, y1), cmap='gray_r', vmin=0, vmax=140)
         local, _ = scan_to_points(ranges, cfg.angle_min, cfg.angle_increment, cfg.range_min, cfg.range_max)
@@ -412,6 +449,11 @@ def main():
     ap.add_argument('--laser-model', choices=('ideal', 'tiago'), default='ideal',
                     help="the simulated laser: ideal (exact cast + noise, today's figures) or tiago "
                          "(self-hits, mixed pixels, dropouts); tiago writes detection_tiago.*")
+    ap.add_argument('--correct-pose', action='store_true',
+                    help='run with the pose correction (off by default here: the scans are placed '
+                         'with their exact poses, so a correction could only add the map '
+                         'raster\'s bias; bench_detection_sensing.py measures it with the '
+                         'localisation\'s error)')
     ap.add_argument('--service-child', nargs=4, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.service_child:
@@ -422,13 +464,14 @@ def main():
     n = args.poses or (12 if args.quick else 60)
     repeats = 1 if args.quick else 3
     out = {'machine': {'cores': os.cpu_count()}, 'noise_std_m': NOISE, 'seed': args.seed,
-           'targets_circle_fit': TARGETS, 'params': dataclasses.asdict(DetectionParams()),
+           'targets_circle_fit': TARGETS,
+           'params': dataclasses.asdict(DetectionParams(correct_pose=args.correct_pose)),
            'worlds': {}}
     runs = []
     for j, name in enumerate(WORLDS):
         summary, world, grid, poses, example = evaluate_world(
             os.path.join(ROOT, 'worlds', name), n, args.seed + j, repeats,
-            LaserModel(laser_model=args.laser_model))
+            LaserModel(laser_model=args.laser_model), args.correct_pose)
         out['worlds'][world.name] = summary
         runs.append((summary, world, grid, poses, example))
         print('\n%s: %d poses with obstacles in view (%d drawn), %d occupied cells, transform '
@@ -472,6 +515,7 @@ def main():
         except (RuntimeError, subprocess.TimeoutExpired) as e:
             out['service'] = {'error': str(e)}
             print('\nservice round trip: not measured (%s)' % e)
+    out['obstacle_detector'] = obstacle_detector_comparison(args.laser_model)
     # targets, circle_fit, over all worlds
     cf = [s['methods']['circle_fit'] for s in out['worlds'].values()]
     errs_sq = sum((c['rms_error_m'] or 0) ** 2 * c['found_in_view'] for c in cf)
@@ -502,6 +546,9 @@ def main():
              100 * met['max_error_in_view_m'], met['latency_ms'], met['latency_ms_p95'],
              met['subtraction_speedup']))
     print('targets: ' + ', '.join('%s %s' % (k, 'met' if v else 'MISSED') for k, v in ok.items()))
+    # latencies are wall time on a shared machine: say how busy it was
+    out['load_average_1_5_15'] = [round(v, 2) for v in os.getloadavg()]
+    print('load average %s on %d cores' % (out['load_average_1_5_15'], os.cpu_count()))
     stem = 'detection' if args.laser_model == 'ideal' else 'detection_' + args.laser_model
     out['laser_model'] = args.laser_model
     plot(os.path.join(RESULTS, stem + '.png'), runs, rows)

@@ -139,3 +139,31 @@ def test_discontinuity_reads_a_too_close_neighbour_per_rep_117(neighbour, dip):
     assert len(found) == (1 if dip else 0), [d.center for d in found]
     if dip:
         assert found[0].center[0] == pytest.approx(2.0 + DetectionParams().depth, abs=0.01)
+
+
+def test_equal_cylinders_share_their_radius():
+    """Four cylinders of one radius on the tiago laser: with the radius they agree on, each
+    centre is placed better along its beams than by its own free fit (over 20 scans: RMS 8.0
+    -> 4.4 mm, max 23.7 -> 9.9 mm; the free fits alone failed both bounds)."""
+    from test_detection import world as row_world
+    from tiago_nav.sim.laser import LaserModel
+    w = row_world([(2.0, 1.2, 0.183), (3.0, -0.6, 0.183), (4.0, 0.8, 0.183), (2.5, -1.8, 0.183)])
+    grid = rasterise_world(w)
+    with Scene(w) as s:
+        clean, _ = s.cast((0.0, 0.0, 0.0))
+        laser = s.laser_pose((0.0, 0.0, 0.0))
+    errs = {}
+    for shared in (False, True):
+        det = ObstacleDetector(grid, DetectionParams(correct_pose=False, shared_radius=shared))
+        e = []
+        for seed in range(20):
+            r = LaserModel().apply(clean, L, 0.01, np.random.default_rng(seed)).ranges
+            found = det.detect(r, L.angle_min, L.angle_increment, L.range_min, L.range_max, laser,
+                               laser_in_base=laser)      # the robot at the origin
+            assert len(found) == 4
+            e += [min(math.hypot(d.center[0] - c.x, d.center[1] - c.y) for d in found)
+                  for c in w.movable_obstacles]
+        errs[shared] = np.array(e)
+    on, off = errs[True], errs[False]
+    assert np.sqrt(np.mean(on ** 2)) < 0.006 and on.max() < 0.015
+    assert np.sqrt(np.mean(off ** 2)) > 0.006 and off.max() > 0.015   # the free fits alone

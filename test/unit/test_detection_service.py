@@ -207,7 +207,7 @@ def test_pipeline_error_is_an_answer_not_a_crash(clean, grid, error):
 
     def broken(*args, **kw):
         raise error
-    svc.detector.detect = broken
+    svc.detector.locate = broken           # the call the service makes
     a = svc.handle('', 0.0, 0.0, FakeSensors(noisy_scan(clean)))
     assert not a.success and a.obstacles == ()
     assert a.message == 'detection failed on this scan: %s: ranges and angles disagree' \

@@ -24,7 +24,7 @@ import time
 from dataclasses import dataclass
 
 from tiago_nav.detection.pipeline import METHODS, ObstacleDetector
-from tiago_nav.geometry import compose, inverse
+from tiago_nav.geometry import compose, inverse, wrap_angle
 from tiago_nav.scan import informative_fraction
 
 # request fields that override a DetectionParams field (0 keeps the node's default)
@@ -64,6 +64,8 @@ class Answer:
     obstacles: tuple
     message: str
     stamp: object = None
+    pose_correction: tuple = (0.0, 0.0, 0.0)   # (dx, dy, dyaw) [m, m, rad] added to the robot's
+    pose_corrected: bool = False               # pose in map (corrected minus given)
 
 
 def check_request(method, scan_minus_map_threshold, cluster_threshold, default_method):
@@ -188,7 +190,7 @@ class DetectionService:
                 scan_minus_map_threshold, cluster_threshold):
         t0 = time.perf_counter()
         try:
-            found = detector.detect(
+            result = detector.locate(
                 scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
                 scan.range_max, laser_in_map, method, laser_in_base=laser_in_robot,
                 scan_minus_map_threshold=scan_minus_map_threshold,
@@ -197,6 +199,18 @@ class DetectionService:
             raise Failure('detection failed on this scan: %s: %s'
                           % (type(e).__name__, e)) from None
         self.elapsed_ms = (time.perf_counter() - t0) * 1e3    # (not in the message: the same
-        obstacles = found_obstacles(found, laser_in_map, laser_in_robot)   # call, the same answer)
-        return Answer(True, obstacles, '%d obstacle(s) found with %s on the scan at %s'
-                      % (len(obstacles), method, _seconds(scan.stamp)), scan.stamp)
+        corr = result.correction                              # call, the same answer)
+        laser_used = corr.laser_pose if corr.applied else laser_in_map
+        obstacles = found_obstacles(result.detections, laser_used, laser_in_robot)
+        delta = (0.0, 0.0, 0.0)
+        if corr.applied:
+            # the robot's pose in map, corrected minus given (the laser is fixed on it)
+            given = compose(laser_in_map, inverse(laser_in_robot))
+            fixed = compose(laser_used, inverse(laser_in_robot))
+            delta = (fixed[0] - given[0], fixed[1] - given[1], wrap_angle(fixed[2] - given[2]))
+        phrase = corr.describe() if not corr.applied else (
+            'pose corrected by (%+.3f m, %+.3f m, %+.2f deg) from %d static points'
+            % (delta[0], delta[1], math.degrees(delta[2]), corr.static_points))
+        return Answer(True, obstacles, '%d obstacle(s) found with %s on the scan at %s; %s'
+                      % (len(obstacles), method, _seconds(scan.stamp), phrase), scan.stamp, delta,
+                      corr.applied)

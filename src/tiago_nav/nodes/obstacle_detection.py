@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import rospy
 import tf2_ros
-from geometry_msgs.msg import Point
+from geometry_msgs.msg import Point, Pose2D
 from nav_msgs.msg import OccupancyGrid
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
@@ -197,7 +197,8 @@ class DetectionNode:
             self.markers.publish(obstacle_markers(obstacles, self.params.map_frame, answer.stamp))
         else:
             rospy.logwarn('obstacle_detection: %s', answer.message)
-        return DetectObstaclesResponse(answer.success, obstacles, answer.message)
+        return DetectObstaclesResponse(answer.success, obstacles, answer.message,
+                                       Pose2D(*answer.pose_correction), answer.pose_corrected)
 
 
 def main():

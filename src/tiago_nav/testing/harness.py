@@ -317,7 +317,7 @@ class Harness:
         self.log.close()
 
 
-def mission_record(h, world, goal, use_corridor_law, limit=None):
+def mission_record(h, world, goal, use_corridor_law, limit=None, laser_model=None):
     """Run one mission through the :class:`Harness` ``h`` (connected) and judge it against
     ``world`` (:class:`tiago_nav.sim.world.World`, ground truth from the simulator's tf).
 
@@ -327,6 +327,8 @@ def mission_record(h, world, goal, use_corridor_law, limit=None):
         goal: pose B ``(x, y, yaw_deg)`` [m, m, deg] in map.
         use_corridor_law: the goal's flag.
         limit: [s wall] a mission without a terminal state by then is a hang (None: no bound).
+        laser_model: the run's :class:`tiago_nav.sim.laser.LaserModel`, for the ground truth
+            (:func:`tiago_nav.testing.evaluation.visible_truth`; None: the exact cast alone).
 
     Returns a dict: goal, ``succeeded``, ``hang``, ``message`` (the client's last line on
     failure, else the result's message), wall and simulated seconds, ``collisions`` during the
@@ -344,7 +346,7 @@ def mission_record(h, world, goal, use_corridor_law, limit=None):
                                           limit=limit)
     sim = rospy.get_time() - t_sim
     final = h.pose()
-    truth = visible_truth(world, final) if final else []
+    truth = visible_truth(world, final, laser_model=laser_model) if final else []
     found = [(o.center.x, o.center.y) for o in result.obstacles] if result else []
     s = score([(tx, ty) for _, tx, ty, _ in truth], found)
     message = (result.message if result else '') if code == 0 else (lines[-1] if lines else '')
