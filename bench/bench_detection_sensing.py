@@ -251,6 +251,9 @@ def main():
     out['load_average_1_5_15'] = [round(v, 2) for v in os.getloadavg()]
     out['cores'] = os.cpu_count()
     print('load average %s on %d cores' % (out['load_average_1_5_15'], out['cores']))
+    from tiago_nav.benchmarks import meta
+    out['meta'] = meta(vars(args), real_time_factor='library (no ROS)', laser_model='tiago',
+                       odometry_model='drift')
     os.makedirs(RESULTS, exist_ok=True)
     with open(os.path.join(RESULTS, 'detection_sensing.json'), 'w') as f:
         json.dump(out, f, indent=2)

@@ -23,7 +23,8 @@ BENCHMARKS = (
         ('bench/bench_simulator.py', ['simulator.json'])]),
     ('detection', 'Obstacle detection', [
         ('bench/bench_detection.py', ['detection.json']),
-        ('bench/bench_detection.py --laser-model tiago --no-service', ['detection_tiago.json'])]),
+        ('bench/bench_detection.py --laser-model tiago --no-service', ['detection_tiago.json']),
+        ('bench/bench_detection_sensing.py', ['detection_sensing.json'])]),
     ('navigation', 'Navigation (move_base)', [
         ('bench/bench_navigation.py', ['navigation.json'])]),
     ('corridor', 'Corridor law against move_base', [

@@ -114,7 +114,7 @@ def test_the_service_reports_the_correction(scene, min_static):
     svc = DetectionService(Params(detection=DetectionParams(min_static_points=min_static)))
     svc.set_map(grid)
     a = svc.handle('', 0.0, 0.0, Sensors(r, compose(compose(POSE, ERROR), lib), lib))
-    assert a.success and a.message.startswith('2 obstacle(s) found with circle_fit in ')
+    assert a.success and a.message.startswith('2 obstacle(s) found with circle_fit on the scan at 1.000 s; ')
     if min_static == 80:
         # the robot's pose in map: corrected minus given, close to minus the error put in
         given = compose(POSE, ERROR)

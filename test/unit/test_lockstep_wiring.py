@@ -13,7 +13,7 @@ from tiago_nav.testing.fakes import FakeClock
 from test_nav_runner import Rig
 from test_simulator_node import BOX, Log, fake_outputs, make_node, twist
 
-from tiago_nav.nodes.simulator import Params, SimulatorNode
+from tiago_nav.nodes.simulator import LOCKSTEP_START as S, Params, SimulatorNode
 
 
 class FakeHost:
@@ -73,11 +73,12 @@ def test_the_simulator_holds_before_every_step_and_each_tick_has_odometry_at_its
         for _ in range(10):
             assert node.hold()
             node.step()
-        assert [t.to_sec() for t in host.holds] == pytest.approx([k / 60.0 for k in range(10)])
-        ticks = [x.to_sec() for tick in host.ticks for x in tick]    # (tick, scan, odometry)
+        # (in lockstep simulated time starts at LOCKSTEP_START)
+        assert [t.to_sec() - S for t in host.holds] == pytest.approx([k / 60.0 for k in range(10)])
+        ticks = [x.to_sec() - S for tick in host.ticks for x in tick]    # (tick, scan, odometry)
         assert ticks == pytest.approx([0, 0, 0, 3 / 60, 0, 3 / 60, 6 / 60, 4 / 60, 6 / 60,
-                                       9 / 60, 8 / 60, 9 / 60])
-        assert odom == pytest.approx([k / 60 for k in (0, 3, 4, 6, 8, 9)])
+                                       9 / 60, 8 / 60, 9 / 60], abs=1e-8)
+        assert [t - S for t in odom] == pytest.approx([k / 60 for k in (0, 3, 4, 6, 8, 9)], abs=1e-8)
         assert len(node.out.tf.messages) == len(odom)       # the tf of each odometry
     finally:
         node.close()
@@ -115,7 +116,7 @@ def test_a_hold_ended_by_shutdown_ends_the_run():
     try:
         clock = FakeClock()
         node.run(clock)                 # returns: the host said "shutting down"
-        assert len(host.holds) == 1 and node.sim.steps == 0
+        assert len(host.holds) == 1 and node.sim.time == pytest.approx(S)   # no step after it
     finally:
         node.close()
 
@@ -224,8 +225,8 @@ def test_in_lockstep_clock_goes_out_with_the_scans_only_while_nobody_takes_part(
         for _ in range(8):
             node.hold()
             node.step()
-        assert [t.to_sec() for t in host.clocks] == pytest.approx(clocks)
-        assert odom == pytest.approx(odoms)
+        assert [t.to_sec() - S for t in host.clocks] == pytest.approx(clocks, abs=1e-8)
+        assert [t - S for t in odom] == pytest.approx(odoms, abs=1e-8)
     finally:
         node.close()
 
