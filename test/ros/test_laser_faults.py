@@ -8,9 +8,10 @@ In order (one launch, the course world from its start):
    then the law resumes and the mission succeeds;
 2.-5. from pose B, missions to nearby goals with, while the robot moves, 2 s of NaN ranges and
    2 s of zeros (the base stops within the fault: an all-invalid scan blocks driving), a 2 s
-   frozen scan and a 2 s dead laser (move_base commands a stop within 1 s and nothing else
-   until real scans return); each
-   mission then succeeds (short gaps resume);
+   frozen scan and a 2 s dead laser (the base, by ground truth, brakes from within 1 s of the
+   fault at the base's deceleration, comes to rest and stays put until real scans return;
+   move_base commands nothing but a stop meanwhile); each mission then succeeds (short gaps
+   resume);
 6. a laser that stays dead: the base stops and the mission aborts with
    ``navigation failed: move_base aborted: no laser data for 3.0 s``.
 Every case: no collision. The bound on stopping: within the fault, i.e. the base's speed
@@ -40,6 +41,7 @@ from tiago_nav.msg import (CorridorAction, LockstepAck, TiagoTaskAction,
                            TiagoTaskFeedback as FB, TiagoTaskGoal)
 from tiago_nav.ros.actions import TaskClient, wait_server
 from tiago_nav.ros.lockstep import ACK_TOPIC, USE_LOCKSTEP
+from tiago_nav.sim.diffdrive import BaseLimits
 from tiago_nav.sim.world import load_world
 
 from test_mission import MissionTest
@@ -49,6 +51,9 @@ FAULT = 2.0          # [s simulated] length of a fault burst
 STOPPED = 0.05       # [m/s] stopped below this (ground truth, linear speed)
 SILENT_STOP = 1.0    # [s simulated] move_base's stop command within this of a silent laser
                      # (sensor_timeout 0.5 s + control periods + delivery)
+DECEL = BaseLimits().max_linear_acceleration   # [m/s^2] the simulated base's braking
+SAMPLE = 0.1         # [s simulated] slack of one ground-truth sample and one control cycle
+PUT = 0.02           # [m] at rest, the base moves less than this (ground truth)
 MOVING = 0.2         # [m/s] the fault is injected once the robot drives at least this fast
 
 
@@ -61,6 +66,7 @@ class LaserFaultTest(unittest.TestCase):
         cls.listener = tf2_ros.TransformListener(cls.tf)
         cls.lock = threading.Lock()
         cls.speeds = []              # (stamp [s sim], linear speed [m/s]) from ground truth
+        cls.places = []              # (stamp [s sim], x, y) from ground truth
         cls.collisions = None
         cls.cmds = []                # (time [s sim], linear.x) of move_base's commands
         rospy.Subscriber('/sim/ground_truth', Odometry, cls._on_truth)
@@ -89,6 +95,8 @@ class LaserFaultTest(unittest.TestCase):
         t = m.twist.twist
         with cls.lock:
             cls.speeds.append((m.header.stamp.to_sec(), math.hypot(t.linear.x, t.linear.y)))
+            cls.places.append((m.header.stamp.to_sec(), m.pose.pose.position.x,
+                               m.pose.pose.position.y))
 
     @classmethod
     def _on_cmd(cls, m):
@@ -190,6 +198,7 @@ class LaserFaultTest(unittest.TestCase):
         state, msg, t_fault, _ = self.run_with_fault(goal, False, lambda f: f.state == FB.MOVING,
                                                      '%s %g' % (kind, FAULT))
         self.assertEqual(state, GoalStatus.SUCCEEDED, msg)
+        self.assert_braked_and_stayed_put(t_fault, kind)
         with self.lock:
             stops = [t for t, v in self.cmds if t_fault <= t <= t_fault + SILENT_STOP and v == 0]
             self.assertTrue(stops, 'move_base did not command a stop within %g s of the laser '
@@ -197,6 +206,36 @@ class LaserFaultTest(unittest.TestCase):
             during = [v for t, v in self.cmds if stops[0] <= t <= t_fault + FAULT - 0.2]
         self.assertEqual(max(abs(v) for v in during), 0.0, 'drove during the fault %s' % kind)
         self.assertEqual(self.collisions, 0)
+
+    def assert_braked_and_stayed_put(self, t_fault, kind):
+        """Ground truth through a silent-laser fault: from :data:`SILENT_STOP` after the fault
+        the base's speed only falls, at least as fast as the base brakes, until it is at rest;
+        at rest it stays put until the fault ends."""
+        end = t_fault + FAULT
+        with self.lock:
+            speeds = [(t, v) for t, v in self.speeds if t_fault <= t <= end]
+            places = [(t, x, y) for t, x, y in self.places if t_fault <= t <= end]
+        self.assertTrue(speeds, 'no ground truth during the fault %s' % kind)
+        v0 = speeds[0][1]
+        t_brake = t_fault + SILENT_STOP
+        # the fastest it may go once braking began: what it reached by then (it may still have
+        # been speeding up until the stop came)
+        vb = max(v for t, v in speeds if t <= t_brake + SAMPLE)
+        for t, v in speeds:          # braking: never faster than the brake from t_brake allows
+            allowed = max(0.0, vb - DECEL * (t - t_brake - SAMPLE)) if t > t_brake + SAMPLE else 1e9
+            self.assertLessEqual(v, allowed + STOPPED, 'the base drove at %.2f m/s %.2f s into '
+                                 'the fault %s (at most %.2f m/s braking from %.2f m/s)'
+                                 % (v, t - t_fault, kind, allowed, vb))
+        rest = [t for t, v in speeds if v < STOPPED]
+        if t_brake + vb / DECEL + 2 * SAMPLE < end:       # it had the time to come to rest
+            self.assertTrue(rest, 'the base never came to rest during the fault %s' % kind)
+        if rest:
+            put = [(x, y) for t, x, y in places if rest[0] <= t <= end - 0.2]
+            moved = max((math.hypot(x - put[0][0], y - put[0][1]) for x, y in put), default=0.0)
+            self.assertLess(moved, PUT, 'at rest, the base moved %.3f m during the fault %s'
+                            % (moved, kind))
+        rospy.loginfo('%s %g s: %.2f m/s at the fault, at rest %s', kind, FAULT, v0,
+                      '%.2f s after it' % (rest[0] - t_fault) if rest else 'not before its end')
 
     def test_6_dead_laser_stops_the_base_and_aborts(self):
         start = self.pose()

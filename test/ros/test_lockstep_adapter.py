@@ -17,12 +17,16 @@ from tf2_msgs.msg import TFMessage
 
 from tiago_nav.motion import MotionMonitor
 from tiago_nav.ros.conversions import transform_stamped
+from tiago_nav.ros import lockstep
 from tiago_nav.ros.lockstep import LockstepHost, LockstepParticipant, ScanCache, lookup_at
 
 RATE = 60            # [Hz] physics steps
 STEPS = 150          # 2.5 s of simulated time
-TIMEOUT = 10.0       # [s wall] every wait of this test
-SIM_TIMEOUT = 1.0    # [s wall] the fake simulator's lockstep_timeout
+TIMEOUT = 10.0       # [s wall] every wait of this test (a hang guard, not a timing)
+RUN_TIMEOUT = 40.0   # [s wall] the whole run, one participant's drop included (a hang guard)
+# the fake simulator's lockstep_timeout [s wall]: the simulator's default, which must stay below
+# the participants' clock.STALL (a longer hold reads as a dead simulator to them)
+SIM_TIMEOUT = lockstep.TIMEOUT
 
 
 def wait_for(condition, what, timeout=TIMEOUT):
@@ -45,6 +49,14 @@ class FakeSimulator(threading.Thread):
         super().__init__(daemon=True)
         self.pub_clock = rospy.Publisher('/clock', Clock, queue_size=10)
         self.host = LockstepHost(RATE, timeout=SIM_TIMEOUT, clock_pub=self.pub_clock)
+        self.warnings = []                # the schedule's warnings (drops)
+        log = self.host.schedule.log
+
+        def record(level, text):
+            if level == 'warn':
+                self.warnings.append(text)
+            log(level, text)
+        self.host.schedule.log = record
         self.pub_scan = rospy.Publisher('/scan', LaserScan, queue_size=5)
         self.pub_tf = rospy.Publisher('/tf', TFMessage, queue_size=20)
         self.applied = []                 # (step, v, w)
@@ -84,7 +96,8 @@ def late_loop(p, schedule, out):
     runs 5 more cycles: the first one late (its command applied late), the rest in lockstep."""
     for i in range(8):
         if i == 3:
-            wait_for(lambda: schedule.drops == 1, 'the late participant to be dropped')
+            wait_for(lambda: not schedule.is_participant('/late'), 'the late participant to be '
+                     'dropped', RUN_TIMEOUT)
             out.append(('rejoining', rospy.Time.now()))
         if not p.tick():
             out.append('stalled')
@@ -157,7 +170,7 @@ class LockstepAdapterTest(unittest.TestCase):
         for t in loops:
             t.start()
         cls.sim.start()
-        cls.finished = cls.sim.done.wait(TIMEOUT)
+        cls.finished = cls.sim.done.wait(RUN_TIMEOUT)
         for t in loops:
             t.join(TIMEOUT)
 
@@ -173,9 +186,13 @@ class LockstepAdapterTest(unittest.TestCase):
         """The idle participant's ``ready``: it answers once it holds the tick's scan."""
         cls.idle_ready.append((tick.stamp, cls.scans.wait_for_scan(tick.scan_stamp, TIMEOUT) is not None))
 
-    def test_1_the_simulation_ran_to_its_end_dropping_only_the_late_participant(self):
+    def test_1_the_simulation_ran_to_its_end_dropping_the_late_participant(self):
+        """Dropped with the warning that names it; whether a loaded machine made another one
+        miss the timeout too is test_2's and test_3c's to say (they were held at every cycle)."""
         self.assertTrue(self.finished, 'the fake simulator is stuck at %s' % rospy.get_time())
-        self.assertEqual(self.sim.host.schedule.drops, 1)     # the late participant, once
+        self.assertGreaterEqual(self.sim.host.schedule.drops, 1)
+        dropped = [w for w in self.sim.warnings if 'no answer from /late' in w]
+        self.assertTrue(dropped and 'going on without it' in dropped[0], self.sim.warnings)
 
     def test_2_each_loop_ran_every_cycle_of_its_period_in_lockstep(self):
         for period, n in ((0.1, 15), (0.05, 25)):

@@ -25,7 +25,8 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from std_msgs.msg import UInt32
 
-from tiago_nav.testing.evaluation import score, visible_truth
+from tiago_nav.geometry import compose, inverse
+from tiago_nav.testing.evaluation import match_obstacles, score, visible_truth
 from tiago_nav.msg import TiagoTaskFeedback as FB, TiagoTaskGoal
 from tiago_nav.ros.actions import TaskClient
 from tiago_nav.ros.conversions import pose_from_msg
@@ -65,6 +66,9 @@ class MissionTest(unittest.TestCase):
                 assert time.monotonic() - t0 < WAIT, 'no %s action server' % name
                 time.sleep(0.1)
         rospy.wait_for_service('obstacle_detection', WAIT)
+        # pose B is reached when move_base says so: within its own goal tolerances
+        cls.xy_tol = rospy.get_param('/move_base/xy_goal_tolerance')
+        cls.yaw_tol = rospy.get_param('/move_base/yaw_goal_tolerance')
 
     # --- helpers ---------------------------------------------------------------------------
     def pose(self):
@@ -142,11 +146,15 @@ class MissionTest(unittest.TestCase):
         self.assertTrue(set(st[len(expected):-3]) <= {FB.MOVING, FB.STOPPED}, st)
         if self.corridor:
             self.assert_corridor_decision(fbs, self.corridor_ahead)
-        # the robot is at pose B (ground truth: /sim/ground_truth)
+        # the robot is at pose B (ground truth: /sim/ground_truth) within move_base's goal
+        # tolerances (config/navigation.yaml)
         px, py, pyaw = self.pose()
-        self.assertLess(math.hypot(px - x, py - y), 0.3)
-        self.assertLess(abs(math.degrees(math.atan2(math.sin(pyaw - math.radians(yaw)),
-                                                    math.cos(pyaw - math.radians(yaw))))), 15.0)
+        self.assertLessEqual(math.hypot(px - x, py - y), self.xy_tol,
+                             'at (%.3f, %.3f), pose B (%.3f, %.3f)' % (px, py, x, y))
+        dyaw = math.atan2(math.sin(pyaw - math.radians(yaw)), math.cos(pyaw - math.radians(yaw)))
+        rospy.loginfo('at pose B within %.3f m and %.3f rad (tolerances %g m, %g rad)',
+                      math.hypot(px - x, py - y), abs(dyaw), self.xy_tol, self.yaw_tol)
+        self.assertLessEqual(abs(dyaw), self.yaw_tol, 'heading off by %.3f rad' % dyaw)
         fx, fy, _ = pose_from_msg(result.final_pose.pose)
         self.assertLess(math.hypot(fx - px, fy - py), 0.05)
         # every movable obstacle in view found within 5 cm, and nothing else
@@ -157,12 +165,20 @@ class MissionTest(unittest.TestCase):
         self.assertEqual(s['matched'], len(truth), 'missed %s; found %s' % (s['missed'], found))
         self.assertEqual(s['false_positives'], 0, 'found %s, truth %s' % (found, truth))
         self.assertLessEqual(s['max_error'], TOL)
-        # robot-frame centres agree with the map-frame ones through the final pose
-        for o in result.obstacles:
-            c, sn = math.cos(pyaw), math.sin(pyaw)
-            rx, ry = o.center_robot.x, o.center_robot.y
-            self.assertAlmostEqual(px + c * rx - sn * ry, o.center.x, delta=0.1)
-            self.assertAlmostEqual(py + sn * rx + c * ry, o.center.y, delta=0.1)
+        # robot-frame centres: where each obstacle truly is from the robot's true pose, within
+        # the same 5 cm
+        to_robot = inverse((px, py, pyaw))
+        true_rel = [compose(to_robot, (tx, ty, 0.0))[:2] for _, tx, ty, _ in truth]
+        pairs, _, _ = match_obstacles(true_rel, [(o.center_robot.x, o.center_robot.y)
+                                                 for o in result.obstacles])
+        self.assertEqual(len(pairs), len(truth), 'robot-frame centres %s, truth %s'
+                         % ([(o.center_robot.x, o.center_robot.y) for o in result.obstacles],
+                            true_rel))
+        for i, j, err in pairs:
+            self.assertLessEqual(err, TOL, 'robot-frame centre %d off by %.3f m' % (j, err))
+        # nearest the robot first
+        d = [math.hypot(o.center_robot.x, o.center_robot.y) for o in result.obstacles]
+        self.assertEqual(d, sorted(d))
         self.assertEqual(self.collisions(), 0)
 
 

@@ -10,6 +10,7 @@ import os
 import signal
 import subprocess
 import threading
+import time
 import unittest
 
 import actionlib
@@ -23,18 +24,39 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseResult
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
+from tiago_nav.detection.pipeline import Detection
+from tiago_nav.detection.service import found_obstacles
+from tiago_nav.geometry import compose, inverse
 from tiago_nav.msg import (CorridorAction, CorridorFeedback, CorridorResult, Obstacle,
                            TiagoTaskActionGoal, TiagoTaskFeedback as FB,
                            TiagoTaskGoal)
 from tiago_nav.ros.actions import TaskClient
+from tiago_nav.nodes.obstacle_detection import obstacle_msg
 from tiago_nav.ros.conversions import pose_from_msg, transform_stamped
 from tiago_nav.srv import DetectObstacles, DetectObstaclesResponse
 
 from simtest import distinct_states
 
-T = 30.0            # generous bound on every wait [s]
-KILL_BOUND = 5.0    # [s] a killed proxy has cancelled move_base and stopped the base by then
-FOUND = [(3.1, 0.4, 0.2), (4.0, -1.2, 0.15)]     # the fake detection's obstacles (x, y, r)
+T = 30.0            # generous bound on every wait [s wall]: a hang guard, not a timing
+FOUND = [(4.0, -1.2, 0.15), (3.1, 0.4, 0.2)]     # the fake detection's obstacles (x, y, r),
+#                                                  farther from the test's poses B first
+NO_SCAN = 'no /scan received within 2.0 s'       # the node's answer without a scan (its wording)
+
+
+def wait_for(condition, what, timeout=T):
+    """Wait (wall clock: there is no simulator here) until ``condition()``; fail naming
+    ``what`` after ``timeout``."""
+    end = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > end:
+            raise AssertionError('timed out after %g s waiting for %s' % (timeout, what))
+        time.sleep(0.01)
+
+
+def nearest_first(pose):
+    """FOUND's centres in the order the node answers: nearest the robot at ``pose`` first."""
+    return sorted(((x, y) for x, y, _ in FOUND), key=lambda c: math.hypot(c[0] - pose[0],
+                                                                         c[1] - pose[1]))
 
 
 class Fakes:
@@ -50,6 +72,8 @@ class Fakes:
         self.nav_preempted = 0
         self.corridor_goals = 0
         self.detect_calls = 0
+        self.nav_running = False           # an on_nav call is under way (it moves the robot)
+        self.silent_scans = 0              # scan periods passed without a scan
         self.tfb = tf2_ros.TransformBroadcaster()
         self.nav = actionlib.SimpleActionServer('fake_move_base', MoveBaseAction, self.on_nav, False)
         self.corridor = actionlib.SimpleActionServer('fake_corridor', CorridorAction,
@@ -72,7 +96,9 @@ class Fakes:
         r = np.where((r * np.cos(a) >= -0.3) & (r * np.cos(a) <= 0.8), r, np.inf)
         rate = rospy.Rate(15)
         while not rospy.is_shutdown():
-            if self.scan_mode != 'none':
+            if self.scan_mode == 'none':
+                self.silent_scans += 1
+            else:
                 msg = LaserScan(angle_min=amin, angle_max=amax, angle_increment=(amax - amin) / (n - 1),
                                 range_min=0.05, range_max=25.0,
                                 ranges=list(r) if self.scan_mode == 'corridor' else [np.inf] * n)
@@ -112,6 +138,13 @@ class Fakes:
         self.corridor.set_succeeded(CorridorResult(distance=0.5, reason='corridor end'))
 
     def on_nav(self, goal):
+        self.nav_running = True
+        try:
+            self._on_nav(goal)
+        finally:
+            self.nav_running = False
+
+    def _on_nav(self, goal):
         self.nav_goals.append(goal)
         gx, gy, gyaw = pose_from_msg(goal.target_pose.pose)
         if self.nav_mode == 'abort':
@@ -140,15 +173,19 @@ class Fakes:
     def on_detect(self, req):
         self.detect_calls += 1
         if self.detect_mode == 'fail':         # how the real node reports a failure
-            return DetectObstaclesResponse(success=False, obstacles=[],
-                                           message='no /scan received within 2 s (fake)')
+            return DetectObstaclesResponse(success=False, obstacles=[], message=NO_SCAN)
         if self.detect_mode == 'crash':        # a handler that raised: the call itself errs
             raise rospy.ServiceException('handler crashed (fake)')
-        if self.detect_mode == 'slow':
-            rospy.sleep(6.0)
-        obs = [Obstacle(center=Point(x, y, 0), center_robot=Point(x - self.pose[0], y - self.pose[1], 0),
-                        radius=r, num_points=20) for x, y, r in FOUND]
-        return DetectObstaclesResponse(success=True, obstacles=obs, message='')
+        if self.detect_mode == 'slow':         # well past the proxy's detection_timeout
+            rospy.sleep(3 * rospy.get_param('/tiago_controller/detection_timeout'))
+        with self.lock:
+            robot = tuple(self.pose)
+        # the node's own conversion: centres in the robot frame (rotated by its yaw), nearest
+        # the robot first; the laser frame is the robot's here
+        found = found_obstacles([Detection((x, y), r, 20) for x, y, r in FOUND], robot,
+                                (0.0, 0.0, 0.0))
+        return DetectObstaclesResponse(success=True, obstacles=[obstacle_msg(f) for f in found],
+                                       message='')
 
 
 class MissionFakesTest(unittest.TestCase):
@@ -163,14 +200,26 @@ class MissionFakesTest(unittest.TestCase):
         rospy.Subscriber('/tiago_controller/goal', TiagoTaskActionGoal, cls.goals_seen.append)
         cls.markers = []
         rospy.Subscriber('/tiago_controller/obstacle_markers', MarkerArray, cls.markers.append)
+        cls.tf = tf2_ros.Buffer()
+        cls.listener = tf2_ros.TransformListener(cls.tf)
         cls.client = TaskClient('tiago_controller')
         assert cls.client.wait_for_server(rospy.Duration(T)), 'no tiago_controller'
 
     def setUp(self):
         Fakes.nav_mode, Fakes.detect_mode, Fakes.scan_mode = 'succeed', 'ok', 'corridor'
+        wait_for(lambda: not self.fakes.nav_running, 'the last move_base goal to end')
         with self.fakes.lock:
             self.fakes.pose[:] = [0.0, 0.0, 0.0]
-        rospy.sleep(0.3)
+        wait_for(self.tf_at_start, 'tf map -> base_footprint at the start pose')
+
+    def tf_at_start(self):
+        """The robot's tf, as the proxy reads it, is the reset pose."""
+        try:
+            t = self.tf.lookup_transform('map', 'base_footprint', rospy.Time(0)).transform
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
+                tf2_ros.ExtrapolationException):
+            return False
+        return abs(t.translation.x) + abs(t.translation.y) + abs(t.rotation.z) < 1e-9
 
     def send(self, x, y, yaw, corridor, client=None, cancel_when=None):
         client = client or self.client
@@ -186,12 +235,9 @@ class MissionFakesTest(unittest.TestCase):
         return client.get_state(), client.get_result(), client.get_goal_status_text(), fbs
 
     def assert_robot_left_alone(self):
-        """Nothing moves the fake robot any more (its move_base goal ended)."""
-        with self.fakes.lock:
-            x = self.fakes.pose[0]
-        rospy.sleep(0.5)
-        with self.fakes.lock:
-            self.assertEqual(self.fakes.pose[0], x)
+        """Nothing moves the fake robot any more: its move_base goal ended (the only mover)."""
+        wait_for(lambda: not self.fakes.nav_running and not self.fakes.nav.is_active(),
+                 'the move_base goal to end')
 
     def assert_stop_commanded_after(self, t):
         self.assertTrue(any(c[0] >= t and c[1] == 0 and c[2] == 0 for c in self.cmds),
@@ -199,6 +245,7 @@ class MissionFakesTest(unittest.TestCase):
 
     def test_1_success_states_in_order_and_obstacles_relayed(self):
         t0 = rospy.get_time()
+        markers_before = len(self.markers)
         state, result, text, fbs = self.send(2.0, 1.0, 90.0, True)
         self.assertEqual(state, GoalStatus.SUCCEEDED, text)
         st = distinct_states(fbs)
@@ -207,17 +254,21 @@ class MissionFakesTest(unittest.TestCase):
         self.assertIn(FB.MOVING, st)
         self.assertEqual(st[-3:], [FB.ARRIVED, FB.DETECTING, FB.DETECTION_DONE])
         self.assertTrue(any('m to go' in f.status for f in fbs if f.state == FB.MOVING))
-        self.assertEqual([(o.center.x, o.center.y) for o in result.obstacles],
-                         [(x, y) for x, y, _ in FOUND])
         fx, fy, fyaw = pose_from_msg(result.final_pose.pose)
+        # relayed as the node answers: nearest the robot first, robot-frame centres through its
+        # pose (rotated by its yaw of 90 deg)
+        self.assertEqual([(o.center.x, o.center.y) for o in result.obstacles], nearest_first((2.0, 1.0)))
+        for o in result.obstacles:
+            rx, ry, _ = compose(inverse((2.0, 1.0, math.radians(90.0))), (o.center.x, o.center.y, 0.0))
+            self.assertAlmostEqual(o.center_robot.x, rx, delta=1e-6)
+            self.assertAlmostEqual(o.center_robot.y, ry, delta=1e-6)
         self.assertAlmostEqual(fx, 2.0, delta=0.02)
         self.assertAlmostEqual(fy, 1.0, delta=0.02)
         self.assertAlmostEqual(math.degrees(fyaw), 90.0, delta=1.0)
         self.assertEqual(result.final_pose.header.frame_id, 'map')
         self.assertIn('found 2 obstacles', result.message)
         self.assert_stop_commanded_after(t0)
-        rospy.sleep(0.5)
-        self.assertTrue(self.markers)
+        wait_for(lambda: len(self.markers) > markers_before, 'the obstacle markers')
         self.assertEqual(len([m for m in self.markers[-1].markers if m.ns == 'obstacles']), 2)
 
     def test_2_navigation_aborted_names_navigation(self):
@@ -233,8 +284,8 @@ class MissionFakesTest(unittest.TestCase):
         state, result, text, _ = self.send(100.0, 0.0, 0.0, False)
         self.assertEqual(state, GoalStatus.ABORTED)
         self.assertIn('navigation failed: timed out', result.message)
-        rospy.sleep(0.5)
-        self.assertEqual(self.fakes.nav_preempted, n + 1)    # the move_base goal was cancelled
+        wait_for(lambda: self.fakes.nav_preempted > n, 'the move_base goal to be cancelled')
+        self.assertEqual(self.fakes.nav_preempted, n + 1)
 
     def test_1b_no_corridor_ahead_navigates_directly(self):
         Fakes.scan_mode = 'open'
@@ -247,8 +298,9 @@ class MissionFakesTest(unittest.TestCase):
         self.assertEqual(distinct_states(fbs)[:3], [FB.GOAL_RECEIVED, FB.CORRIDOR, FB.NAVIGATING])
 
     def test_1c_no_scan_to_judge_the_corridor_aborts(self):
+        silent = self.fakes.silent_scans
         Fakes.scan_mode = 'none'
-        rospy.sleep(0.5)
+        wait_for(lambda: self.fakes.silent_scans >= silent + 2, 'the fake laser to fall silent')
         state, result, text, _ = self.send(2.0, 1.0, 90.0, True)
         self.assertEqual(state, GoalStatus.ABORTED)
         self.assertTrue(result.message.startswith('corridor failed: no laser scan on /scan'),
@@ -258,7 +310,7 @@ class MissionFakesTest(unittest.TestCase):
         Fakes.detect_mode = 'fail'
         state, result, text, _ = self.send(0.5, 0.0, 0.0, False)
         self.assertEqual(state, GoalStatus.ABORTED)
-        self.assertEqual(result.message, 'detection failed: no /scan received within 2 s (fake)')
+        self.assertEqual(result.message, 'detection failed: ' + NO_SCAN)
         self.assertEqual(list(result.obstacles), [])
 
     def test_4b_detection_crashing_aborts_naming_detection(self):
@@ -293,7 +345,7 @@ class MissionFakesTest(unittest.TestCase):
                                              cancel_when=lambda f: f.state == FB.MOVING)
         self.assertEqual(state, GoalStatus.PREEMPTED)
         self.assertIn('cancelled during navigation', result.message)
-        rospy.sleep(0.3)
+        wait_for(lambda: self.fakes.nav_preempted > n, 'the move_base goal to be cancelled')
         self.assertEqual(self.fakes.nav_preempted, n + 1)
         self.assert_stop_commanded_after(t0)
         self.assert_robot_left_alone()
@@ -318,7 +370,7 @@ class MissionFakesTest(unittest.TestCase):
         self.assertIn('DETECTION_DONE', p.stdout)
         self.assertIn('SUCCEEDED', p.stdout)
         rows = [line.split() for line in p.stdout.splitlines() if line[:2].strip().isdigit()]
-        self.assertEqual([(float(r[1]), float(r[2])) for r in rows], [(x, y) for x, y, _ in FOUND])
+        self.assertEqual([(float(r[1]), float(r[2])) for r in rows], nearest_first((1.5, -0.5)))
         Fakes.nav_mode = 'abort'
         p = self.run_client('1.5', '-0.5', '-45', '--no-corridor')
         self.assertEqual(p.returncode, 1, p.stdout)
@@ -363,9 +415,9 @@ class MissionFakesTest(unittest.TestCase):
         t_kill = rospy.get_time()
         subprocess.run(['rosnode', 'kill', '/tiago_controller_killed'], stdout=subprocess.DEVNULL,
                        stderr=subprocess.DEVNULL, timeout=30)
-        while self.fakes.nav_preempted == n and rospy.get_time() < t_kill + KILL_BOUND:
-            rospy.sleep(0.05)
-        self.assertEqual(self.fakes.nav_preempted, n + 1, 'move_base goal not cancelled')
+        wait_for(lambda: self.fakes.nav_preempted > n, 'the killed proxy\'s move_base goal to '
+                 'be cancelled')
+        self.assertEqual(self.fakes.nav_preempted, n + 1)
         self.assert_stop_commanded_after(t_kill)
         self.assert_robot_left_alone()
 

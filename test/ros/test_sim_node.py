@@ -1,5 +1,10 @@
 #!/usr/bin/python3
-"""Rostest of nodes/simulator in test/worlds/sim_box.yaml (checked against the world file)."""
+"""Rostest of nodes/simulator in test/worlds/sim_box.yaml (checked against the world file).
+
+The test drives the base as a controller does in lockstep (a LockstepParticipant answering
+each 0.05 s cycle with its command): the simulator applies each command at its cycle and
+holds simulated time for the next answer, so the distances driven do not depend on how fast
+this process runs on a loaded machine."""
 import math
 import threading
 import time
@@ -15,12 +20,15 @@ from std_msgs.msg import String, UInt32
 from tiago_nav.geometry import transform_points
 from tiago_nav.scan import scan_to_points
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_msg, pose_from_transform
+from tiago_nav.ros.lockstep import LockstepParticipant
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.scene import Scene
 
 from simtest import SimTestCase
 
 TIMEOUT = 20.0
+PERIOD = 0.05        # [s] the test's control cycle (3 physics steps at 60 Hz)
+SETTLE = 1.0         # [s simulated] zero commands after a drive, for the base to come to rest
 
 
 class SimulatorNodeTest(SimTestCase):
@@ -29,16 +37,27 @@ class SimulatorNodeTest(SimTestCase):
     @classmethod
     def setUpClass(cls):
         super().setUpClass()
-        cls.cmd = rospy.Publisher('/mobile_base_controller/cmd_vel', Twist, queue_size=1)
+        cls.part = LockstepParticipant(PERIOD, enabled=True)
+        assert cls.part.joined.wait(TIMEOUT), 'the test never joined the simulator\'s lockstep'
 
     def drive(self, v, w, seconds):
-        end = rospy.Time.now() + rospy.Duration(seconds)
-        rate = rospy.Rate(20)
-        while rospy.Time.now() < end and not rospy.is_shutdown():
-            self.cmd.publish(self._twist(v, w))
-            rate.sleep()
-        self.cmd.publish(self._twist(0, 0))
-        rospy.sleep(1.0)
+        """``(v, w)`` for ``seconds`` of simulated time from the next cycle, then zero for
+        :data:`SETTLE`: every command answered in its cycle, so applied at its stamp."""
+        p = self.part
+        p.claim()
+        end = settled = None
+        try:
+            while True:
+                self.assertTrue(p.tick(), 'no lockstep cycle (simulator stalled?)')
+                if end is None:
+                    end = p.stamp + rospy.Duration(seconds)
+                    settled = end + rospy.Duration(SETTLE)
+                if p.stamp >= settled:
+                    p.answer(self._twist(0, 0))
+                    return
+                p.answer(self._twist(v, w) if p.stamp < end else self._twist(0, 0))
+        finally:
+            p.release()
 
     @staticmethod
     def _twist(v, w):
@@ -117,7 +136,7 @@ class SimulatorNodeTest(SimTestCase):
         self.assertTrue(np.allclose(steps, np.round(steps), atol=0.01), steps)
         self.assertAlmostEqual(float(steps.min()), 1.0, delta=0.01)
 
-    def test_4_cmd_vel_moves_the_robot(self):
+    def test_4_commands_move_the_robot(self):
         before = self.base_pose()
         odom0 = rospy.wait_for_message('/mobile_base_controller/odom', Odometry, timeout=TIMEOUT)
         self.drive(0.0, 1.0, 1.5)          # turn left in place ~1.3 rad
@@ -201,6 +220,23 @@ class SimulatorNodeTest(SimTestCase):
         finally:
             faults.publish(String('none'))
             sub.unregister()
+
+    def test_8_cmd_vel_of_a_node_outside_lockstep_moves_the_base(self):
+        """Last (the test leaves lockstep): a node that does not take part, e.g. a teleop,
+        drives by cmd_vel; turning on the spot (the base is against the east wall)."""
+        self.part.close()
+        pub = rospy.Publisher('/mobile_base_controller/cmd_vel', Twist, queue_size=1)
+        yaw0 = self.base_pose()[2]
+        end = time.monotonic() + TIMEOUT           # a hang guard: it turns within sim seconds
+        turned = 0.0
+        while turned < 0.3:
+            self.assertLess(time.monotonic(), end, 'cmd_vel did not turn the base (%.2f rad)'
+                            % turned)
+            pub.publish(self._twist(0.0, 0.8))
+            time.sleep(0.05)
+            yaw = self.base_pose()[2]
+            turned = abs(math.atan2(math.sin(yaw - yaw0), math.cos(yaw - yaw0)))
+        pub.publish(self._twist(0.0, 0.0))
 
 
 if __name__ == '__main__':

@@ -162,10 +162,11 @@ def test_check_request_defaults_the_method():
     assert check_request('discontinuity', 0.3, 0.5, 'centroid') == 'discontinuity'
 
 
-def test_no_map_fails_naming_the_topic(clean):
-    a = service(None, map_topic='/static_map').handle('', 0.0, 0.0, FakeSensors(noisy_scan(clean)))
-    assert not a.success and a.obstacles == ()
-    assert 'no /static_map' in a.message
+def test_before_any_map_the_reason_names_the_topic():
+    """The node advertises the service only once a usable map came (no call can be answered
+    "no map"); until then this reason is what its fatal exit after ~map_timeout gives
+    (test_detection_errors: 'no usable map on ... (no /map received yet)')."""
+    assert service(None, map_topic='/static_map').map_error == 'no /static_map received yet'
 
 
 def test_an_unusable_map_replaces_the_old_one_until_a_good_one_comes(clean, grid):

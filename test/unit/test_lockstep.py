@@ -357,10 +357,12 @@ def steer(sim):
     return 0.6, max(-1.5, min(1.5, -2.0 * (y - 0.5) - 2.5 * yaw))
 
 
-def closed_loop(latency, seed, seconds=3.0, answers=None, timeout=5.0):
+def closed_loop(latency, seed, seconds=3.0, answers=None, timeout=5.0, wall=time.monotonic,
+                on_silent=None, log=None):
     sim = Simulator(World.from_dict(ROOM), SimConfig(laser_noise=0.0))
-    gate = Gate(Schedule(RATE, timeout), wall=time.monotonic)
-    parts = [ThreadParticipant(gate, sim, '/steer', 0.1, steer, latency, seed, answers),
+    gate = Gate(Schedule(RATE, timeout, log), wall=wall)
+    parts = [ThreadParticipant(gate, sim, '/steer', 0.1, steer, latency, seed, answers,
+                               on_silent=on_silent and (lambda tick: on_silent(gate, tick))),
              ThreadParticipant(gate, sim, '/idle', 0.05, lambda s: None, latency, seed + 1)]
     try:
         poses = run_lockstep(sim, gate, parts, seconds)
@@ -401,11 +403,35 @@ def test_applying_a_command_late_changes_the_poses():
 
 
 def test_a_participant_that_goes_silent_is_dropped_and_the_simulation_goes_on():
+    """/steer answers 3 cycles, then no more. The gate's wall clock is a fake one that passes
+    only when /steer leaves a tick unanswered and nobody else is missing: then it jumps past the
+    timeout. So the drop does not hang on how fast this machine is, and /idle, however late
+    its answers come on a loaded machine, is never waited for past the timeout."""
+    now = [0.0]
+    log = Log()
+
+    def silent(gate, tick):
+        end = time.monotonic() + 10.0          # a bound on the wait, not a timing
+        while time.monotonic() < end:
+            with gate.cond:
+                due = gate.schedule.due(tick.stamp)
+                if '/steer' not in due:
+                    return                     # dropped already, or not held for it
+                if due == {'/steer'}:
+                    now[0] += 2 * gate.schedule.timeout
+                    gate.cond.notify_all()
+                    return
+            time.sleep(0.001)
+        raise AssertionError('/idle never answered the tick at %g s' % tick.stamp)
+
     poses, sched, parts = closed_loop(latency=(0.0, 0.0), seed=1, seconds=1.0, answers=3,
-                                      timeout=0.05)
+                                      timeout=1.0, wall=lambda: now[0], on_silent=silent, log=log)
     assert len(poses) == 60
+    assert parts[0].cycles == pytest.approx([0.1, 0.2, 0.3])
     assert not sched.is_participant('/steer') and sched.drops == 1
+    assert [w for w in log.warnings() if 'no answer from /steer' in w]
     assert sched.is_participant('/idle')
+    assert sched.lag_stats()['max'] <= DT          # its commands were applied on time
     assert math.isfinite(poses[-1][0])
 
 

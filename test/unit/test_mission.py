@@ -12,6 +12,7 @@ from tiago_nav.mission import (ABORTED, ACTIVE, NO_CORRIDOR, PREEMPTED, SUCCEEDE
                                Goal, GoalError, MissionConfig, MissionRunner, Poll, StageError,
                                validate_goal)
 from tiago_nav.mission.client import obstacle_table
+from tiago_nav.mission.runner import no_corridor_scan, no_service, service_failed
 from tiago_nav.mission.sentences import remaining_path_length
 from tiago_nav.motion import MotionMonitor
 
@@ -118,19 +119,25 @@ class FakeBackend:
 
     def corridor_ahead(self, goal):
         self.asked_corridor.append((goal.x, goal.y))
-        if self.ahead == 'no scan':
-            raise StageError('corridor', 'no laser scan on /scan within 10 s: cannot tell '
-                             'whether a corridor leads toward pose B')
+        if self.ahead == 'no scan':         # the node waits server_timeout [wall] for one
+            self._wait_wall(CFG.server_timeout)
+            raise StageError('corridor', no_corridor_scan('/scan', CFG.server_timeout))
         return self.ahead
+
+    def _wait_wall(self, seconds):
+        w0 = self.w
+        while self.w - w0 <= seconds:
+            self.sleep(CFG.poll_period)
 
     def detect(self, timeout):
         """The real backend's contract: the service's answer ``(success, obstacles, message)``;
         DetectionError only when it cannot be asked."""
-        if 'detection' not in self.servers:
-            raise DetectionError('no obstacle_detection service after 10 s')
+        if 'detection' not in self.servers:    # the node waits server_timeout [wall] for it
+            self._wait_wall(CFG.server_timeout)
+            raise DetectionError(no_service('/obstacle_detection', CFG.server_timeout))
         if self.detection == 'crash':          # the handler raised: the call itself fails
-            raise DetectionError('the obstacle_detection service failed: service cannot '
-                                 'process request: handler returned an error')
+            raise DetectionError(service_failed('obstacle_detection', 'service cannot process '
+                                                'request: handler returned an error'))
         if self.detection == 'fail':           # what the node answers when it cannot look
             return False, [], 'no /scan received within 2 s'
         if self.detection == 'fail_silently':
@@ -244,8 +251,8 @@ def test_server_that_goes_away_mid_stage_aborts_within_the_lost_timeout():
 
 
 @pytest.mark.parametrize('servers, mode, message', [
-    (('corridor', 'navigation'), 'ok',
-     'detection failed: no obstacle_detection service after 10 s'),
+    (('corridor', 'navigation'), 'ok',       # (the node's words, with the resolved name)
+     'detection failed: no /obstacle_detection service after 2 s (is it running?)'),
     (ALL, 'fail', 'detection failed: no /scan received within 2 s'),
     (ALL, 'fail_silently', 'detection failed: the service failed without a reason'),
     (ALL, 'crash', 'detection failed: the obstacle_detection service failed: service cannot '
@@ -256,6 +263,8 @@ def test_detection_failure_aborts_naming_detection(servers, mode, message):
     assert out.status == ABORTED and out.stage == 'detection'
     assert out.message == message
     assert out.obstacles == []
+    if 'detection' not in servers:             # after the node's wait for the service
+        assert b.w >= CFG.server_timeout
     assert mission.DETECTING in b.states() and mission.DETECTION_DONE not in b.states()
     assert b.stops >= 1
 
@@ -297,8 +306,10 @@ def test_no_scan_to_judge_the_corridor_aborts_naming_the_corridor():
     b = FakeBackend(corridor_ahead='no scan')
     out = run(b)
     assert out.status == ABORTED and out.stage == 'corridor'
-    assert out.message.startswith('corridor failed: no laser scan')
+    assert out.message == ('corridor failed: no laser scan on /scan within 2 s: cannot tell '
+                           'whether a corridor leads toward pose B')
     assert b.sent == []
+    assert b.w >= CFG.server_timeout          # after the node's wait for a scan
 
 
 # --- unexpected errors -----------------------------------------------------------------------

@@ -12,6 +12,9 @@ from tiago_nav.nav.navigator import ABORTED, SUCCEEDED, Navigator, NavConfig
 from tiago_nav.nav.planner import PlanError
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.world import World, load_world
+from tiago_nav.nodes.navigation import Params as NavParams
+from tiago_nav.params import read_params
+from tiago_nav.testing import navigation as simnav
 from tiago_nav.testing.navigation import ClosedLoop
 
 
@@ -121,6 +124,61 @@ def test_dead_laser_stops_the_robot_and_aborts():
     assert max(v for t, v in speeds if t < 2.0) > 0.5          # it was driving before
     assert r['collisions'] == 0
 
+
+
+OPEN = dict(name='open', resolution=0.05, bounds=[-1, -2, 6, 2], robot_start=[0, 0, 0], walls=[])
+
+
+def test_the_double_uses_the_node_s_frames():
+    p = read_params(NavParams, lambda name, default: default)
+    assert (simnav.MAP, simnav.ODOM, simnav.BASE) == (p.global_frame, p.odom_frame,
+                                                      p.robot_base_frame)
+
+
+def test_a_goal_in_a_frame_without_a_transform_is_rejected_as_the_node_rejects_it():
+    """The node answers a goal whose frame tf does not know 'goal rejected: no transform ...'
+    (a GoalError), and does not move: not an 'unexpected error'."""
+    loop = ClosedLoop(World.from_dict(OPEN))
+    try:
+        r = loop.run_goal((2.0, 0.0, 0.0), 10.0, frame='base_laser_link')
+    finally:
+        loop.close()
+    assert r['state'] == ABORTED
+    assert r['reason'].startswith('goal rejected: no transform base_laser_link -> map: '), r['reason']
+    assert r['time'] < 0.2 + 1e-9 and r['collisions'] == 0
+
+
+@pytest.mark.parametrize('frame', ['/map', '', 'odom'])
+def test_goals_in_the_frames_the_node_knows_are_reached(frame):
+    loop = ClosedLoop(World.from_dict(OPEN), start=(0.0, 0.0, 0.0))
+    try:
+        r = loop.run_goal((2.0, 0.5, 0.0), 30.0, frame=frame)
+    finally:
+        loop.close()
+    assert r['state'] == SUCCEEDED, r['reason']
+    assert math.hypot(r['pose'][0] - 2.0, r['pose'][1] - 0.5) <= NavConfig().controller.xy_goal_tolerance
+
+
+def test_a_lost_pose_stops_the_base_and_aborts_naming_the_transform():
+    """tf map -> base_footprint stops 1 s into a goal: the node's io fails with
+    PoseUnavailable; the runner stops the base and aborts after sensor_abort_timeout."""
+    cfg = NavConfig()
+    loop = ClosedLoop(World.from_dict(OPEN))
+    speeds = []
+
+    def lose():
+        loop.pose_lost = loop.sim.time >= 1.0
+        speeds.append((loop.sim.time, abs(loop.sim.velocity[0])))
+    loop.on_control.append(lose)
+    try:
+        r = loop.run_goal((4.5, 0.0, 0.0), 30.0)
+    finally:
+        loop.close()
+    assert r['state'] == ABORTED
+    assert 'no odometry/pose' in r['reason'] and 'no transform map -> base_footprint' in r['reason']
+    assert r['time'] == pytest.approx(1.0 + cfg.sensor_abort_timeout, abs=0.35)
+    assert max(v for t, v in speeds if t < 1.0) > 0.3            # it was driving before
+    assert max(v for t, v in speeds if t >= 1.0 + cfg.sensor_timeout + 1.0) < 0.01
 
 
 def _course_loop(marks, config=None):

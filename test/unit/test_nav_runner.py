@@ -11,7 +11,8 @@ from tiago_nav.geometry import wrap_angle, yaw_to_quaternion
 from tiago_nav.gridmap import GridMap
 from tiago_nav.nav.costmap import MapScan
 from tiago_nav.nav.navigator import NavConfig, Navigator, ProgressWindow
-from tiago_nav.nav.runner import GoalError, GoalRunner, PoseUnavailable, goal_pose
+from tiago_nav.nav.runner import (GoalError, GoalRunner, PoseUnavailable, frame_or, goal_pose,
+                                  no_transform)
 from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
 from tiago_nav.sim.diffdrive import BaseLimits, DiffDrive
 from tiago_nav.testing.fakes import FakeActionServer, FakeClock, FakePublisher
@@ -51,12 +52,12 @@ class Rig:
         if self.fail_at is not None and self.clock.now() >= self.fail_at:
             raise KeyError('a bug')
         if not self.pose_on:
-            raise PoseUnavailable('tf map -> base_footprint lost')
+            raise no_transform(PoseUnavailable, 'map', 'base_footprint', 'transform lost')
         return self.base.pose, self.clock.now()
 
     def to_map(self, frame, pose):
-        if frame != 'map':
-            raise GoalError('no transform %s -> map' % frame)
+        if frame_or(frame, 'map') != 'map':
+            raise no_transform(GoalError, frame, 'map', 'unknown frame')
         return pose
 
     def laser_pose(self):
@@ -150,7 +151,8 @@ def test_unnormalised_quaternion_is_normalised():
 def test_unknown_frame_rejected():
     rig = Rig()
     rig.run(3.0, 2.0, frame='odom_nowhere')
-    assert rig.server.state == 'aborted' and 'no transform odom_nowhere' in rig.server.text
+    assert rig.server.state == 'aborted'
+    assert rig.server.text.startswith('goal rejected: no transform odom_nowhere -> map: ')
 
 
 def test_preempt_stops_the_base():
@@ -206,7 +208,7 @@ def test_dead_sensor_stops_the_base_then_aborts(sensor, text, stop_by):
     assert all(v == 0.0 for v in speed_after(rig, stop_by))
     assert rig.stopped_at_end()
     if sensor == 'pose_on':
-        assert 'tf map -> base_footprint lost' in rig.server.text
+        assert '(no transform map -> base_footprint: ' in rig.server.text, rig.server.text
 
 
 def test_a_short_laser_gap_only_pauses():

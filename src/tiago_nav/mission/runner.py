@@ -117,6 +117,35 @@ class DetectionError(Exception):
 NO_CORRIDOR = 'no corridor ahead, navigating directly'
 
 
+# What the node (tiago_controller) says when the detection service cannot be asked, or no scan
+# comes to judge the corridor: one wording for the node and the test doubles that stand for it.
+def no_service(name, timeout):
+    """The service ``name`` was not registered within ``timeout`` [s wall]."""
+    return 'no %s service after %g s (is it running?)' % (name, timeout)
+
+
+def service_gone(name, timeout):
+    """The service ``name`` stayed registered but did not answer for ``timeout`` [s wall]."""
+    return ('the %s service went away: registered but not answering (gone for %g s; did its '
+            'node die?)' % (name, timeout))
+
+
+def service_failed(name, error):
+    """The call of the service ``name`` raised ``error`` (e.g. its handler raised)."""
+    return 'the %s service failed: %s' % (name, error)
+
+
+def service_silent(name, timeout):
+    """The service ``name`` did not answer within ``timeout`` [s wall]."""
+    return 'the %s service did not answer within %g s' % (name, timeout)
+
+
+def no_corridor_scan(topic, timeout):
+    """No scan on ``topic`` within ``timeout`` [s wall] to judge whether a corridor is ahead."""
+    return ('no laser scan on %s within %g s: cannot tell whether a corridor leads toward '
+            'pose B' % (topic, timeout))
+
+
 class _Preempted(Exception):
     def __init__(self, stage):
         super().__init__(stage)

@@ -36,6 +36,19 @@ class PoseUnavailable(RuntimeError):
     """The robot's pose cannot be had now (no transform); the message says why."""
 
 
+def no_transform(error, source, target, why):
+    """The ``error`` (:class:`GoalError` for a goal's frame, :class:`PoseUnavailable` for the
+    robot's pose) for a missing transform ``source -> target``, ``why`` being tf's reason: one
+    wording for the node and the test doubles that stand for it."""
+    return error('no transform %s -> %s: %s' % (source, target, why))
+
+
+def frame_or(frame, map_frame):
+    """A goal's frame as the node looks it up: without a leading slash; empty means
+    ``map_frame``."""
+    return frame.lstrip('/') or map_frame
+
+
 @dataclass
 class Outcome:
     status: str          # SUCCEEDED, ABORTED or PREEMPTED

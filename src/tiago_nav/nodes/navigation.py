@@ -29,7 +29,7 @@ from tiago_nav.nav.costmap import MapScan
 from tiago_nav.nav.navigator import NavConfig, Navigator
 from tiago_nav.nav.planner import PlanError
 from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, GoalRunner,
-                                  PoseUnavailable, goal_pose)
+                                  PoseUnavailable, frame_or, goal_pose, no_transform)
 from tiago_nav.params import nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, pose_stamped
@@ -300,18 +300,18 @@ class MoveBase:
                 lookup_at(self.tf, self.p.odom_frame, base, stamp, CYCLE_WAIT)
             return self._in_map(base, stamp)
         except tf2_ros.TransformException as e:
-            raise PoseUnavailable('no transform %s -> %s: %s'
-                                  % (self.map_frame, self.p.robot_base_frame, e)) from None
+            raise no_transform(PoseUnavailable, self.map_frame, self.p.robot_base_frame,
+                               e) from None
 
     def to_map(self, frame, pose):
         """``(x, y, yaw)`` in ``frame`` → map, or :class:`GoalError`."""
-        frame = frame.lstrip('/') or self.map_frame
+        frame = frame_or(frame, self.map_frame)
         if frame == self.map_frame:
             return pose
         try:
             t, _ = self._transform(frame, rospy.Time(0))
         except tf2_ros.TransformException as e:
-            raise GoalError('no transform %s -> %s: %s' % (frame, self.map_frame, e)) from None
+            raise no_transform(GoalError, frame, self.map_frame, e) from None
         return compose(t, pose)
 
     def on_simple_goal(self, ps):

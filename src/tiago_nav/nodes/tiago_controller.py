@@ -28,6 +28,8 @@ from tiago_nav import mission
 from tiago_nav.mission import DetectionError, Goal, MissionConfig, MissionRunner, Poll, StageError
 from tiago_nav.mission.entrance import corridor_ahead
 from tiago_nav.lockstep import Settled
+from tiago_nav.mission.runner import (no_corridor_scan, no_service, service_failed, service_gone,
+                                      service_silent)
 from tiago_nav.msg import (CorridorAction, CorridorActionFeedback, CorridorGoal, TiagoTaskAction,
                            TiagoTaskFeedback, TiagoTaskResult)
 from tiago_nav.params import nested, param, validate
@@ -323,8 +325,7 @@ class RosBackend:
                 except _TF_ERRORS as e:
                     why = 'no transform to place the scan and judge the corridor: %s' % e
             else:
-                why = 'no laser scan on %s within %g s: cannot tell whether a corridor leads ' \
-                      'toward pose B' % (rospy.resolve_name(self.p.scan_topic), self.cfg.server_timeout)
+                why = no_corridor_scan(rospy.resolve_name(self.p.scan_topic), self.cfg.server_timeout)
             if rospy.is_shutdown() or time.monotonic() - t0 > self.cfg.server_timeout:
                 raise StageError('corridor', why)
             time.sleep(self.cfg.poll_period)
@@ -426,9 +427,9 @@ class RosBackend:
         worker.start()
         worker.join(timeout)
         if worker.is_alive():
-            raise DetectionError('the %s service did not answer within %g s' % (name, timeout))
+            raise DetectionError(service_silent(name, timeout))
         if 'error' in box:
-            raise DetectionError('the %s service failed: %s' % (name, box['error']))
+            raise DetectionError(service_failed(name, box['error']))
         resp = box['response']
         return resp.success, list(resp.obstacles), resp.message
 
@@ -456,12 +457,9 @@ class RosBackend:
             if rospy.is_shutdown():
                 raise DetectionError('node shutting down')
             if gone_since is not None and now - gone_since > self.cfg.server_lost_timeout:
-                raise DetectionError('the %s service went away: registered but not answering '
-                                     '(gone for %g s; did its node die?)'
-                                     % (resolved, self.cfg.server_lost_timeout))
+                raise DetectionError(service_gone(resolved, self.cfg.server_lost_timeout))
             if now - t0 > self.cfg.server_timeout:
-                raise DetectionError('no %s service after %g s (is it running?)'
-                                     % (resolved, self.cfg.server_timeout))
+                raise DetectionError(no_service(resolved, self.cfg.server_timeout))
 
     # --- feedback ----------------------------------------------------------------------------
     def publish_feedback(self, state, status, pose):

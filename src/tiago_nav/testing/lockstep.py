@@ -12,11 +12,14 @@ class ThreadParticipant(threading.Thread):
     """A control loop in its own thread. At each of its cycles it computes ``law(sim)`` ->
     ``(v, w)`` from the simulator held at the cycle's time, waits a random wall latency in
     ``latency`` [s] (a loaded machine), then answers with the command. ``answers``: how many
-    cycles it answers before it goes silent (None: all)."""
+    cycles it answers before it goes silent (None: all); ``on_silent(tick)`` is called for each
+    tick of a cycle it leaves unanswered (a test can let a fake wall clock run then)."""
 
-    def __init__(self, gate, sim, name, period, law, latency=(0.0, 0.0), seed=0, answers=None):
+    def __init__(self, gate, sim, name, period, law, latency=(0.0, 0.0), seed=0, answers=None,
+                 on_silent=None):
         super().__init__(daemon=True)
         self.gate, self.sim, self.name, self.law = gate, sim, name, law
+        self.on_silent = on_silent
         self.core = ParticipantCore(period, 0.0)
         self.latency, self.rng, self.answers = latency, random.Random(seed), answers
         self.ticks = queue.Queue()
@@ -33,7 +36,11 @@ class ThreadParticipant(threading.Thread):
                 return
             self.core.on_tick(tick)
             cycle = self.core.next_cycle(tick.stamp)
-            if cycle is None or (self.answers is not None and len(self.cycles) >= self.answers):
+            if cycle is None:
+                continue
+            if self.answers is not None and len(self.cycles) >= self.answers:
+                if self.on_silent is not None:
+                    self.on_silent(tick)
                 continue
             stamp = cycle[0]
             cmd = self.law(self.sim)

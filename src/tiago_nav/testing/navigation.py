@@ -4,7 +4,11 @@ simulated time, for the unit tests and bench/bench_navigation.py.
 
 Ground truth is the simulator's: its pose (map frame) and its contact count. Scans reach the
 navigator as the node's scan callback would deliver them (laser pose at the scan's time);
-``scan_filter`` and ``laser_dead`` inject laser faults.
+``scan_filter`` and ``laser_dead`` inject laser faults. The runner sees the robot as the node
+does through tf: the newest odometry (published at the simulator's ``odom_rate``) after the
+simulator's map -> odom, stamped with the odometry's time; ``pose_lost`` takes that transform
+away (the node then fails with :class:`PoseUnavailable`). Goals in a frame other than the map
+(or odom, which the simulator publishes) are rejected with the node's :class:`GoalError`.
 """
 import math
 
@@ -13,18 +17,20 @@ import numpy as np
 from tiago_nav.geometry import compose, inverse, yaw_to_quaternion
 from tiago_nav.nav.costmap import MapScan
 from tiago_nav.nav.navigator import NavConfig, Navigator
-from tiago_nav.nav.runner import ABORTED, PREEMPTED, SUCCEEDED, GoalRunner
+from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, GoalRunner,
+                                  PoseUnavailable, frame_or, no_transform)
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.testing.fakes import FakeActionServer
 
 EPS = 1e-9     # [s] now() runs this far ahead so that a Ticker's summed periods land on steps
+MAP, ODOM, BASE = 'map', 'odom', 'base_footprint'   # the node's frames (its defaults)
 
 
 class SimClock:
     """A :mod:`tiago_nav.clock` clock whose time is the simulator's: ``sleep(dt)`` steps the
-    simulator until its time reaches the sleeper's target, calling ``on_step(scan_due)`` after
-    each step. ``stalled``: time stands still (a stopped /clock); ``shutdown_at``: ROS time at
+    simulator until its time reaches the sleeper's target, calling ``on_step(scan_due,
+    odom_due)`` after each step. ``stalled``: time stands still (a stopped /clock); ``shutdown_at``: ROS time at
     which ``shutdown()`` turns True."""
 
     def __init__(self, sim, on_step):
@@ -46,8 +52,7 @@ class SimClock:
             return
         self.target = max(self.target, self.sim.time) + dt
         while self.sim.time + EPS < self.target:
-            scan_due, _ = self.sim.step()
-            self.on_step(scan_due)
+            self.on_step(*self.sim.step())
 
     def shutdown(self):
         return self.shutdown_at is not None and self.sim.time >= self.shutdown_at
@@ -64,12 +69,24 @@ class SimIO:
         self.cmds, self.plans, self.feedback = [], [], []
 
     def pose(self):
-        return self.loop.sim.pose, self.loop.sim.time
+        """The node's pose: the newest odometry in map, at its stamp; :class:`PoseUnavailable`
+        in the node's words while ``loop.pose_lost``."""
+        if self.loop.pose_lost:
+            raise no_transform(PoseUnavailable, MAP, BASE, 'Lookup would require extrapolation '
+                               'into the future (the transform stopped coming)')
+        return self.loop.odom
 
     def to_map(self, frame, pose):
-        if frame not in ('map', ''):
-            raise ValueError('SimIO knows only the map frame, not %r' % frame)
-        return pose
+        """The node's goal frames: the map (also ``''`` and ``/map``) as it is, ``odom``
+        through the simulator's map -> odom; any other frame a :class:`GoalError` in the node's
+        words."""
+        frame = frame_or(frame, MAP)
+        if frame == MAP:
+            return pose
+        if frame == ODOM:
+            return compose(self.loop.sim.map_to_odom, pose)
+        raise no_transform(GoalError, frame, MAP, '"%s" passed to lookupTransform argument '
+                           'target_frame does not exist. ' % frame)
 
     def send_cmd(self, v, w):
         self.cmds.append((self.loop.sim.time, v, w))
@@ -105,6 +122,9 @@ class ClosedLoop:
         self.runner = GoalRunner(self.nav, self.io, period)
         self.scan_filter = None     # ranges -> ranges (fault injection); None: pass through
         self.laser_dead = False     # no scans at all
+        self.pose_lost = False      # no transform map -> base_footprint (io.pose() fails)
+        self.odom = None            # (pose in map, stamp) of the newest odometry
+        self.odometry()
         self.on_control = []        # hooks called after every simulator step
         self.scan()
 
@@ -121,14 +141,20 @@ class ClosedLoop:
                                   self.sim.time, compose(inverse(self.sim.pose),
                                                          self.sim.scene.laser_pose())))
 
-    def _on_step(self, scan_due):
+    def odometry(self):
+        """The odometry the node would receive now, placed in the map as it places it."""
+        self.odom = (compose(self.sim.map_to_odom, self.sim.odom_pose), self.sim.time)
+
+    def _on_step(self, scan_due, odom_due=False):
+        if odom_due:
+            self.odometry()
         if scan_due:
             self.scan()
         for hook in self.on_control:
             hook()
 
-    def run_goal(self, goal, limit=60.0):
-        """Run one goal ``(x, y, yaw)`` in map to its end or for at most ``limit`` [s] of
+    def run_goal(self, goal, limit=60.0, frame=MAP):
+        """Run one goal ``(x, y, yaw)`` in ``frame`` (the map by default) to its end or for at most ``limit`` [s] of
         simulated time (then it is preempted and reported as ``'timeout'``). Returns a dict:
         ``state`` (``'succeeded'``, ``'aborted'``, ``'preempted'``, ``'timeout'``), ``reason``,
         ``pose`` (true, at the end), ``collisions`` (during the goal), ``time`` [s],
@@ -147,7 +173,7 @@ class ClosedLoop:
                 t_xy[0] = self.sim.time - t0
         self.on_control.append(track)
         try:
-            self.runner.run('map', (goal[0], goal[1], 0.0), yaw_to_quaternion(goal[2]))
+            self.runner.run(frame, (goal[0], goal[1], 0.0), yaw_to_quaternion(goal[2]))
         finally:
             self.on_control.remove(track)
         server = self.io.server
@@ -162,7 +188,7 @@ class ClosedLoop:
         """Step the simulator with a zero command (let the base come to rest)."""
         self.sim.command(0.0, 0.0)
         for _ in range(steps):
-            self._on_step(self.sim.step()[0])
+            self._on_step(*self.sim.step())
 
     def close(self):
         self.sim.close()
