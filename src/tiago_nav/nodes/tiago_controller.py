@@ -108,7 +108,7 @@ class RosBackend:
         self._scan = (None, -math.inf)    # the newest scan and its arrival [s wall]
         rospy.Subscriber(params.scan_topic, LaserScan, self._on_scan, queue_size=1)
         self.server = None            # the SimpleActionServer, set by the node
-        # lockstep (README "Lockstep"): the mission decides on its own cycles
+        # lockstep (docs/lockstep.md): the mission decides on its own cycles
         self.lockstep = LockstepParticipant(params.lockstep_period)
         self.peers = Peers() if self.lockstep.enabled else None
         self.scans = ScanCache(params.scan_topic) if self.lockstep.enabled else None

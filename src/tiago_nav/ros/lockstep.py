@@ -1,4 +1,4 @@
-"""Lockstep over ROS topics (the protocol: :mod:`tiago_nav.lockstep` and the README).
+"""Lockstep over ROS topics (the protocol: :mod:`tiago_nav.lockstep` and docs/lockstep.md).
 
 :class:`LockstepHost` is the simulator's side (answers in, ticks out, cmd_vel of participants
 told apart); :class:`LockstepParticipant` a control loop's side, used in place of

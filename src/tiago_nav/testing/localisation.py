@@ -1,7 +1,7 @@
 """Test support for the localiser: a drifting odometry and a route driven through the in-process
 simulator, with the localised and the dead-reckoned pose compared to ground truth.
 
-``python3 -m tiago_nav.testing.localisation`` prints the figures the README quotes.
+``python3 -m tiago_nav.testing.localisation`` prints the figures docs/localisation.md quotes.
 """
 import math
 import statistics
