@@ -9,10 +9,17 @@ from actionlib import CommState
 from actionlib_msgs.msg import GoalStatus
 
 
+FEEDBACK_GRACE = 1.0     # [s wall] after a result, the longest wait for the feedback it names
+
+
 class TaskClient:
     """A client of one TiagoTask (or any) action with SimpleActionClient's method names, built
     on actionlib.ActionClient so that no feedback is lost: SimpleActionClient drops feedback
-    that arrives before ``send_goal`` has returned (the server's first feedback often does)."""
+    that arrives before ``send_goal`` has returned (the server's first feedback often does), and
+    every actionlib client drops feedback that arrives after the result (feedback and result
+    travel on separate topics). Here each feedback of the goal is taken from the feedback topic
+    itself, and a result that names its last feedback state (TiagoTask's ``state``) counts once
+    that feedback has come too (at most :data:`FEEDBACK_GRACE` later)."""
 
     def __init__(self, action, action_type=None):
         if action_type is None:
@@ -20,26 +27,60 @@ class TaskClient:
         self.action_client = actionlib.ActionClient(action, action_type)
         self.gh = None
         self._done = threading.Event()
+        self._fed = threading.Event()
+        self._goal_id = None
+        self._feedback_cb = None
+        self._last_state = None
+        self._lock = threading.Lock()
+        self._feedback_sub = rospy.Subscriber(self.action_client.feedback_sub.name,
+                                              self.action_client.ActionFeedback, self._on_feedback,
+                                              queue_size=None)
 
     def wait_for_server(self, timeout):
         """``timeout``: a rospy.Duration or seconds (wall)."""
         return wait_server(self, timeout.to_sec() if hasattr(timeout, 'to_sec') else timeout)
 
+    def _on_feedback(self, msg):
+        with self._lock:
+            if msg.status.goal_id.id != self._goal_id:
+                return
+            cb = self._feedback_cb
+            self._last_state = getattr(msg.feedback, 'state', None)
+        if cb is not None:
+            cb(msg.feedback)
+        self._check_fed()
+
+    def _check_fed(self):
+        """The result has come, and the feedback state it names (if any) too."""
+        if not self._done.is_set() or self.gh is None:
+            return
+        result = self.gh.get_result()
+        wanted = getattr(result, 'state', None)
+        with self._lock:
+            if wanted is None or self._last_state == wanted:
+                self._fed.set()
+
     def send_goal(self, goal, feedback_cb=None):
         done = self._done = threading.Event()
+        self._fed = threading.Event()
 
         def on_transition(gh):
             if gh.get_comm_state() == CommState.DONE:
                 done.set()
-
-        def on_feedback(gh, fb):
-            if feedback_cb is not None:
-                feedback_cb(fb)
-        self.gh = self.action_client.send_goal(goal, on_transition, on_feedback)
+                self._check_fed()
+        with self._lock:
+            self._feedback_cb, self._last_state = feedback_cb, None
+            self.gh = self.action_client.send_goal(goal, on_transition)
+            self._goal_id = self.gh.comm_state_machine.action_goal.goal_id.id
 
     def wait_for_result(self, timeout):
-        """``timeout``: a rospy.Duration or seconds, counted in wall time."""
-        return self._done.wait(timeout.to_sec() if hasattr(timeout, 'to_sec') else timeout)
+        """``timeout``: a rospy.Duration or seconds, counted in wall time. True once the result
+        has come (and the last feedback it names, or :data:`FEEDBACK_GRACE` has passed)."""
+        if not self._done.wait(timeout.to_sec() if hasattr(timeout, 'to_sec') else timeout):
+            return False
+        self._check_fed()
+        self._fed.wait(FEEDBACK_GRACE)
+        return True
 
     def get_state(self):
         return self.gh.get_goal_status() if self.gh else GoalStatus.LOST
