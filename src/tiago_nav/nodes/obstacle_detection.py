@@ -123,18 +123,7 @@ class RosSensors:
     def fresh_scan(self, timeout):
         """The first scan stamped at or after now (ROS time), or None after ``timeout`` wall
         seconds or on shutdown."""
-        after = rospy.Time.now()
-        deadline = time.monotonic() + timeout
-        with self.cond:
-            while not rospy.is_shutdown():
-                s = self.scan
-                if s is not None and s.header.stamp >= after:
-                    return _plain_scan(s)
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    return None
-                self.cond.wait(min(left, 0.1))
-        return None
+        return self.scan_at(rospy.Time.now(), timeout)
 
     def transform(self, target, source, stamp, timeout):
         """``(x, y, yaw)`` of ``source`` in ``target`` at ``stamp``; LookupError if none
