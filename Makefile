@@ -18,13 +18,21 @@ APT_PACKAGES := ros-core-dev catkin python3-catkin-pkg python3-rospy python3-act
 	python3-numpy python3-scipy python3-yaml python3-matplotlib python3-pytest python3-venv \
 	cmake g++ catkin-lint
 # PyPI-only packages, in the virtualenv (which sees the system's packages).
-PIP_PACKAGES := pybullet==3.2.7
+# dask[distributed]: the batch evaluator's engine (tiago_nav.evaluate only; nothing else imports it).
+PIP_PACKAGES := pybullet==3.2.7 'dask[distributed]==2026.8.0' distributed==2026.8.0
 # What the workspace build depends on (file(GLOB) lists are re-read when these change).
 WS_INPUTS := CMakeLists.txt package.xml setup.py $(wildcard msg/* srv/* action/* nodes/* test/*.test env-hooks/*)
 ROS_ENV := source $(WS)/devel/setup.bash
 BENCH ?= simulator
+SUITE ?= suites/smoke.yaml
+EVAL_OUT ?= eval-results
+# ROS masters and nodes started from here bind to loopback only, unless the user chose otherwise
+# (docs/evaluation.md: opting in to the network).
+ROS_HOSTNAME ?= localhost
+ROS_IP ?= 127.0.0.1
+export ROS_HOSTNAME ROS_IP
 
-.PHONY: setup apt venv ws demo test unit rostest bench lint clean
+.PHONY: setup apt venv ws demo test unit rostest bench evaluate lint clean
 .DEFAULT_GOAL := setup
 
 setup: apt venv ws
@@ -76,6 +84,10 @@ rostest: setup
 bench: setup
 	@mkdir -p bench/results
 	@$(ROS_ENV) && for b in $(ROOT)/bench/bench_*.py; do echo "== $$(basename $$b)"; $(SYS_PY) $$b || exit 1; done
+
+# The batch evaluator: make evaluate SUITE=suites/course.yaml EVAL_OUT=dir [EVAL_ARGS="--workers 2"]
+evaluate: setup
+	@$(ROS_ENV) && rosrun tiago_nav evaluate $(SUITE) --out $(EVAL_OUT) $(EVAL_ARGS)
 
 lint: setup
 	@$(ROS_ENV) && catkin_lint --strict -W2 $(WS)/src/tiago_nav
