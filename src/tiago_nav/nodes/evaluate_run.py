@@ -293,10 +293,25 @@ class Supervisor:
             log.close()
 
 
+def watch_parent(sup):
+    """When the worker that started this run dies (a killed Dask worker), stop the run's
+    processes and exit: the run is rescheduled elsewhere and must not hold the slot's port."""
+    parent = os.getppid()
+
+    def loop():
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        sup.stage('orphaned')
+        sup.stop()
+        os._exit(3)
+    threading.Thread(target=loop, daemon=True).start()
+
+
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     run_dir = argv[0]
     sup = Supervisor(run_dir)
+    watch_parent(sup)
     raw = {'schema': 1, 'id': sup.spec['id']}
     try:
         sup.stage('startup')
