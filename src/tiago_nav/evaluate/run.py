@@ -88,7 +88,7 @@ def tagged_pids(token):
     needle = ('%s=%s' % (TOKEN_VAR, token)).encode() + b'\0'
     out = []
     for pid in os.listdir('/proc'):
-        if not pid.isdigit() or int(pid) == os.getpid():
+        if not pid.isdigit() or int(pid) in (os.getpid(), os.getppid()):
             continue
         try:
             with open('/proc/%s/environ' % pid, 'rb') as f:

@@ -282,7 +282,8 @@ class Supervisor:
             p = self.procs.get(name)
             if p is None or p.poll() is not None:
                 continue
-            for sig, wait in ((signal.SIGINT, 10.0), (signal.SIGTERM, 3.0), (signal.SIGKILL, 3.0)):
+            # roslaunch escalates SIGINT -> SIGTERM on a slow node itself after 15 s
+            for sig, wait in ((signal.SIGINT, 20.0), (signal.SIGTERM, 3.0), (signal.SIGKILL, 3.0)):
                 try:
                     p.send_signal(sig)
                     p.wait(wait)
@@ -291,6 +292,14 @@ class Supervisor:
                     continue
         for log in self.logs:
             log.close()
+        # whatever outlived roslaunch (each node has a session of its own): by the run's token
+        from tiago_nav.evaluate.run import TOKEN_VAR, tagged_pids
+        token = os.environ.get(TOKEN_VAR)
+        for pid in tagged_pids(token) if token else []:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
 
 
 def watch_parent(sup):
