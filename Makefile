@@ -13,19 +13,27 @@ APT_PACKAGES := ros-core-dev catkin python3-catkin-pkg python3-rospy python3-act
 	python3-move-base-msgs ros-move-base-msgs libmove-base-msgs-dev python3-nav-msgs \
 	python3-sensor-msgs python3-geometry-msgs python3-std-msgs python3-std-srvs \
 	python3-visualization-msgs python3-rosgraph-msgs python3-rostest python3-roslaunch \
-	python3-rosnode python3-rostopic python3-rosservice python3-rosgraph rosbash \
+	python3-rosnode python3-rostopic python3-rosservice python3-rosgraph rosbash python3-rosbag \
 	ros-robot-state-publisher \
 	python3-numpy python3-scipy python3-yaml python3-matplotlib python3-pytest python3-venv \
 	cmake g++ catkin-lint
 # PyPI-only packages, in the virtualenv (which sees the system's packages).
-PIP_PACKAGES := pybullet==3.2.7
+# dask[distributed]: the batch evaluator's engine (tiago_nav.evaluate only; nothing else imports it).
+PIP_PACKAGES := pybullet==3.2.7 'dask[distributed]==2026.8.0' distributed==2026.8.0
 # What the workspace build depends on (file(GLOB) lists are re-read when these change).
 WS_INPUTS := CMakeLists.txt package.xml setup.py $(wildcard msg/* srv/* action/* nodes/* test/*.test env-hooks/*)
 ROS_ENV := source $(WS)/devel/setup.bash
 # `make bench BENCH=detection` runs one benchmark (names: src/tiago_nav/benchmarks.py)
 BENCH ?= all
+SUITE ?= suites/smoke.yaml
+EVAL_OUT ?= eval-results
+# ROS masters and nodes started from here bind to loopback only, unless the user chose otherwise
+# (docs/evaluation.md: opting in to the network).
+ROS_HOSTNAME ?= localhost
+ROS_IP ?= 127.0.0.1
+export ROS_HOSTNAME ROS_IP
 
-.PHONY: setup apt venv ws demo test unit rostest bench docs lint clean
+.PHONY: setup apt venv ws demo test unit rostest bench docs evaluate lint clean
 .DEFAULT_GOAL := setup
 
 setup: apt venv ws
@@ -82,6 +90,10 @@ bench: setup
 # the generated pages: docs/ros_api.md (from the code) and docs/benchmarks.md (from bench/results)
 docs: setup
 	@$(ROS_ENV) && $(SYS_PY) -m tiago_nav.docs
+
+# The batch evaluator: make evaluate SUITE=suites/course.yaml EVAL_OUT=dir [EVAL_ARGS="--workers 2"]
+evaluate: setup
+	@$(ROS_ENV) && rosrun tiago_nav evaluate $(SUITE) --out $(EVAL_OUT) $(EVAL_ARGS)
 
 # catkin_test_changelog parses CHANGELOG.rst (REP 132) but skips sections it cannot read, so the
 # next line also checks that the topmost version section is package.xml's version.

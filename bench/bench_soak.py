@@ -41,26 +41,13 @@ def world_path(name, tmp):
     if name.endswith('.yaml'):
         return os.path.join(ROOT, 'worlds', name)
     import yaml
-    from tiago_nav.sim.worlds import corridor_world
+    from tiago_nav.sim.worlds import corridor_world, enclosure
     world = corridor_world(name=name, **GENERATED[name])
     world['walls'] += enclosure(world['bounds'])
     path = os.path.join(tmp, name + '.yaml')
     with open(path, 'w') as f:
         yaml.safe_dump(world, f)
     return path
-
-
-def enclosure(bounds, wall=0.15):
-    """Walls (world-file dicts) just inside ``bounds`` [xmin, ymin, xmax, ymax] [m]: the
-    generated worlds' open floor ends at a wall, not at the map's edge (a robot that leaves
-    the map can plan no more)."""
-    x0, y0, x1, y1 = bounds
-    x0, y0, x1, y1 = x0 + wall, y0 + wall, x1 - wall, y1 - wall
-    cx, cy, lx, ly = (x0 + x1) / 2, (y0 + y1) / 2, x1 - x0 + wall, y1 - y0 + wall
-    return [{'x': cx, 'y': y0, 'length': lx, 'width': wall, 'yaw_deg': 0.0},
-            {'x': cx, 'y': y1, 'length': lx, 'width': wall, 'yaw_deg': 0.0},
-            {'x': x0, 'y': cy, 'length': ly, 'width': wall, 'yaw_deg': 90.0},
-            {'x': x1, 'y': cy, 'length': ly, 'width': wall, 'yaw_deg': 90.0}]
 
 
 def run_world(name, n, seed, rtf, limit):

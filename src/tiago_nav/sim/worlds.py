@@ -46,3 +46,75 @@ def corridor_world(width, length=5.0, bend_deg=0.0, bend_at=None, start=(-1.0, 0
     if obstacle is not None:
         d['movable_obstacles'] = [{'x': obstacle[0], 'y': obstacle[1], 'radius': obstacle[2]}]
     return d
+
+
+def enclosure(bounds, wall=0.15):
+    """Walls (world-file dicts) just inside ``bounds`` [xmin, ymin, xmax, ymax] [m]: a generated
+    world's open floor ends at a wall, not at the map's edge (a robot that leaves the map can
+    plan no more)."""
+    x0, y0, x1, y1 = bounds
+    x0, y0, x1, y1 = x0 + wall, y0 + wall, x1 - wall, y1 - wall
+    cx, cy, lx, ly = (x0 + x1) / 2, (y0 + y1) / 2, x1 - x0 + wall, y1 - y0 + wall
+    return [{'x': cx, 'y': y0, 'length': lx, 'width': wall, 'yaw_deg': 0.0},
+            {'x': cx, 'y': y1, 'length': lx, 'width': wall, 'yaw_deg': 0.0},
+            {'x': x0, 'y': cy, 'length': ly, 'width': wall, 'yaw_deg': 90.0},
+            {'x': x1, 'y': cy, 'length': ly, 'width': wall, 'yaw_deg': 90.0}]
+
+
+def rooms_world(seed, movable=(2, 5), static=(0, 2), partition_probability=0.5, name=None):
+    """A seeded random walled world of the course's class (a dict for
+    :meth:`tiago_nav.sim.world.World.from_dict`): the robot starts in a small closed room whose
+    only way out is a corridor (0.95-1.4 m wide, 2.5-4.5 m long, bent by up to 30 deg half the
+    time) into a walled room of 5-7 m by 6-8 m, split by a partition with a 1.3-1.8 m door with
+    probability ``partition_probability``, holding ``movable`` (min, max) unmapped cylinders
+    (what detection must find) and ``static`` (min, max) mapped ones, each at least 0.9 m from
+    the others and 0.7 m from any wall. The same ``seed`` gives the same world."""
+    import numpy as np
+    rng = np.random.default_rng(seed)
+    width = float(rng.uniform(0.95, 1.4))
+    length = float(rng.uniform(2.5, 4.5))
+    bend = float(rng.choice([-1.0, 1.0]) * rng.uniform(15.0, 30.0)) if rng.random() < 0.5 else 0.0
+    world = corridor_world(width, length=length, bend_deg=bend,
+                           bend_at=length / 2.0 if bend else None,
+                           name=name or 'rooms_%d' % seed)
+    ex, ey = world['corridor']['exit']
+    room_x, half_y = float(rng.uniform(5.0, 7.0)), float(rng.uniform(3.0, 4.0))
+    x0 = world['bounds'][0]
+    bounds = [x0, min(ey, 0.0) - half_y, ex + room_x, max(ey, 0.0) + half_y]
+    world['bounds'] = [round(v, 3) for v in bounds]
+    world['walls'] += enclosure(bounds)
+    if rng.random() < partition_probability:
+        # a partition across the room (parallel to y) with a door
+        px = ex + room_x * float(rng.uniform(0.45, 0.65))
+        door = float(rng.uniform(1.3, 1.8))
+        y_lo, y_hi = bounds[1] + 0.15, bounds[3] - 0.15
+        dc = float(rng.uniform(y_lo + 0.5 + door / 2, y_hi - 0.5 - door / 2))
+        for a, b in ((y_lo, dc - door / 2), (dc + door / 2, y_hi)):
+            world['walls'].append({'x': px, 'y': (a + b) / 2, 'length': b - a, 'width': 0.15,
+                                   'yaw_deg': 90.0})
+    from tiago_nav.gridmap import distance_to_mask
+    from tiago_nav.sim.raster import rasterise_world
+    from tiago_nav.sim.world import World
+    grid = rasterise_world(World.from_dict(world))
+    dist = distance_to_mask(grid.occupied(), grid.resolution)
+    placed = []
+
+    def place(radius):
+        for _ in range(400):
+            x = float(rng.uniform(ex + 1.0, bounds[2] - 0.5))
+            y = float(rng.uniform(bounds[1] + 0.5, bounds[3] - 0.5))
+            (r, c), = grid.world_to_cell([[x, y]])
+            if dist[r, c] - radius < 0.7 or math.hypot(x - ex, y - ey) < 1.5:
+                continue
+            if any(math.hypot(x - px_, y - py_) - radius - pr < 0.9 for px_, py_, pr in placed):
+                continue
+            placed.append((x, y, radius))
+            return {'x': round(x, 3), 'y': round(y, 3), 'radius': round(radius, 3)}
+        return None
+    n_static = int(rng.integers(static[0], static[1] + 1))
+    n_movable = int(rng.integers(movable[0], movable[1] + 1))
+    world['static_cylinders'] = [c for c in (place(float(rng.uniform(0.1, 0.3)))
+                                             for _ in range(n_static)) if c]
+    world['movable_obstacles'] = [c for c in (place(float(rng.uniform(0.15, 0.25)))
+                                              for _ in range(n_movable)) if c]
+    return world

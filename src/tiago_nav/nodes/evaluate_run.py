@@ -1,0 +1,351 @@
+"""One evaluation run's supervisor: ``python3 -m tiago_nav.nodes.evaluate_run RUN_DIR``.
+
+Started by :mod:`tiago_nav.evaluate.run` as the leader of a session of its own, with the run's
+environment (ROS_MASTER_URI on 127.0.0.1 and the slot's port, ROS_HOME, ROS_LOG_DIR, loopback
+ROS_IP/ROS_HOSTNAME). It reads ``RUN_DIR/spec.json`` and, as children in its session:
+starts roscore, waits for the master; starts demo.launch (the run's world, seed and launch
+args; built-in nodes a candidate replaces switched off) and the candidate's command or launch
+file; waits for readiness (``/use_sim_time``, every action server and the detection service,
+a candidate's interface within its ``check_timeout``, ``/clock``, ``/map``,
+``/sim/ground_truth``); checks that the scenario loaded as specified (map and start pose);
+sends the mission with a plain actionlib SimpleActionClient; watches the ground truth, the
+localisation's estimate and ``/sim/collisions`` until a result or the simulated-time limit;
+writes ``RUN_DIR/raw.json`` (atomically); stops its children. Stages go to
+``RUN_DIR/stage`` so that a watchdog kill can tell start-up from mission.
+"""
+import json
+import math
+import os
+import shlex
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+STARTED_MARK = '__tiago_nav_eval__'
+
+
+def write_json(path, obj):
+    tmp = path + '.tmp'
+    with open(tmp, 'w') as f:
+        json.dump(obj, f, indent=1)
+    os.replace(tmp, path)
+
+
+class Infra(Exception):
+    """An infrastructure error: ``code`` (INFRA_LAUNCH, INFRA_NODE_DIED, INFRA_SCENARIO,
+    INFRA_CONTRACT) and a reason."""
+
+    def __init__(self, code, reason):
+        super().__init__(reason)
+        self.code = code
+
+
+class Supervisor:
+    def __init__(self, run_dir):
+        self.dir = run_dir
+        with open(os.path.join(run_dir, 'spec.json')) as f:
+            self.spec = json.load(f)
+        self.procs = {}
+        self.logs = []
+        self.uri = os.environ['ROS_MASTER_URI']
+        self.port = int(self.uri.rsplit(':', 1)[1])
+        self.truth = None
+        self.path = []
+        self.loc_err = []
+        self.collisions = None
+        self.clock = None
+        self.grid_msg = None
+        self.lock = threading.Lock()
+
+    def stage(self, name):
+        with open(os.path.join(self.dir, 'stage'), 'w') as f:
+            f.write(name)
+
+    def start(self, name, cmd):
+        log = open(os.path.join(self.dir, name + '.log'), 'w')
+        self.logs.append(log)
+        self.procs[name] = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT,
+                                            stdin=subprocess.DEVNULL)
+
+    def check_alive(self, what):
+        for name, p in self.procs.items():
+            if p.poll() is not None:
+                code = 'INFRA_LAUNCH' if name in ('roscore', 'roslaunch') else 'INFRA_CONTRACT'
+                raise Infra(code, '%s exited with %s while waiting for %s (see %s.log): %s'
+                            % (name, p.returncode, what, name, self.tail(name)))
+
+    def tail(self, name, n=3):
+        try:
+            with open(os.path.join(self.dir, name + '.log')) as f:
+                lines = [ln.strip() for ln in f if ln.strip()]
+            return ' | '.join(lines[-n:])
+        except OSError:
+            return ''
+
+    def wait(self, what, pred, timeout, code='INFRA_LAUNCH'):
+        t0 = time.monotonic()
+        while not pred():
+            self.check_alive(what)
+            if time.monotonic() - t0 > timeout:
+                raise Infra(code, 'no %s within %g s' % (what, timeout))
+            time.sleep(0.05)
+
+    # --- start-up ----------------------------------------------------------------------------
+    def launch(self):
+        import rosgraph
+        spec, lim = self.spec, self.spec['limits']
+        t0 = time.monotonic()
+        # the slot's port must be free (the last run's master gone)
+        self.wait('free port %d' % self.port, lambda: not rosgraph.is_master_online(self.uri), 15.0)
+        self.start('roscore', ['roscore', '-p', str(self.port)])
+        self.wait('ROS master at %s' % self.uri, lambda: rosgraph.is_master_online(self.uri),
+                  lim['startup_timeout'])
+        args = ['roslaunch', '-p', str(self.port), 'tiago_nav', 'demo.launch',
+                'world:=' + spec['world_path'], 'seed:=%d' % spec['seed'],
+                'real_time_factor:=%g' % lim['real_time_factor'], 'client:=false',
+                'rviz:=false', 'gui:=false']
+        args += ['%s:=%s' % (k, v) for k, v in sorted(spec['launch_args'].items())]
+        cand = spec.get('candidate_spec') or {}
+        for role in cand.get('replaces', []):
+            args.append('%s:=false' % role)
+        if spec.get('record'):
+            args += ['record:=true', 'bag:=' + os.path.join(self.dir, 'run.bag')]
+        self.start('roslaunch', args)
+        if cand:
+            if 'command' in cand:
+                self.start('candidate', shlex.split(cand['command']))
+            else:
+                self.start('candidate', ['roslaunch', '-p', str(self.port)] + shlex.split(cand['launch']))
+        return t0
+
+    def ready(self, t0):
+        import actionlib
+        import rosgraph
+        import rospy
+        from move_base_msgs.msg import MoveBaseAction
+        from nav_msgs.msg import OccupancyGrid, Odometry
+        from rosgraph_msgs.msg import Clock
+        from std_msgs.msg import UInt32
+        from tiago_nav.msg import CorridorAction, TiagoTaskAction
+        from tiago_nav.ros.actions import wait_server
+        lim = self.spec['limits']
+        deadline = t0 + lim['startup_timeout']
+        master = rosgraph.Master('/evaluate_probe')
+        self.wait('/use_sim_time parameter', lambda: master.hasParam('/use_sim_time'),
+                  max(1.0, deadline - time.monotonic()))
+        rospy.init_node('evaluate_probe', disable_signals=True)
+        rospy.Subscriber('/clock', Clock, lambda m: setattr(self, 'clock', m.clock.to_sec()), queue_size=1)
+        rospy.Subscriber('/map', OccupancyGrid, lambda m: setattr(self, 'grid_msg', m), queue_size=1)
+        rospy.Subscriber('/sim/collisions', UInt32, lambda m: setattr(self, 'collisions', m.data), queue_size=1)
+        rospy.Subscriber('/sim/ground_truth', Odometry, self.on_truth, queue_size=5)
+        cand = self.spec.get('candidate_spec') or {}
+        roles = cand.get('replaces', [])
+        check = cand.get('check_timeout', lim['check_timeout'])
+        servers = [('tiago_controller', TiagoTaskAction, None), ('move_base', MoveBaseAction, 'navigation'),
+                   ('corridor_controller', CorridorAction, 'corridor')]
+        for name, kind, role in servers:
+            c = actionlib.SimpleActionClient(name, kind)
+            if role in roles:       # the candidate's interface: its own, shorter, bound
+                if not wait_server(c, check):
+                    self.check_alive('the candidate')
+                    raise Infra('INFRA_CONTRACT', 'candidate %s: no %s action server (%s) advertised '
+                                'within %g s' % (self.spec['candidate'], name, kind.__name__, check))
+            elif not wait_server(c, max(1.0, deadline - time.monotonic())):
+                self.check_alive('the %s action server' % name)
+                raise Infra('INFRA_NODE_DIED', 'no %s action server within the start-up time' % name)
+            c.action_client.stop()
+        timeout = check if 'detection' in roles else max(1.0, deadline - time.monotonic())
+        try:
+            rospy.wait_for_service('obstacle_detection', timeout)
+        except rospy.ROSException:
+            self.check_alive('the obstacle_detection service')
+            if 'detection' in roles:
+                raise Infra('INFRA_CONTRACT', 'candidate %s: no obstacle_detection service '
+                            '(tiago_nav/DetectObstacles) advertised within %g s'
+                            % (self.spec['candidate'], check)) from None
+            raise Infra('INFRA_NODE_DIED', 'no obstacle_detection service within the start-up time') from None
+        if 'detection' in roles:
+            import rosservice
+            kind = rosservice.get_service_type('/obstacle_detection')
+            if kind != 'tiago_nav/DetectObstacles':
+                raise Infra('INFRA_CONTRACT', 'candidate %s: /obstacle_detection is a %s, not a '
+                            'tiago_nav/DetectObstacles' % (self.spec['candidate'], kind))
+        self.wait('/clock, /map and /sim/ground_truth',
+                  lambda: self.clock is not None and self.grid_msg is not None and self.truth is not None,
+                  max(1.0, deadline - time.monotonic()))
+
+    def on_truth(self, m):
+        p = m.pose.pose
+        pose = (p.position.x, p.position.y, 2 * math.atan2(p.orientation.z, p.orientation.w))
+        with self.lock:
+            self.truth = (m.header.stamp, pose)
+            if not self.path or abs(pose[0] - self.path[-1][0]) + abs(pose[1] - self.path[-1][1]) > 0.01:
+                self.path.append(pose)
+
+    def scenario(self):
+        """The scenario loaded as specified: the map is the world's, the robot at its start."""
+        from tiago_nav.sim.raster import rasterise_world
+        from tiago_nav.sim.world import load_world
+        world = load_world(self.spec['world_path'])
+        grid = rasterise_world(world)
+        info = self.grid_msg.info
+        if (info.width, info.height) != (grid.width, grid.height) or \
+                abs(info.resolution - grid.resolution) > 1e-6 or \
+                abs(info.origin.position.x - grid.origin[0]) > 1e-3 or \
+                abs(info.origin.position.y - grid.origin[1]) > 1e-3:
+            raise Infra('INFRA_SCENARIO', '/map is %dx%d cells of %g m at (%g, %g), the world %s '
+                        'gives %dx%d of %g m at (%g, %g)' % (info.width, info.height, info.resolution,
+                                                           info.origin.position.x, info.origin.position.y,
+                                                           world.name, grid.width, grid.height,
+                                                           grid.resolution, *grid.origin))
+        x, y, yaw = self.truth[1]
+        sx, sy, syaw = world.start_pose
+        dyaw = abs((yaw - syaw + math.pi) % (2 * math.pi) - math.pi)
+        if math.hypot(x - sx, y - sy) > 0.05 or dyaw > math.radians(3):
+            raise Infra('INFRA_SCENARIO', 'the robot is at (%.3f, %.3f, %.1f deg), the world starts '
+                        'it at (%.3f, %.3f, %.1f deg)' % (x, y, math.degrees(yaw), sx, sy, math.degrees(syaw)))
+
+    # --- the mission -------------------------------------------------------------------------
+    def mission(self):
+        import actionlib
+        import rospy
+        import tf2_ros
+        from actionlib_msgs.msg import GoalStatus
+        from tiago_nav.msg import TiagoTaskAction, TiagoTaskGoal
+        from tiago_nav.ros.conversions import pose_from_transform
+        lim = self.spec['limits']
+        tf = tf2_ros.Buffer(rospy.Duration(30))
+        tf2_ros.TransformListener(tf)
+        client = actionlib.SimpleActionClient('tiago_controller', TiagoTaskAction)
+        client.wait_for_server(rospy.Duration(5.0))
+        x, y, yaw = self.spec['goal']
+        feedback = []
+
+        def on_feedback(fb):
+            if not feedback or feedback[-1][1] != fb.state:
+                feedback.append((rospy.get_time(), int(fb.state), fb.status))
+        with self.lock:
+            self.path = [self.truth[1]]
+        c0, s0, w0 = self.collisions or 0, rospy.get_time(), time.monotonic()
+        client.send_goal(TiagoTaskGoal(x=x, y=y, yaw_deg=yaw, use_corridor_law=self.spec['use_corridor_law']),
+                         feedback_cb=on_feedback)
+        timed_out = False
+        while True:
+            state = client.get_state()
+            if state not in (GoalStatus.PENDING, GoalStatus.ACTIVE, GoalStatus.PREEMPTING, GoalStatus.RECALLING):
+                break
+            self.check_alive_mission()
+            if rospy.get_time() - s0 > lim['sim_time_limit']:
+                timed_out = True
+                client.cancel_all_goals()
+                client.wait_for_result(rospy.Duration(5.0))
+                break
+            with self.lock:
+                truth = self.truth
+            try:
+                t = tf.lookup_transform('map', 'base_footprint', truth[0], rospy.Duration(0.05))
+                ex, ey, eyaw = pose_from_transform(t.transform)
+                tx, ty, tyaw = truth[1]
+                self.loc_err.append((math.hypot(ex - tx, ey - ty),
+                                     abs((eyaw - tyaw + math.pi) % (2 * math.pi) - math.pi)))
+            except Exception:       # noqa: BLE001  (no transform at that stamp yet)
+                pass
+            time.sleep(0.1)
+        sim, wall = rospy.get_time() - s0, time.monotonic() - w0
+        result = client.get_result()
+        # the final pose once the latest ground truth has arrived
+        time.sleep(0.2)
+        with self.lock:
+            final = self.truth[1]
+            path = list(self.path) + [final]
+        names = {v: k for k, v in vars(GoalStatus).items() if k.isupper() and isinstance(v, int)}
+        return {'state': client.get_state(), 'state_name': names.get(client.get_state(), '?'),
+                'status_text': client.get_goal_status_text(), 'timed_out': timed_out,
+                'message': result.message if result else '',
+                'obstacles': [[o.center.x, o.center.y, o.radius] for o in result.obstacles] if result else [],
+                'sim_s': sim, 'wall_s': wall, 
+                'collisions': (self.collisions or 0) - c0, 'final_pose': list(final),
+                'path': [[round(v, 4) for v in p] for p in path], 'feedback': feedback,
+                'loc_errors': self.loc_err}
+
+    def check_alive_mission(self):
+        for name in ('roscore', 'roslaunch', 'candidate'):
+            p = self.procs.get(name)
+            if p is not None and p.poll() is not None:
+                raise Infra('INFRA_NODE_DIED', '%s exited with %s during the mission (see %s.log): %s'
+                            % (name, p.returncode, name, self.tail(name)))
+
+    def stop(self):
+        for name in ('candidate', 'roslaunch', 'roscore'):
+            p = self.procs.get(name)
+            if p is None or p.poll() is not None:
+                continue
+            # roslaunch escalates SIGINT -> SIGTERM on a slow node itself after 15 s
+            for sig, wait in ((signal.SIGINT, 20.0), (signal.SIGTERM, 3.0), (signal.SIGKILL, 3.0)):
+                try:
+                    p.send_signal(sig)
+                    p.wait(wait)
+                    break
+                except subprocess.TimeoutExpired:
+                    continue
+        for log in self.logs:
+            log.close()
+        # whatever outlived roslaunch (each node has a session of its own): by the run's token
+        from tiago_nav.evaluate.run import TOKEN_VAR, tagged_pids
+        token = os.environ.get(TOKEN_VAR)
+        for pid in tagged_pids(token) if token else []:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
+
+
+def watch_parent(sup):
+    """When the worker that started this run dies (a killed Dask worker), stop the run's
+    processes and exit: the run is rescheduled elsewhere and must not hold the slot's port."""
+    parent = os.getppid()
+
+    def loop():
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        sup.stage('orphaned')
+        sup.stop()
+        os._exit(3)
+    threading.Thread(target=loop, daemon=True).start()
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    run_dir = argv[0]
+    sup = Supervisor(run_dir)
+    watch_parent(sup)
+    raw = {'schema': 1, 'id': sup.spec['id']}
+    try:
+        sup.stage('startup')
+        t0 = sup.launch()
+        sup.ready(t0)
+        sup.scenario()
+        raw['startup_wall_s'] = time.monotonic() - t0
+        sup.stage('mission')
+        raw.update(sup.mission())
+    except Infra as e:
+        raw.update(infra=e.code, reason=str(e))
+    except Exception as e:      # noqa: BLE001  (the supervisor's own failure is the run's)
+        raw.update(infra='INFRA_LAUNCH', reason='supervisor: %s: %s' % (type(e).__name__, e))
+    finally:
+        sup.stage('teardown')
+        try:
+            import rospy
+            rospy.signal_shutdown('run done')
+        except Exception:       # noqa: BLE001
+            pass
+        sup.stop()
+    write_json(os.path.join(run_dir, 'raw.json'), raw)
+    sup.stage('done')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

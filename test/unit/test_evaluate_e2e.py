@@ -1,0 +1,30 @@
+"""One real evaluation run end to end (no Dask): the course mission with the ideal sensing
+profile on a slot's private master; skipped without a built, sourced workspace."""
+import os
+import shutil
+
+import pytest
+
+from conftest import ROOT
+from tiago_nav.evaluate import run, suite
+
+pytestmark = pytest.mark.skipif(
+    shutil.which('roscore') is None or 'tiago_nav' not in os.environ.get('ROS_PACKAGE_PATH', '')
+    and not os.environ.get('CMAKE_PREFIX_PATH', '').count('.ws'),
+    reason='needs the sourced workspace (source .ws/devel/setup.bash)')
+
+
+def test_one_real_run(tmp_path):
+    data = {'worlds': [{'file': os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml'),
+                        'poses': [[11.0, 0.0, -45.0]]}],
+            'profiles': {'ideal': {'laser_model': 'ideal', 'odometry_model': 'ideal',
+                                   'localisation': 'ground_truth', 'laser_noise': 0.01}},
+            'defaults': {'sim_time_limit': 120, 'wall_time_limit': 120, 'startup_timeout': 60}}
+    (spec,), _ = suite.expand(data, 'e2e.yaml', ROOT)
+    r = run.execute(spec, str(tmp_path))
+    assert r['outcome'] in run.OUTCOMES and r['outcome'] not in run.INFRA, r.get('reason')
+    assert r['outcome'] == 'succeeded', r.get('reason')
+    assert r['in_view'] == 4 and r['collisions'] == 0 and r['time_s'] > 0
+    assert run.read_json(str(tmp_path / 'runs' / spec['id'] / 'result.json'))['run_id'] == spec['id']
+    # torn down to the last process
+    assert not run.tagged_pids('%s.%d.1' % (spec['id'], os.getpid()))
