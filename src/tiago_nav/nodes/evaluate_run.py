@@ -245,7 +245,9 @@ class Supervisor:
             with self.lock:
                 truth = self.truth
             try:
-                t = tf.lookup_transform('map', 'base_footprint', truth[0], rospy.Duration(0.05))
+                # no timeout: tf2's waits run in ROS time, which stands still while the
+                # simulator waits for work (detection at the mission's end)
+                t = tf.lookup_transform('map', 'base_footprint', truth[0])
                 ex, ey, eyaw = pose_from_transform(t.transform)
                 tx, ty, tyaw = truth[1]
                 self.loc_err.append((math.hypot(ex - tx, ey - ty),
