@@ -42,6 +42,8 @@ BENCHMARKS = (
          ['lockstep.json']),
         ('bench/bench_lockstep.py --task nav --n 3 --nav 0 --modes on '
          '--out bench/results/lockstep_nav.json', ['lockstep_nav.json'])]),
+    ('localisation', 'Localisation along the course route', [
+        ('bench/bench_localisation.py', ['localisation.json'])]),
     ('soak', 'Soak', [
         ('bench/bench_soak.py', ['soak.json'])]),
 )

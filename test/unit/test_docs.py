@@ -51,7 +51,9 @@ def test_every_node_module_is_declared():
     """A node module with a Params dataclass is on the page (the client has none)."""
     modules = {os.path.splitext(os.path.basename(p))[0]
                for p in glob.glob(os.path.join(ROOT, 'src', 'tiago_nav', 'nodes', '*.py'))}
-    modules -= {'__init__', '__main__'}
+    # the batch evaluator and its per-run supervisor are tools, not nodes of the mission: their
+    # command line and outputs are docs/evaluation.md's
+    modules -= {'__init__', '__main__', 'evaluate', 'evaluate_run'}
     declared = {e['params'].rsplit('.', 1)[1] for e in NODES if e['params']} | \
         {e['executable'] for e in NODES if not e['params']}
     assert modules <= declared | {e['executable'] for e in NODES}, modules - declared
