@@ -276,12 +276,24 @@ def render_lockstep(d):
              s.get('wall_s_mean'), s.get('wall_s_max'), s.get('cpu_s_mean'),
              s.get('final_pose_spread_m'), s.get('distinct_final_odometry'),
              s.get('loadavg_1min_mean'))
+            + (s.get('result_pose_spread_m'), s.get('centre_spread_m'))
             for c in d.get('conditions', []) for s in [c.get('summary', {})]]
     return ['%s: %s runs per condition, %s navigation goals after each, seed %s.'
             % (d.get('task'), _f(d.get('n')), _f(d.get('nav_goals_per_run')), _f(d.get('seed'))),
             ''] + _table(('condition', 'runs', 'succeeded', 'collisions', 'wall mean [s]',
-                          'wall max [s]', 'CPU mean [s]', 'final pose spread [m]',
-                          'distinct final odometry', 'load (1 min)'), rows)
+                          'wall max [s]', 'CPU mean [s]', 'true final pose spread [m]',
+                          'distinct final odometry', 'load (1 min)',
+                          'reported final pose spread [m]', 'obstacle centre spread [m]'), rows)
+
+
+def render_localisation(d):
+    rows = [(laser, s.get('scans'), s.get('registered'), s.get('rejected'),
+             s.get('localised_p95_m'), s.get('localised_p95_deg'), s.get('localised_max_m'),
+             s.get('dead_reckoning_p95_m'), s.get('update_median_ms'))
+            for laser, s in d.get('lasers', {}).items()]
+    return ['%s, %s seeds, drifting odometry.' % (d.get('world'), _f(d.get('seeds'))), ''] + \
+        _table(('laser', 'scans', 'registered', 'rejected', 'p95 [m]', 'p95 [deg]', 'max [m]',
+                'dead reckoning p95 [m]', 'update median [ms]'), rows)
 
 
 def render_soak(d):
@@ -304,7 +316,7 @@ def render_soak(d):
 RENDER = {'simulator': render_simulator, 'detection': render_detection,
           'navigation': render_navigation, 'corridor': render_corridor,
           'mission': render_mission, 'demo': render_demo, 'lockstep': render_lockstep,
-          'soak': render_soak}
+          'soak': render_soak, 'localisation': render_localisation}
 
 
 def render_page(results, header):
