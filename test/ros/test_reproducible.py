@@ -5,8 +5,8 @@ when the goal is sent. Two fresh launches of demo.launch at ``real_time_factor:=
 SimpleActionClients send the course mission, a second mission from its end and then a
 move_base goal, each after a wall delay that differs between the runs (0.1 s and 2.5 s). Every
 result field (final pose, each obstacle's centres, radius and point count, the message, the
-final state), the feedback published (state, sentence, simulated stamp), the simulated time at
-which each goal ended and the true final pose must agree between the runs."""
+final state), the feedback published (state, sentence, simulated stamp), each result's stamp
+and the true final pose must agree between the runs."""
 import unittest
 
 import rostest

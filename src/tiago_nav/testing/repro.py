@@ -2,7 +2,7 @@
 missions and a move_base goal sent by plain actionlib clients (no lockstep participation)
 after a wall delay; everything a user can read of them is recorded: each result's fields,
 the feedback published (state, sentence, stamp), the final true pose (/sim/ground_truth) and
-the simulated time at which each goal ended.
+the stamp of each result.
 
 A process can join one ROS master only, so each run is a child process:
 ``python3 -m tiago_nav.testing.repro --delay 1.5 [--world W] [--launch-args "..."]`` prints
@@ -31,6 +31,12 @@ def _yaw(q):
 
 def _pose(p):
     return [p.position.x, p.position.y, _yaw(p.orientation)]
+
+
+def _result_stamp(client):
+    """[s] the stamp the server gave its result (the client's own clock, read when the result
+    arrives, depends on timing: the base may still be braking)."""
+    return client.gh.comm_state_machine.latest_result.header.stamp.to_sec()
 
 
 def _at_rest(odom):
@@ -88,7 +94,7 @@ def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0):
                 raise RuntimeError('no result within %g s' % timeout)
             task = task_record(client.get_result(), client.get_state(),
                                client.get_goal_status_text(), list(published))
-            task.update(wall_s=time.monotonic() - t0, ended_s=rospy.get_time())
+            task.update(wall_s=time.monotonic() - t0, ended_s=_result_stamp(client))
             rec['tasks'].append(task)
         if nav_goal is not None:
             time.sleep(delay)
@@ -101,7 +107,7 @@ def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0):
             if not mb.wait_for_result(rospy.Duration(timeout)):
                 raise RuntimeError('no move_base result within %g s' % timeout)
             rec['nav'] = {'status': mb.get_state(), 'text': mb.get_goal_status_text(),
-                          'ended_s': rospy.get_time()}
+                          'ended_s': _result_stamp(mb)}
         # the true pose once the base is at rest (then nothing moves: the simulator waits for
         # work); ground truth goes out with each scan while simulated time runs
         end = time.monotonic() + 10.0
