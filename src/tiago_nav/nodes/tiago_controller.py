@@ -171,12 +171,14 @@ class RosBackend:
         service = rospy.resolve_name(self.p.detection_service)
         t0 = time.monotonic()
         while not rospy.is_shutdown() and time.monotonic() - t0 < self.cfg.server_timeout:
-            missing = [s for s in stages if not self.server_ready(s)]
-            if not missing and _service_registered(service):
+            missing = [self.p.corridor_action if s == 'corridor' else self.p.move_base_action
+                       for s in stages if not self.server_ready(s)]
+            if not _service_registered(service):
+                missing.append(service)
+            if not missing:
                 return
-            rospy.loginfo_throttle(5.0, 'tiago_controller: the mission waits for %s' % ', '.join(
-                [self.p.corridor_action if s == 'corridor' else self.p.move_base_action
-                 for s in missing] + ([] if _service_registered(service) else [service])))
+            rospy.loginfo_throttle(5.0, 'tiago_controller: the mission waits for %s'
+                                   % ', '.join(missing))
             time.sleep(self.cfg.poll_period)
 
     def end(self):
