@@ -14,17 +14,21 @@ pytestmark = pytest.mark.skipif(
     reason='needs the sourced workspace (source .ws/devel/setup.bash)')
 
 
-def test_one_real_run(tmp_path):
+def test_one_real_run_twice(tmp_path):
     data = {'worlds': [{'file': os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml'),
                         'poses': [[11.0, 0.0, -45.0]]}],
             'profiles': {'ideal': {'laser_model': 'ideal', 'odometry_model': 'ideal',
                                    'localisation': 'ground_truth', 'laser_noise': 0.01}},
             'defaults': {'sim_time_limit': 120, 'wall_time_limit': 120, 'startup_timeout': 60}}
     (spec,), _ = suite.expand(data, 'e2e.yaml', ROOT)
-    r = run.execute(spec, str(tmp_path))
+    r = run.execute(spec, str(tmp_path / 'first'))
     assert r['outcome'] in run.OUTCOMES and r['outcome'] not in run.INFRA, r.get('reason')
     assert r['outcome'] == 'succeeded', r.get('reason')
     assert r['in_view'] == 4 and r['collisions'] == 0 and r['time_s'] > 0
-    assert run.read_json(str(tmp_path / 'runs' / spec['id'] / 'result.json'))['run_id'] == spec['id']
+    assert run.read_json(str(tmp_path / 'first' / 'runs' / spec['id'] / 'result.json'))['run_id'] == spec['id']
     # torn down to the last process
     assert not run.tagged_pids('%s.%d.1' % (spec['id'], os.getpid()))
+    # the same row again: the same result, but for the wall-clock figures
+    again = run.execute(spec, str(tmp_path / 'second'))
+    assert run.differences(r, again) == []
+    assert run.differences(r, dict(again, final_pose=[0.0, 0.0, 0.0])) == ['final_pose']

@@ -28,6 +28,9 @@ MAX_SLOTS = 100                 # ports 12000..12990
 INFRA = ('INFRA_LAUNCH', 'INFRA_NODE_DIED', 'INFRA_SCENARIO', 'INFRA_CONTRACT')
 OUTCOMES = ('succeeded', 'aborted', 'collision', 'timeout', 'detection_failure') + INFRA
 TOKEN_VAR = 'TIAGO_NAV_EVAL_TOKEN'
+# result.json fields that follow the wall clock or the worker, not the run's row
+WALL_CLOCK_FIELDS = ('cpu_s', 'wall_s', 'run_wall_s', 'startup_wall_s', 'sim_wall_ratio', 'host',
+                     'port', 'slot', 'attempt', 'first_attempt')
 _SLOT = {}                      # this process's claimed slot: {'slot', 'fd'}
 
 
@@ -193,6 +196,14 @@ def execute(spec, out_dir, record=False, attempt=1):
     return result
 
 
+def differences(a, b):
+    """The fields of two results of one run (``result.json`` dicts) that differ, leaving out
+    :data:`WALL_CLOCK_FIELDS`: at ``real_time_factor`` 0 in lockstep a run's outcome and every
+    other figure are a function of its row, wherever and beside whatever it ran."""
+    keys = (set(a) | set(b)) - set(WALL_CLOCK_FIELDS)
+    return sorted(k for k in keys if a.get(k) != b.get(k))
+
+
 def world_path(spec, out_dir):
     """The run's world file: the suite's file, or the generated world written under
     ``out_dir/worlds`` (by the command line before any run)."""
@@ -248,6 +259,7 @@ def judge(spec, raw):
     m['loc_error_p95_m'] = M.percentile([e[0] for e in loc], 95)
     m['loc_error_max_m'] = M.percentile([e[0] for e in loc], 100)
     m['loc_error_p95_deg'] = (math.degrees(M.percentile([e[1] for e in loc], 95)) if loc else None)
+    m['loc_samples'] = len(loc)
     det_ok, det = True, {}
     if raw.get('state') == 3 and final:         # SUCCEEDED: judge what it reported
         from tiago_nav.testing.evaluation import visible_truth

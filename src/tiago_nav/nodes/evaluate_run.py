@@ -24,6 +24,9 @@ import threading
 import time
 
 STARTED_MARK = '__tiago_nav_eval__'
+LOC_SAMPLES_PER_S = 10      # localisation error: one sample per 0.1 s of simulated time
+LOC_TAIL = 0.5              # [s sim] the last samples before the result, which tf may not reach
+END_WAIT = 10.0             # [s wall] the longest wait for the mission's last messages
 
 
 def write_json(path, obj):
@@ -52,8 +55,13 @@ class Supervisor:
         self.uri = os.environ['ROS_MASTER_URI']
         self.port = int(self.uri.rsplit(':', 1)[1])
         self.truth = None
+        self.truth_msg = None
         self.path = []
         self.loc_err = []
+        self.loc_due = []           # [(stamp, true pose)] of the 0.1 s grid, to compare with tf
+        self.loc_bucket = None      # the 0.1 s bucket of the last sample (None: not sampling)
+        self.loc_from = None        # samples after this stamp (the goal's)
+        self.loc_missing = 0
         self.collisions = None
         self.clock = None
         self.grid_msg = None
@@ -139,7 +147,9 @@ class Supervisor:
         rospy.Subscriber('/clock', Clock, lambda m: setattr(self, 'clock', m.clock.to_sec()), queue_size=1)
         rospy.Subscriber('/map', OccupancyGrid, lambda m: setattr(self, 'grid_msg', m), queue_size=1)
         rospy.Subscriber('/sim/collisions', UInt32, lambda m: setattr(self, 'collisions', m.data), queue_size=1)
-        rospy.Subscriber('/sim/ground_truth', Odometry, self.on_truth, queue_size=5)
+        # every message, none dropped (queue_size None): the path and the localisation's samples
+        # are then the same whatever the load
+        rospy.Subscriber('/sim/ground_truth', Odometry, self.on_truth, queue_size=None)
         cand = self.spec.get('candidate_spec') or {}
         roles = cand.get('replaces', [])
         check = cand.get('check_timeout', lim['check_timeout'])
@@ -180,9 +190,45 @@ class Supervisor:
         p = m.pose.pose
         pose = (p.position.x, p.position.y, 2 * math.atan2(p.orientation.z, p.orientation.w))
         with self.lock:
-            self.truth = (m.header.stamp, pose)
+            self.truth, self.truth_msg = (m.header.stamp, pose), m
             if not self.path or abs(pose[0] - self.path[-1][0]) + abs(pose[1] - self.path[-1][1]) > 0.01:
                 self.path.append(pose)
+            if self.loc_bucket is not None and m.header.stamp > self.loc_from:
+                # the first true pose of each 0.1 s of simulated time after the goal
+                bucket = math.floor(m.header.stamp.to_sec() * LOC_SAMPLES_PER_S + 1e-6)
+                if bucket != self.loc_bucket:
+                    self.loc_bucket = bucket
+                    self.loc_due.append((m.header.stamp, pose))
+
+    def sample_localisation(self, tf, until=None):
+        """Compares each due true pose with tf's ``map → base_footprint`` at its stamp, in
+        stamp order, as far as tf has the data (all of them up to ``until``, a rospy.Time, when
+        given: later ones are dropped). A stamp tf can no longer give counts as missing."""
+        import tf2_ros
+        from tiago_nav.ros.conversions import pose_from_transform
+        while True:
+            with self.lock:
+                if not self.loc_due:
+                    return True
+                stamp, (tx, ty, tyaw) = self.loc_due[0]
+                if until is not None and stamp > until:
+                    del self.loc_due[:]
+                    return True
+            try:
+                t = tf.lookup_transform('map', 'base_footprint', stamp)
+            except tf2_ros.ExtrapolationException as e:
+                if 'past' not in str(e):
+                    return False            # not there yet
+                self.loc_missing += 1
+            except (tf2_ros.LookupException, tf2_ros.ConnectivityException):
+                return False
+            else:
+                ex, ey, eyaw = pose_from_transform(t.transform)
+                self.loc_err.append((math.hypot(ex - tx, ey - ty),
+                                     abs((eyaw - tyaw + math.pi) % (2 * math.pi) - math.pi),
+                                     stamp.to_sec()))
+            with self.lock:
+                self.loc_due.pop(0)
 
     def scenario(self):
         """The scenario loaded as specified: the map is the world's, the robot at its start."""
@@ -209,28 +255,38 @@ class Supervisor:
 
     # --- the mission -------------------------------------------------------------------------
     def mission(self):
+        """Sends the goal with a plain SimpleActionClient and watches it to its end. What it
+        records depends on simulated time only, not on when this process gets the processor:
+        feedback from the topic with its stamps (SimpleActionClient drops feedback that comes
+        before ``send_goal`` returns or after the result), the duration from the result's stamp,
+        every true pose (the path), the localisation error on a 0.1 s grid of simulated time,
+        and the final pose once the base is at rest after the result."""
         import actionlib
         import rospy
         import tf2_ros
         from actionlib_msgs.msg import GoalStatus
-        from tiago_nav.msg import TiagoTaskAction, TiagoTaskGoal
-        from tiago_nav.ros.conversions import pose_from_transform
+        from tiago_nav.msg import TiagoTaskAction, TiagoTaskActionFeedback, TiagoTaskGoal
+        from tiago_nav.ros.actions import wait_server
         lim = self.spec['limits']
-        tf = tf2_ros.Buffer(rospy.Duration(30))
+        tf = tf2_ros.Buffer(rospy.Duration(2 * lim['sim_time_limit'] + 60))
         tf2_ros.TransformListener(tf)
+        published = []             # (goal id, stamp, state, status) of every feedback message
+        sub = rospy.Subscriber('/tiago_controller/feedback', TiagoTaskActionFeedback,
+                               lambda m: published.append((m.status.goal_id.id, m.header.stamp.to_sec(),
+                                                           int(m.feedback.state), m.feedback.status)),
+                               queue_size=None)
         client = actionlib.SimpleActionClient('tiago_controller', TiagoTaskAction)
-        client.wait_for_server(rospy.Duration(5.0))
+        if not wait_server(client, 30.0):
+            raise Infra('INFRA_NODE_DIED', 'the tiago_controller action server went away before the goal')
+        end = time.monotonic() + 30.0
+        while sub.get_num_connections() == 0 and time.monotonic() < end:
+            time.sleep(0.01)
         x, y, yaw = self.spec['goal']
-        feedback = []
-
-        def on_feedback(fb):
-            if not feedback or feedback[-1][1] != fb.state:
-                feedback.append((rospy.get_time(), int(fb.state), fb.status))
+        c0, s0, w0 = self.collisions or 0, rospy.get_time(), time.monotonic()
         with self.lock:
             self.path = [self.truth[1]]
-        c0, s0, w0 = self.collisions or 0, rospy.get_time(), time.monotonic()
-        client.send_goal(TiagoTaskGoal(x=x, y=y, yaw_deg=yaw, use_corridor_law=self.spec['use_corridor_law']),
-                         feedback_cb=on_feedback)
+            self.loc_bucket, self.loc_from = -1, rospy.Time.from_sec(s0)
+        client.send_goal(TiagoTaskGoal(x=x, y=y, yaw_deg=yaw, use_corridor_law=self.spec['use_corridor_law']))
         timed_out = False
         while True:
             state = client.get_state()
@@ -242,23 +298,34 @@ class Supervisor:
                 client.cancel_all_goals()
                 client.wait_for_result(rospy.Duration(5.0))
                 break
-            with self.lock:
-                truth = self.truth
-            try:
-                # no timeout: tf2's waits run in ROS time, which stands still while the
-                # simulator waits for work (detection at the mission's end)
-                t = tf.lookup_transform('map', 'base_footprint', truth[0])
-                ex, ey, eyaw = pose_from_transform(t.transform)
-                tx, ty, tyaw = truth[1]
-                self.loc_err.append((math.hypot(ex - tx, ey - ty),
-                                     abs((eyaw - tyaw + math.pi) % (2 * math.pi) - math.pi)))
-            except Exception:       # noqa: BLE001  (no transform at that stamp yet)
-                pass
+            self.sample_localisation(tf)
             time.sleep(0.1)
-        sim, wall = rospy.get_time() - s0, time.monotonic() - w0
+        wall = time.monotonic() - w0
         result = client.get_result()
-        # the final pose once the latest ground truth has arrived
-        time.sleep(0.2)
+        latest = client.gh.comm_state_machine.latest_result if client.gh else None
+        ended = latest.header.stamp if latest is not None and not timed_out else rospy.Time.from_sec(rospy.get_time())
+        goal_id = client.gh.comm_state_machine.action_goal.goal_id.id if client.gh else None
+        with self.lock:
+            self.loc_bucket = None
+        # the mission's last messages: the feedback the result names, the base at rest, and
+        # tf up to the result (each bounded: a run that ends badly may never give them)
+        wanted = getattr(result, 'state', None)
+        until = ended - rospy.Duration(LOC_TAIL)
+        deadline = time.monotonic() + END_WAIT
+        while time.monotonic() < deadline:
+            fed = wanted is None or any(g == goal_id and st == wanted for g, _, st, _ in list(published))
+            m = self.truth_msg
+            rest = m is not None and m.header.stamp >= ended and m.twist.twist.linear.x == 0.0 \
+                and m.twist.twist.angular.z == 0.0
+            if fed and rest and self.sample_localisation(tf, until=until):
+                break
+            time.sleep(0.01)
+        loc_err = [e for e in self.loc_err if e[2] <= until.to_sec()]
+        sub.unregister()
+        feedback = []
+        for g, stamp, st, status in published:
+            if g == goal_id and (not feedback or feedback[-1][1] != st):
+                feedback.append((stamp, st, status))
         with self.lock:
             final = self.truth[1]
             path = list(self.path) + [final]
@@ -267,10 +334,10 @@ class Supervisor:
                 'status_text': client.get_goal_status_text(), 'timed_out': timed_out,
                 'message': result.message if result else '',
                 'obstacles': [[o.center.x, o.center.y, o.radius] for o in result.obstacles] if result else [],
-                'sim_s': sim, 'wall_s': wall, 
+                'sim_s': ended.to_sec() - s0, 'wall_s': wall,
                 'collisions': (self.collisions or 0) - c0, 'final_pose': list(final),
                 'path': [[round(v, 4) for v in p] for p in path], 'feedback': feedback,
-                'loc_errors': self.loc_err}
+                'loc_errors': loc_err, 'loc_missing': self.loc_missing}
 
     def check_alive_mission(self):
         for name in ('roscore', 'roslaunch', 'candidate'):
