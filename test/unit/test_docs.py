@@ -198,6 +198,14 @@ def test_benchmarks_page_says_when_meta_is_missing():
     assert line.startswith('meta: commit') and '`bench/b.py`' in line
 
 
+def test_every_benchmark_says_what_it_measures():
+    for name in benchmarks.NAMES:
+        assert benchmarks.ABOUT.get(name, '').strip(), '%s: no entry in benchmarks.ABOUT' % name
+    page = docs.benchmarks_page(ROOT)
+    for name, title, _ in benchmarks.BENCHMARKS:
+        assert '## %s\n\n%s\n' % (title, benchmarks.ABOUT[name]) in page, name
+
+
 def test_detection_sensing_is_rendered_from_its_own_structure():
     """bench_detection_sensing.py writes scene sets of detector variants, not detection.json's
     per-world methods: each variant is a row with its figures."""
