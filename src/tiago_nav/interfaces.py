@@ -74,8 +74,8 @@ NODES = (
              'publishes it)'),
             ('{odom_frame}', '{base_frame}', 'odometry'),
             ('{base_frame}', '{base_link_frame}',
-             'on /tf_static, with `~publish_robot_frames` (false when robot_state_publisher '
-             'publishes the URDF)'),
+             'on /tf_static, with `~publish_robot_frames` (sim.launch sets it with '
+             '`robot_description:=false` and in lockstep, beside robot_state_publisher)'),
             ('{base_link_frame}', '{laser_frame}',
              'on /tf_static, with `~publish_robot_frames`'),
             ('{map_frame}', '<world_frame name>',

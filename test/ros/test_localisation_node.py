@@ -20,7 +20,7 @@ from tiago_nav.testing.localisation import steer
 from simtest import TIMEOUT, SimTestCase
 
 FRAME = 'map_estimate'
-BAR_XY, BAR_YAW = 0.05, math.radians(2.0)     # DESIGN.md: p95 localisation error
+BAR_XY, BAR_YAW = 0.05, math.radians(2.0)     # docs/design-decisions.md: p95 localisation error
 ROUTE = ((2.0, 0.0), (3.5, 0.0))
 
 

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Rostest: start the mission's nodes one by one in different orders, and check that a whole
-mission succeeds each time (DESIGN "Trust": nothing depends on start-up order; every node waits
-for what it needs).
+mission succeeds each time (docs/design-decisions.md, "Trust": nothing depends on start-up
+order; every node waits for what it needs).
 
 The nodes and their parameters are demo.launch's own (loaded with roslaunch's API, so this
 follows the launch file as it changes); the test sets the parameters, then starts the nodes in

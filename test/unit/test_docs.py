@@ -198,6 +198,41 @@ def test_benchmarks_page_says_when_meta_is_missing():
     assert line.startswith('meta: commit') and '`bench/b.py`' in line
 
 
+def test_every_benchmark_says_what_it_measures():
+    for name in benchmarks.NAMES:
+        assert benchmarks.ABOUT.get(name, '').strip(), '%s: no entry in benchmarks.ABOUT' % name
+    page = docs.benchmarks_page(ROOT)
+    for name, title, _ in benchmarks.BENCHMARKS:
+        assert '## %s\n\n%s\n' % (title, benchmarks.ABOUT[name]) in page, name
+
+
+def test_detection_sensing_is_rendered_from_its_own_structure():
+    """bench_detection_sensing.py writes scene sets of detector variants, not detection.json's
+    per-world methods: each variant is a row with its figures."""
+    variant = {'scenes': 20, 'must_find': 80, 'missed': 1, 'false_positives': 0,
+               'rms_error_m': 0.0114, 'max_error_m': 0.0195, 'beyond_tolerance': 2,
+               'corrected_fraction': 1.0, 'latency_ms_median': 30.4, 'cpu_ms_median': 10.5}
+    data = {'laser_model': 'tiago', 'noise_std_m': 0.01, 'min_beams': 10, 'tolerance_m': 0.03,
+            'course': {'localisation_error_m_rms': 0.0133, 'correction_on': variant,
+                       'correction_off': dict(variant, rms_error_m=0.0115), 'before': variant},
+            'missions': {'localisation_error_m_rms': 0.0149, 'correction_on': variant}}
+    lines = benchmarks.RENDER_FILE['detection_sensing.json'](data)
+    rows = [ln for ln in lines if ln.startswith('| ') and not ln.startswith('| scene set')]
+    assert len(rows) == 4, lines
+    assert '| course pose B | pose correction off | 20 | 0.0133 | 80 | 1 | 0 | 0.0115 |' in rows[1]
+    assert rows[3].startswith('| random poses B | pose correction on |')
+
+
+def test_every_benchmark_json_renders_rows():
+    """No rendered table of the page is an empty header (a renderer that does not know its
+    JSON's structure)."""
+    page = docs.benchmarks_page(ROOT).splitlines()
+    for i, line in enumerate(page):
+        if line.startswith('|---'):
+            assert i + 1 < len(page) and page[i + 1].startswith('| '), \
+                'empty table under %r' % page[i - 1]
+
+
 def test_unknown_benchmark_is_refused():
     with pytest.raises(ValueError):
         benchmarks.commands(['nope'])

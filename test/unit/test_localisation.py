@@ -18,7 +18,7 @@ from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.world import Cylinder, load_world
 from tiago_nav.testing.localisation import run_route
 
-# DESIGN.md's bar: localisation error at the 95th percentile
+# the quality bar (docs/design-decisions.md): localisation error at the 95th percentile
 BAR_XY, BAR_YAW = 0.05, math.radians(2.0)
 
 

@@ -60,8 +60,9 @@ class Params:
     publish_map_to_odom: bool = param(True, 'publish the ground-truth tf map_frame -> odom_frame '
                                       '(false when a localisation node publishes it)')
     publish_robot_frames: bool = param(True, 'publish the fixed base_frame -> base_link_frame -> '
-                                       'laser_frame on /tf_static (false when robot_state_publisher '
-                                       'publishes the URDF)')
+                                       'laser_frame on /tf_static (sim.launch: with '
+                                       'robot_description:=false, and in lockstep beside '
+                                       'robot_state_publisher)')
     map_frame: str = param('map', 'the world frame (of /map and ground truth)', nonempty=True)
     odom_frame: str = param('odom', 'the odometry frame', nonempty=True)
     base_frame: str = param('base_footprint', "the base's frame, on the floor at its centre",

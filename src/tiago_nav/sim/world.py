@@ -1,6 +1,6 @@
 """World files (``worlds/*.yaml``): the one source of geometry for simulator, map and tests.
 
-The format is fixed by docs/simulator.md (world files). All lengths are metres, headings degrees in the file and
+The format is fixed by docs/interfaces.md (World files). All lengths are metres, headings degrees in the file and
 radians in code (``yaw`` properties); coordinates are in the map frame. An optional
 ``world_frame`` names another frame and gives its origin in the map (the simulator publishes
 it on /tf_static), e.g. the Gazebo world the file was measured from.
