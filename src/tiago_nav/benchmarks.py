@@ -46,12 +46,24 @@ BENCHMARKS = (
         ('bench/bench_localisation.py', ['localisation.json'])]),
     ('soak', 'Soak', [
         ('bench/bench_soak.py', ['soak.json'])]),
+    ('evaluate', 'Batch evaluation', [
+        ('bench/bench_evaluate.py', ['evaluate.json'])]),
 )
 NAMES = [b[0] for b in BENCHMARKS]
 
 # name -> what the benchmark measures, how it judges and its targets: shown under its title on
 # docs/benchmarks.md (the scripts' docstrings say the same at more length)
 ABOUT = {
+    'evaluate': (
+        'The batch evaluator as a user runs it (`rosrun tiago_nav evaluate`): `--runs` (20) rows '
+        'spread evenly over `suites/course.yaml` (the course world and generated worlds, both '
+        'sensing profiles, corridor law on and off, three seeds), run with 1, 2 and 3 local Dask '
+        'workers and then on a separately started cluster (`dask scheduler` and `dask worker '
+        '--nworkers 2`). Reported per setting: missions per minute (runs ÷ the command\'s wall '
+        'time, start-up and teardown included), outcomes, infrastructure errors, processes left '
+        'behind; and the rows whose result differs from the 1-worker one in any field but the '
+        'wall-clock ones. Target: the best local setting at least 1.25× the 1-worker rate, '
+        'every result equal.'),
     'simulator': (
         'How much faster than real time the mock TIAGo runs at `real_time_factor:=0` with the '
         'full laser (666 beams at 15 Hz) and 60 Hz physics, the base driving in circles, in both '
@@ -455,7 +467,24 @@ def render_soak(d):
     return out
 
 
-RENDER = {'simulator': render_simulator, 'detection': render_detection,
+def render_evaluate(d):
+    key = 'runs_differing_from_1_worker'
+    rows = [(s.get('setting'), '%d/%d' % (s.get('results', 0), s.get('runs', 0)), s.get('wall_s'),
+             s.get('missions_per_minute'),
+             ', '.join('%s %d' % kv for kv in sorted((s.get('outcomes') or {}).items())),
+             s.get('infrastructure_errors'), s.get('leftover_processes'),
+             '–' if key not in s else '%d of %d' % (len(s[key]), s.get('runs_compared', 0)))
+            for s in d.get('settings', [])]
+    out = ['%s rows of `%s`.' % (_f(len(d.get('run_ids', []))), d.get('suite')), '']
+    out += _table(('setting', 'results', 'wall [s]', 'missions per minute', 'outcomes',
+                   'infrastructure errors', 'processes left', 'rows differing from 1 worker'), rows)
+    out += ['', 'Best local setting: %s, %s× the 1-worker rate; every result equal in every '
+            'setting: %s.' % (d.get('best_local'), _f(d.get('best_speedup_over_1_worker')),
+                              _f(d.get('all_equal')))]
+    return out
+
+
+RENDER = {'evaluate': render_evaluate, 'simulator': render_simulator, 'detection': render_detection,
           'navigation': render_navigation, 'corridor': render_corridor,
           'mission': render_mission, 'demo': render_demo, 'lockstep': render_lockstep,
           'soak': render_soak, 'localisation': render_localisation}

@@ -1,0 +1,190 @@
+#!/usr/bin/python3
+"""Batch evaluation benchmark: the same runs of a suite with 1, 2 and 3 local Dask workers and
+on a separately started Dask cluster (a ``dask scheduler`` and a ``dask worker`` process with two
+worker processes), through ``rosrun tiago_nav evaluate`` as a user runs it. Reports missions per
+minute per setting and whether every run's result is the same in every setting (all but the
+wall-clock figures, ``tiago_nav.evaluate.run.WALL_CLOCK_FIELDS``: wall and CPU seconds,
+simulated/wall ratio, start-up time, the worker's host, slot and port).
+Writes bench/results/evaluate.json and evaluate.png.
+
+Usage: bench/bench_evaluate.py [--suite suites/course.yaml] [--runs 20] [--workers 1 2 3]
+                               [--no-cluster] [--keep DIR]
+"""
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+RESULTS = os.path.join(ROOT, 'bench', 'results')
+PORT = 8786
+
+
+def evaluate(argv):
+    """``rosrun tiago_nav evaluate ARGV``: (exit code, wall seconds)."""
+    t0 = time.monotonic()
+    rc = subprocess.call(['rosrun', 'tiago_nav', 'evaluate'] + argv, cwd=ROOT)
+    return rc, time.monotonic() - t0
+
+
+def pick(suite, n):
+    """``n`` run ids spread evenly over the suite's expansion (every k-th of the dry-run list)."""
+    out = subprocess.run(['rosrun', 'tiago_nav', 'evaluate', suite, '--out', tempfile.gettempdir(),
+                          '--dry-run'], cwd=ROOT, stdout=subprocess.PIPE, text=True, check=True)
+    ids = [line.split()[0] for line in out.stdout.splitlines() if line[:1].isalnum()
+           and not line.endswith(' runs')]
+    step = max(1, len(ids) // n)
+    return ids[::step][:n]
+
+
+def results(out):
+    """``{run_id: result.json}`` of an evaluate output folder."""
+    runs = os.path.join(out, 'runs')
+    res = {}
+    for rid in sorted(os.listdir(runs)) if os.path.isdir(runs) else []:
+        try:
+            with open(os.path.join(runs, rid, 'result.json')) as f:
+                res[rid] = json.load(f)
+        except (OSError, ValueError):
+            pass
+    return res
+
+
+class Cluster:
+    """A ``dask scheduler`` and a ``dask worker --nworkers 2`` as separate processes on
+    loopback, stopped with :meth:`close`."""
+
+    def __init__(self, folder, workers=2, timeout=60.0):
+        dask = shutil.which('dask') or os.path.join(os.path.dirname(sys.executable), 'dask')
+        self.address = 'tcp://127.0.0.1:%d' % PORT
+        self.logs = [open(os.path.join(folder, n), 'w') for n in ('scheduler.log', 'worker.log')]
+        self.procs = [subprocess.Popen([dask, 'scheduler', '--host', '127.0.0.1', '--port', str(PORT),
+                                        '--no-dashboard'], stdout=self.logs[0], stderr=subprocess.STDOUT)]
+        self.procs.append(subprocess.Popen([dask, 'worker', self.address, '--nthreads', '1',
+                                            '--nworkers', str(workers), '--no-dashboard'],
+                                           stdout=self.logs[1], stderr=subprocess.STDOUT))
+        from distributed import Client     # the evaluator's own dependency
+        deadline = time.monotonic() + timeout
+        with Client(self.address, timeout=timeout) as c:
+            while len(c.scheduler_info()['workers']) < workers:
+                if time.monotonic() > deadline:
+                    self.close()
+                    raise RuntimeError('the Dask cluster has fewer than %d workers after %g s'
+                                       % (workers, timeout))
+                time.sleep(0.2)
+
+    def close(self):
+        for p in reversed(self.procs):
+            p.terminate()
+            try:
+                p.wait(30)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+        for f in self.logs:
+            f.close()
+
+
+def plot(settings, path):
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    names = [s['setting'] for s in settings]
+    ax.bar(names, [s['missions_per_minute'] for s in settings], color='tab:blue')
+    for i, s in enumerate(settings):
+        ax.text(i, s['missions_per_minute'], '%.2f' % s['missions_per_minute'], ha='center',
+                va='bottom')
+    ax.set_ylabel('missions per minute')
+    ax.set_title('%d runs per setting, %d cores' % (settings[0]['runs'], os.cpu_count()))
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('--suite', default='suites/course.yaml')
+    ap.add_argument('--runs', type=int, default=20, help='run ids, spread over the suite')
+    ap.add_argument('--workers', type=int, nargs='+', default=[1, 2, 3])
+    ap.add_argument('--no-cluster', dest='cluster', action='store_false',
+                    help='skip the separately started Dask cluster')
+    ap.add_argument('--keep', help='write the evaluate output folders here (default: a temporary '
+                                   'folder, removed)')
+    ap.add_argument('--out', default=os.path.join(RESULTS, 'evaluate.json'))
+    args = ap.parse_args()
+    if os.path.join(ROOT, 'src') not in sys.path:
+        sys.path.append(os.path.join(ROOT, 'src'))
+    from tiago_nav.benchmarks import meta
+    from tiago_nav.evaluate.run import WALL_CLOCK_FIELDS, differences
+    for var, value in (('ROS_HOSTNAME', 'localhost'), ('ROS_IP', '127.0.0.1')):
+        os.environ.setdefault(var, value)
+    base = args.keep or tempfile.mkdtemp(prefix='bench_evaluate_')
+    os.makedirs(base, exist_ok=True)
+    ids = pick(args.suite, args.runs)
+    print('%d runs of %s: %s' % (len(ids), args.suite, ' '.join(ids)), flush=True)
+    settings, by_setting = [], {}
+    modes = [('%d worker%s' % (w, '' if w == 1 else 's'), ['--workers', str(w)]) for w in args.workers]
+    if args.cluster:
+        modes.append(('Dask cluster, 2 workers', None))
+    for name, extra in modes:
+        out = os.path.join(base, name.replace(' ', '_').replace(',', ''))
+        shutil.rmtree(out, ignore_errors=True)
+        os.makedirs(out)
+        cluster = None
+        if extra is None:
+            cluster = Cluster(out)
+            extra = ['--scheduler', cluster.address]
+        try:
+            rc, wall = evaluate([args.suite, '--out', out, '--only'] + ids + extra)
+        finally:
+            if cluster:
+                cluster.close()
+        res = results(out)
+        outcomes = {}
+        for r in res.values():
+            outcomes[r.get('outcome')] = outcomes.get(r.get('outcome'), 0) + 1
+        s = {'setting': name, 'exit_code': rc, 'runs': len(ids), 'results': len(res),
+             'wall_s': wall, 'missions_per_minute': 60.0 * len(res) / wall, 'outcomes': outcomes,
+             'infrastructure_errors': sum(v for k, v in outcomes.items() if str(k).startswith('INFRA')),
+             'leftover_processes': sum(r.get('leftover_processes') or 0 for r in res.values()),
+             'cpu_s_per_mission': sum(r.get('cpu_s') or 0 for r in res.values()) / max(1, len(res))}
+        settings.append(s)
+        by_setting[name] = res
+        print('%-26s exit %d  %d/%d results  %.0f s  %.2f missions/min  %s' % (
+            name, rc, len(res), len(ids), wall, s['missions_per_minute'], outcomes), flush=True)
+    ref_name = settings[0]['setting']
+    ref = by_setting[ref_name]
+    for s in settings[1:]:
+        other = by_setting[s['setting']]
+        diff = {rid: differences(ref[rid], other[rid]) for rid in ids if rid in ref and rid in other}
+        s['runs_differing_from_' + ref_name.replace(' ', '_')] = {k: v for k, v in diff.items() if v}
+        s['runs_compared'] = len(diff)
+    first = settings[0]['missions_per_minute']
+    local = [s for s in settings if s['setting'] != 'Dask cluster, 2 workers']
+    best = max(local, key=lambda s: s['missions_per_minute'])
+    out = {'suite': args.suite, 'run_ids': ids, 'wall_clock_fields': list(WALL_CLOCK_FIELDS),
+           'settings': settings, 'best_local': best['setting'],
+           'best_speedup_over_1_worker': best['missions_per_minute'] / first if first else None,
+           'all_equal': all(not s.get('runs_differing_from_' + ref_name.replace(' ', '_'))
+                            and s['results'] == len(ids) for s in settings)}
+    out['meta'] = meta(vars(args), real_time_factor=0.0, laser_model='per suite profile',
+                       odometry_model='per suite profile')
+    os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
+    with open(args.out, 'w') as f:
+        json.dump(out, f, indent=2)
+    plot(settings, os.path.splitext(args.out)[0] + '.png')
+    print('best: %s, %.2f x the 1-worker rate; every run equal in every setting: %s'
+          % (best['setting'], out['best_speedup_over_1_worker'] or 0, out['all_equal']))
+    print('wrote %s' % args.out)
+    if not args.keep:
+        shutil.rmtree(base, ignore_errors=True)
+    return 0 if all(s['results'] == len(ids) for s in settings) else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())
