@@ -103,3 +103,15 @@ def test_shortest_path_and_clearance():
     # 3.775, so a robot at y = 2 has 1.775 - 0.27 clear (to a cell)
     assert M.min_clearance([(3.0, 2.0)], grid, dist) == pytest.approx(1.775 - 0.27, abs=0.06)
     assert M.min_clearance([], grid, dist) is None
+
+
+def test_same_and_differences():
+    from tiago_nav.evaluate.run import differences, same
+    assert same(0.1 + 0.2, 0.3) and not same(0.3, 0.3 + 1e-6)
+    assert same([1.0, {'a': [2.0]}], [1.0, {'a': [2.0 + 1e-13]}])
+    assert not same([1.0], [1.0, 2.0]) and not same({'a': 1}, {'b': 1})
+    assert not same(True, 1) and not same(None, 0.0) and same('x', 'x')
+    a = {'run_id': 'r', 'final_pose': [1.0, 2.0, 0.5], 'wall_s': 3.0, 'outcome': 'succeeded'}
+    assert differences(a, dict(a, wall_s=9.0)) == []          # wall-clock fields left out
+    assert differences(a, dict(a, final_pose=[1.0, 2.001, 0.5], outcome='aborted')) == \
+        ['final_pose', 'outcome']

@@ -196,12 +196,27 @@ def execute(spec, out_dir, record=False, attempt=1):
     return result
 
 
+def same(a, b, tol=1e-9):
+    """Equal values, numbers to within ``tol`` (absolute; relative for large ones): tf's
+    interpolation can round the last bit differently with its cache's history, which is not
+    part of a run's row. Lists and dicts element by element."""
+    if isinstance(a, bool) or isinstance(b, bool) or a is None or b is None:
+        return type(a) is type(b) and a == b
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)):
+        return a == b or abs(a - b) <= tol * max(1.0, abs(a), abs(b))
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(same(x, y, tol) for x, y in zip(a, b))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(same(a[k], b[k], tol) for k in a)
+    return a == b
+
+
 def differences(a, b):
-    """The fields of two results of one run (``result.json`` dicts) that differ, leaving out
-    :data:`WALL_CLOCK_FIELDS`: at ``real_time_factor`` 0 in lockstep a run's outcome and every
-    other figure are a function of its row, wherever and beside whatever it ran."""
+    """The fields of two results of one run (``result.json`` dicts) that differ (:func:`same`),
+    leaving out :data:`WALL_CLOCK_FIELDS`: at ``real_time_factor`` 0 in lockstep a run's outcome
+    and every other figure are a function of its row, wherever and beside whatever it ran."""
     keys = (set(a) | set(b)) - set(WALL_CLOCK_FIELDS)
-    return sorted(k for k in keys if a.get(k) != b.get(k))
+    return sorted(k for k in keys if not same(a.get(k), b.get(k)))
 
 
 def world_path(spec, out_dir):
