@@ -59,12 +59,12 @@ class Cluster:
     loopback, stopped with :meth:`close`."""
 
     def __init__(self, folder, workers=2, timeout=60.0):
-        dask = shutil.which('dask') or os.path.join(os.path.dirname(sys.executable), 'dask')
+        dask = [sys.executable, '-m', 'dask']     # the sourced workspace puts it on the path
         self.address = 'tcp://127.0.0.1:%d' % PORT
         self.logs = [open(os.path.join(folder, n), 'w') for n in ('scheduler.log', 'worker.log')]
-        self.procs = [subprocess.Popen([dask, 'scheduler', '--host', '127.0.0.1', '--port', str(PORT),
+        self.procs = [subprocess.Popen(dask + ['scheduler', '--host', '127.0.0.1', '--port', str(PORT),
                                         '--no-dashboard'], stdout=self.logs[0], stderr=subprocess.STDOUT)]
-        self.procs.append(subprocess.Popen([dask, 'worker', self.address, '--nthreads', '1',
+        self.procs.append(subprocess.Popen(dask + ['worker', self.address, '--nthreads', '1',
                                             '--nworkers', str(workers), '--no-dashboard'],
                                            stdout=self.logs[1], stderr=subprocess.STDOUT))
         from distributed import Client     # the evaluator's own dependency
