@@ -206,6 +206,41 @@ class MissionFailuresTest(MissionTest):
         after = self.pose()
         self.assertLess(math.hypot(after[0] - before[0], after[1] - before[1]), 0.3)
 
+    def test_2b_a_client_on_another_clock_does_not_block_later_goals(self):
+        """A goal stamped in wall time (a client started before /use_sim_time was set) is
+        served, and so is the next goal of an ordinary `rosrun tiago_nav client` process:
+        actionlib would recall every goal stamped before the last one."""
+        from actionlib_msgs.msg import GoalStatusArray
+        from tiago_nav.msg import TiagoTaskActionGoal
+        w = max(self.world.walls, key=lambda w: w.width * w.length)     # the thickest wall's centre
+        seen = {}
+        sub = rospy.Subscriber('/tiago_controller/status', GoalStatusArray,
+                               lambda m: seen.update((s.goal_id.id, s) for s in m.status_list))
+        pub = rospy.Publisher('/tiago_controller/goal', TiagoTaskActionGoal, queue_size=1)
+        end = time.monotonic() + WAIT
+        while (pub.get_num_connections() == 0 or sub.get_num_connections() == 0) and \
+                time.monotonic() < end:
+            time.sleep(0.01)
+        g = TiagoTaskActionGoal()
+        g.goal_id.id = 'a goal stamped in wall time'
+        g.goal_id.stamp = rospy.Time.from_sec(time.time())
+        g.goal.x, g.goal.y, g.goal.yaw_deg, g.goal.use_corridor_law = w.x, w.y, 0.0, False
+        pub.publish(g)
+        done = (GoalStatus.ABORTED, GoalStatus.SUCCEEDED, GoalStatus.RECALLED, GoalStatus.REJECTED,
+                GoalStatus.PREEMPTED)
+        while time.monotonic() < end and (g.goal_id.id not in seen or seen[g.goal_id.id].status not in done):
+            time.sleep(0.02)
+        sub.unregister()
+        pub.unregister()
+        self.assertIn(g.goal_id.id, seen, 'the goal never appeared in the status')
+        self.assertEqual(seen[g.goal_id.id].status, GoalStatus.ABORTED, seen[g.goal_id.id].text)
+        self.assertIn('navigation failed', seen[g.goal_id.id].text)
+        p = subprocess.run(['rosrun', 'tiago_nav', 'client', '%.3f' % w.x, '%.3f' % w.y, '0',
+                            '--no-corridor'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                           text=True, timeout=MISSION)
+        self.assertEqual(p.returncode, 1, p.stdout)
+        self.assertIn('ABORTED: navigation failed: move_base aborted: goal rejected', p.stdout)
+
     def test_3_pose_b_outside_the_map_aborts_naming_navigation(self):
         xmin, ymin, xmax, ymax = self.world.bounds
         t0 = rospy.get_time()

@@ -94,6 +94,8 @@ def run(goal, out=print, server_timeout=SERVER_TIMEOUT, action='tiago_controller
         out('error: no %s action server after %g s; is demo.launch running?'
             % (rospy.resolve_name(action), server_timeout))
         return EXIT_FAILED
+    if rospy.rostime.is_wallclock() and rospy.get_param('/use_sim_time', False):
+        out('warning: /use_sim_time was set after this client started: it shows wall times')
     last = [None]
 
     def on_feedback(fb):

@@ -609,6 +609,21 @@ class Peers:
                 self.awaited.discard(node)
 
 
+def restamp_foreign(goal, now):
+    """Gives a goal (an actionlib ServerGoalHandle) stamped more than :data:`GOAL_LEAD` ahead
+    of the server's ROS time ``now`` (rospy.Time) that time instead: its client was on another
+    clock (one started before ``/use_sim_time`` was set stamps in wall time). actionlib's
+    SimpleActionServer orders goals by stamp and recalls a goal stamped before the last one
+    ("canceled because another goal was received"), so one such goal made the server recall
+    every later goal of every client. (A zero stamp actionlib itself makes ``now``.)"""
+    gid = goal.get_goal_id()
+    if gid.stamp > now + rospy.Duration.from_sec(GOAL_LEAD):
+        rospy.logwarn('%s: goal %s is stamped %.3f s, %.3f s ahead of this node\'s ROS time: '
+                      'its client is on another clock; taken as sent now', rospy.get_name(),
+                      gid.id, gid.stamp.to_sec(), (gid.stamp - now).to_sec())
+        gid.stamp = now
+
+
 class ClaimingActionServer(actionlib.SimpleActionServer):
     """A SimpleActionServer (started by :meth:`start`) whose lockstep ``participant`` claims
     the cycles after a goal's stamp as soon as the goal arrives, when no goal is running: not
@@ -625,6 +640,7 @@ class ClaimingActionServer(actionlib.SimpleActionServer):
         part = self.participant
         if part is not None and part.enabled and not self.is_active():
             part.claim(goal_since(goal.get_goal_id().stamp, part.now()))
+        restamp_foreign(goal, rospy.Time.now())
         super().internal_goal_callback(goal)
 
     def start(self):
