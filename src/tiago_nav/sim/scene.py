@@ -105,8 +105,8 @@ class Scene:
             raise RuntimeError('pybullet could not connect (%s mode)' % ('GUI' if gui else 'DIRECT'))
         if gui:
             p.configureDebugVisualizer(pybullet.COV_ENABLE_GUI, 0)
-        # Static geometry is one triangle mesh and each movable cylinder one more: pybullet ray
-        # casts against meshes are 5-10x faster than against its box and cylinder primitives.
+        # Static geometry is one triangle mesh and each movable cylinder one more, for the
+        # laser's ray casts (rather than pybullet's box and cylinder primitives).
         self.static_id = None
         if world.walls or world.static_cylinders:
             mesh = _Mesh()
