@@ -106,8 +106,7 @@ class GoalRunner:
     def _end(self, status, text):
         """Reports the outcome, then sends the stop command. In that order: in lockstep the
         stop command answers the cycle, after which simulated time may move on, and the result
-        would carry the stamp of whichever time this node had seen by then (a direct goal's
-        end was 33.8 s in one run and 33.9 s in another)."""
+        would carry the stamp of whichever time this node had seen by then."""
         with self.lock:
             self.nav.cancel()
         self.log('info' if status == SUCCEEDED else 'warn', 'goal %s: %s' % (status, text))

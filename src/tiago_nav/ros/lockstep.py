@@ -614,7 +614,7 @@ def restamp_foreign(goal, now):
     of the server's ROS time ``now`` (rospy.Time) that time instead: its client was on another
     clock (one started before ``/use_sim_time`` was set stamps in wall time). actionlib's
     SimpleActionServer orders goals by stamp and recalls a goal stamped before the last one
-    ("canceled because another goal was received"), so one such goal made the server recall
+    ("canceled because another goal was received"): one such goal would make the server recall
     every later goal of every client. (A zero stamp actionlib itself makes ``now``.)"""
     gid = goal.get_goal_id()
     if gid.stamp > now + rospy.Duration.from_sec(GOAL_LEAD):
