@@ -2,11 +2,13 @@
 """Rostest: a mission's outcome is a function of (world, seed, launch arguments, goal), not of
 when the goal is sent. Two fresh launches of demo.launch at ``real_time_factor:=0``
 (:mod:`tiago_nav.testing.repro`, each in a child process with its own master); in each, plain
-SimpleActionClients send the course mission, a second mission from its end and then a
-move_base goal, each after a wall delay that differs between the runs (0.1 s and 2.5 s). Every
-result field (final pose, each obstacle's centres, radius and point count, the message, the
-final state), the feedback published (state, sentence, simulated stamp), each result's stamp
-and the true final pose must agree between the runs."""
+SimpleActionClients send a corridor_controller goal (3 m of the course corridor), the course
+mission from where it ended, a second mission from its end and then a move_base goal, each
+after a wall delay that differs between the runs (0.1 s and 2.5 s). Every result field (the
+corridor's exit pose, distance and reason; the missions' final pose, each obstacle's centres,
+radius and point count, the message, the final state), the feedback published (state,
+sentence, simulated stamp), each result's stamp and the true final pose must agree between
+the runs."""
 import unittest
 
 import rostest
@@ -17,9 +19,11 @@ from tiago_nav.testing.repro import differences, run_child
 
 class Reproducible(unittest.TestCase):
     def test_the_same_goals_give_the_same_results_whenever_they_are_sent(self):
-        runs = [run_child(delay) for delay in (0.1, 2.5)]
+        runs = [run_child(delay, corridor=True) for delay in (0.1, 2.5)]
         for r in runs:
             self.assertNotIn('error', r, r.get('error'))
+            self.assertEqual(r['corridor']['status'], GoalStatus.SUCCEEDED, r['corridor']['text'])
+            self.assertGreaterEqual(r['corridor']['distance'], 3.0)
             self.assertEqual([t['status'] for t in r['tasks']], [GoalStatus.SUCCEEDED] * 2,
                              [t.get('text') for t in r['tasks']])
             self.assertEqual(r['nav']['status'], GoalStatus.SUCCEEDED, r['nav']['text'])

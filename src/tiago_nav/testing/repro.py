@@ -1,6 +1,7 @@
 """Reproducibility as a user sees it: a fresh demo.launch at ``real_time_factor:=0``, then
-missions and a move_base goal sent by plain actionlib clients (no lockstep participation)
-after a wall delay; everything a user can read of them is recorded: each result's fields,
+(optionally) a corridor_controller goal, missions and a move_base goal sent by plain actionlib
+clients (no lockstep participation) after a wall delay; everything a user can read of them is
+recorded: each result's fields,
 the feedback published (state, sentence, stamp), the final true pose (/sim/ground_truth) and
 the stamp of each result.
 
@@ -23,6 +24,7 @@ COURSE_WORLD = os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml')
 COURSE_GOAL = (11.0, 0.0, -45.0, True)
 SECOND_GOAL = (12.5, -1.6, 90.0, False)    # after the first mission, from pose B
 NAV_GOAL = (11.5, -2.6, 180.0)             # a move_base goal sent directly, after both
+CORRIDOR_GOAL = 3.0     # [m] max_distance of a corridor_controller goal sent directly (--corridor)
 
 
 def _yaw(q):
@@ -57,17 +59,19 @@ def task_record(result, state, text, feedback):
     return rec
 
 
-def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0):
-    """One launch of ``world``; after ``delay`` wall seconds each of ``goals`` ``(x, y,
-    yaw_deg, use_corridor_law)`` is sent to tiago_controller with a plain SimpleActionClient
-    (one after the other, each ``delay`` after the last ended), then ``nav_goal`` ``(x, y,
-    yaw_deg)`` (or None) to move_base. Returns the record (see the module)."""
+def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0, corridor=None):
+    """One launch of ``world``; after ``delay`` wall seconds a corridor_controller goal of
+    ``max_distance=corridor`` [m] (None: none) is sent with a plain SimpleActionClient, then
+    each of ``goals`` ``(x, y, yaw_deg, use_corridor_law)`` to tiago_controller (one after the
+    other, each ``delay`` after the last ended), then ``nav_goal`` ``(x, y, yaw_deg)`` (or None)
+    to move_base. Returns the record (see the module)."""
     import actionlib
     import rospy
     from actionlib_msgs.msg import GoalStatus
     from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
     from nav_msgs.msg import Odometry
-    from tiago_nav.msg import TiagoTaskAction, TiagoTaskActionFeedback, TiagoTaskGoal
+    from tiago_nav.msg import (CorridorAction, CorridorGoal, TiagoTaskAction,
+                               TiagoTaskActionFeedback, TiagoTaskGoal)
     from tiago_nav.ros.conversions import pose_stamped
     from tiago_nav.testing.harness import Harness
 
@@ -82,14 +86,30 @@ def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0):
         rospy.Subscriber('/tiago_controller/feedback', TiagoTaskActionFeedback,
                          lambda m: published.append([m.header.stamp.to_sec(), m.feedback.state,
                                                      m.feedback.status]), queue_size=None)
+        if corridor is not None:
+            time.sleep(delay)
+            cc = actionlib.SimpleActionClient('corridor_controller', CorridorAction)
+            if not cc.wait_for_server(rospy.Duration(30.0)):
+                raise RuntimeError('no corridor_controller action server')
+            cc.send_goal(CorridorGoal(max_distance=corridor))
+            if not cc.wait_for_result(rospy.Duration(timeout)):
+                raise RuntimeError('no corridor_controller result within %g s' % timeout)
+            res = cc.get_result()
+            rec['corridor'] = {'status': cc.get_state(), 'text': cc.get_goal_status_text(),
+                               'ended_s': _result_stamp(cc)}
+            if res is not None:
+                rec['corridor'].update(exit_pose=_pose(res.exit_pose.pose),
+                                       exit_frame=res.exit_pose.header.frame_id,
+                                       exit_stamp=res.exit_pose.header.stamp.to_sec(),
+                                       distance=res.distance, reason=res.reason)
         client = actionlib.SimpleActionClient('tiago_controller', TiagoTaskAction)
         if not client.wait_for_server(rospy.Duration(30.0)):
             raise RuntimeError('no tiago_controller action server')
-        for x, y, yaw, corridor in goals:
+        for x, y, yaw, use_corridor_law in goals:
             time.sleep(delay)
             del published[:]
             t0 = time.monotonic()
-            client.send_goal(TiagoTaskGoal(x=x, y=y, yaw_deg=yaw, use_corridor_law=corridor))
+            client.send_goal(TiagoTaskGoal(x=x, y=y, yaw_deg=yaw, use_corridor_law=use_corridor_law))
             if not client.wait_for_result(rospy.Duration(timeout)):
                 raise RuntimeError('no result within %g s' % timeout)
             task = task_record(client.get_result(), client.get_state(),
@@ -116,7 +136,8 @@ def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0):
         rec['truth'] = _pose(truth['m'].pose.pose) if 'm' in truth else None
         rec['truth_stamp'] = truth['m'].header.stamp.to_sec() if 'm' in truth else None
         rec['collisions'] = h.collisions
-        rec['succeeded'] = all(t['status'] == GoalStatus.SUCCEEDED for t in rec['tasks'])
+        rec['succeeded'] = all(t['status'] == GoalStatus.SUCCEEDED for t in rec['tasks']) and \
+            rec.get('corridor', {}).get('status', GoalStatus.SUCCEEDED) == GoalStatus.SUCCEEDED
     except Exception as e:      # noqa: BLE001  (a broken run is a failed run, with its reason)
         rec.update(succeeded=False, error='%s: %s' % (type(e).__name__, e))
     finally:
@@ -125,12 +146,14 @@ def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0):
 
 
 def run_child(delay, world=COURSE_WORLD, launch_args=(), goals='course,second', nav=True,
-              timeout=400.0):
+              timeout=400.0, corridor=False):
     """:func:`run` in a child process (its own ROS node); its record, or one with ``error``."""
     cmd = [sys.executable, '-m', 'tiago_nav.testing.repro', '--delay', repr(delay), '--world',
            world, '--launch-args', ' '.join(launch_args), '--goals', goals]
     if not nav:
         cmd.append('--no-nav')
+    if corridor:
+        cmd.append('--corridor')
     try:
         out = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, timeout=timeout).stdout
     except subprocess.TimeoutExpired:
@@ -177,6 +200,8 @@ def main(argv=None):
     ap.add_argument('--goals', default='course,second',
                     help='comma-separated: course, second, or x:y:yaw:corridor(0/1)')
     ap.add_argument('--no-nav', action='store_true', help='no move_base goal at the end')
+    ap.add_argument('--corridor', action='store_true',
+                    help='first a corridor_controller goal (max_distance %g m)' % CORRIDOR_GOAL)
     args = ap.parse_args(argv)
     goals = []
     for g in filter(None, args.goals.split(',')):
@@ -186,7 +211,7 @@ def main(argv=None):
             x, y, yaw, c = g.split(':')
             goals.append((float(x), float(y), float(yaw), c == '1'))
     rec = run(os.path.abspath(args.world), goals, None if args.no_nav else NAV_GOAL, args.delay,
-              args.launch_args.split())
+              args.launch_args.split(), corridor=CORRIDOR_GOAL if args.corridor else None)
     print('RESULT ' + json.dumps(rec), flush=True)
     return 0 if rec.get('succeeded') else 1
 
