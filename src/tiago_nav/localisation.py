@@ -81,6 +81,10 @@ class LocaliserConfig:
              'scans between follow odometry (0 with min_update_yaw_deg 0: every scan)', ge=0)
     min_update_yaw_deg: float = param(
         5.0, '[deg] see min_update_distance (AMCL\'s update_min_a)', ge=0)
+    raster_band: bool = param(
+        True, 'after each registration, move the pose to the middle of what the map\'s cells '
+              'allow: an axis-aligned wall lies somewhere within its raster cell, unknown, and '
+              'the registration alone is pulled by each wall\'s offset in it (refine_on_raster)')
     rest_updates: int = param(
         5, 'scans registered anyway once the robot has come to rest (odometry unchanged since '
            'the scan before), until it moves again: at rest they refine the estimate that places '
@@ -130,8 +134,12 @@ class DistanceField:
         fine = GridMap(np.repeat(np.repeat(grid.data, k, axis=0), k, axis=1),
                        grid.resolution / k, grid.origin)
         self.fine = fine
-        outside = fine.distance_field()
-        inside = distance_to_mask(~fine.occupied(), fine.resolution)
+        # distances between cell centres, less half a cell: to the boundary between the
+        # cells (each side reads half a cell at the cells next to it, so the field crosses 0
+        # on the boundary with slope 1 instead of jumping from -1 to +1 sub-cells across it)
+        half = fine.resolution / 2.0
+        outside = fine.distance_field() - half
+        inside = distance_to_mask(~fine.occupied(), fine.resolution) - half
         d = np.where(fine.occupied(), -inside, outside) + grid.resolution / 4.0
         d[~np.isfinite(d)] = 0.0
         self.d = d
@@ -240,12 +248,81 @@ def register(field, points, guess, config, sensor=(0.0, 0.0)):
         pose[2] = wrap_angle(pose[2])
         if abs(step[0]) + abs(step[1]) < 1e-4 and abs(step[2]) < 1e-4 and scale == scales[-1]:
             break
+    if config.raster_band:
+        pose[:2] = refine_on_raster(field, points, pose)[0][:2]
     r = field(transform_points(tuple(pose), points))[0]
     w = 1.0 / (1.0 + (r / config.robust_scale) ** 2)
     dof = max(float(np.sum(w)) - 3.0, 1.0)
     sigma2 = max(float(np.sum(w * r ** 2)) / dof, (0.25 * field.grid.resolution) ** 2)
     cov = np.linalg.inv(h - jtw @ j / scale ** 2 + jtw @ j / sigma2)
     return (float(pose[0]), float(pose[1]), float(pose[2])), cov, r
+
+
+AXIS_COS = 0.995       # a field gradient this close to an axis: the point faces a raster edge
+RASTER_GROUP_MIN = 10  # points on one raster edge line before it bounds the translation
+RASTER_NOISE = 0.01    # [m] a scan point's range noise (TIAGo's laser): the mean of a wall's
+                       # points is known to 2 standard errors of it
+
+
+def refine_on_raster(field, points, pose, band=None, noise=RASTER_NOISE,
+                     min_points=RASTER_GROUP_MIN, inlier=0.05):
+    """The translation of ``pose`` that best agrees with where an occupancy grid can put a
+    surface, after :func:`register`.
+
+    An occupancy grid knows a straight surface only to within a cell: every surface whose
+    raster has the same occupied cells is as likely, and the field puts them all at the middle
+    of that band (:class:`DistanceField`). :func:`register` averages every point's residual to
+    that middle, so each surface in view pulls the pose by its own sub-cell offset, unknown
+    but shared by all its points: on the course map at pose B about 1 cm. Here the points
+    facing one axis-aligned raster edge line (at least ``min_points`` of them, grouped by the
+    line's position) form one surface; its mean residual must lie within the band, half a cell
+    (``band``, default ``field.grid.resolution / 2``) each side of the middle, widened by the
+    mean's noise (``noise`` [m] per point, 2 standard errors). Each surface so bounds the
+    translation along its axis to an interval; the pose moves to the middle of the
+    intersection of those intervals along x and along y (where they do not all intersect,
+    the middle between the tightest bounds: the least largest violation). Heading and axes
+    with no bound keep :func:`register`'s answer.
+
+    Args:
+        field: the map's :class:`DistanceField`.
+        points: ``(N, 2)`` scan points [m] in the frame ``pose`` places in map.
+        pose: ``(x, y, yaw)`` [m, m, rad], the registered pose.
+        band, noise, min_points: see above; ``inlier`` [m]: points further than this from the
+            band's middle are not on a mapped surface and take no part.
+
+    Returns:
+        ``(pose, counts)``: the refined pose and how many surfaces bounded x and y.
+    """
+    band = field.grid.resolution / 2.0 if band is None else band
+    q = transform_points(tuple(pose), np.asarray(points, dtype=float))
+    r, gx, gy = field(q)
+    g = np.hypot(gx, gy)
+    ok = (np.abs(r) <= inlier) & (g > 0.5)
+    shift, counts = [0.0, 0.0], [0, 0]
+    for axis, grad in ((0, gx), (1, gy)):
+        face = ok & (np.abs(grad) >= AXIS_COS * g)
+        if not np.any(face):
+            continue
+        sign = np.sign(grad[face])
+        # the band's middle line along this axis: the same for every point of one surface
+        line = q[face, axis] - sign * r[face]
+        key = np.round(line / (field.grid.resolution / 8.0)).astype(int) * 2 + (sign > 0)
+        lo, hi = [], []
+        for k in np.unique(key):
+            sel = key == k
+            n = int(np.count_nonzero(sel))
+            if n < min_points:
+                continue
+            m, s = float(np.mean(r[face][sel])), float(sign[sel][0])
+            w = band + 2.0 * noise / math.sqrt(n)
+            # moving the pose by d along the axis changes this surface's mean residual by s d
+            a, b = (-w - m) * s, (w - m) * s
+            lo.append(min(a, b))
+            hi.append(max(a, b))
+        if lo:
+            shift[axis] = 0.5 * (max(lo) + min(hi))
+            counts[axis] = len(lo)
+    return (float(pose[0] + shift[0]), float(pose[1] + shift[1]), float(pose[2])), tuple(counts)
 
 
 def search(field, points, guess, config, sensor=(0.0, 0.0), keep=4):

@@ -303,3 +303,90 @@ def test_bad_config_names_the_parameter():
     with pytest.raises(ParamError) as e:
         LocaliserConfig(min_inlier_fraction=2.0)
     assert e.value.name == 'min_inlier_fraction'
+
+
+# --- what a 5 cm raster can say about where a wall is -------------------------------------
+def room_of_walls(rng, inner=1, res=0.05):
+    """A 6 x 5 m room of axis-aligned walls at random sub-cell positions, with ``inner`` more
+    short walls facing each axis inside it, and their surfaces as exact points (60 per wall)
+    seen from (3, 2.5): ``(world, points in map)``."""
+    from tiago_nav.sim.world import Wall, World
+    x0, y0 = rng.uniform(0.0, res, 2)
+    xs, ys = (x0 + 0.3, x0 + 6.3), (y0 + 0.3, y0 + 5.3)
+    walls = [Wall(xs[0] - 0.075, 2.8 + y0, 5.4, 0.15, 90.0), Wall(xs[1] + 0.075, 2.8 + y0, 5.4, 0.15, 90.0),
+             Wall(3.3 + x0, ys[0] - 0.075, 6.4, 0.15, 0.0), Wall(3.3 + x0, ys[1] + 0.075, 6.4, 0.15, 0.0)]
+    segs = [((xs[0], ys[0] + 0.3), (xs[0], ys[1] - 0.3)), ((xs[1], ys[0] + 0.3), (xs[1], ys[1] - 0.3)),
+            ((xs[0] + 0.3, ys[0]), (xs[1] - 0.3, ys[0])), ((xs[0] + 0.3, ys[1]), (xs[1] - 0.3, ys[1]))]
+    for k in range(inner):
+        # an east face at x = ix in the room's west part, a south face at y = iy in its north
+        ix = x0 + 1.0 + 0.45 * k + rng.uniform(0, res)
+        iy = y0 + 3.6 + 0.35 * k + rng.uniform(0, res)
+        yc, xc = y0 + 0.8 + 0.9 * k, x0 + 3.6 + 0.6 * k
+        walls += [Wall(ix - 0.075, yc, 0.6, 0.15, 90.0), Wall(xc, iy + 0.075, 0.5, 0.15, 0.0)]
+        segs += [((ix, yc - 0.2), (ix, yc + 0.2)), ((xc - 0.15, iy), (xc + 0.15, iy))]
+    world = World('room', res, (-0.5, -0.5, 7.0, 6.0), (3.0, 2.5, 0.0), walls)
+    t = np.linspace(0.0, 1.0, 60)[:, None]
+    pts = np.vstack([np.asarray(a) + t * (np.asarray(b) - np.asarray(a)) for a, b in segs])
+    return world, pts
+
+
+def test_the_field_reads_the_signed_distance_to_the_raster_boundary_with_slope_one():
+    from tiago_nav.localisation import DistanceField
+    from tiago_nav.sim.world import Wall, World
+    # a wall whose west face is at x = 2.012: its cells start at the cell edge x = 2.0
+    world = World('wall', 0.05, (0.0, 0.0, 4.0, 2.0), (1.0, 1.0, 0.0),
+                  [Wall(2.012 + 0.5, 1.0, 3.0, 1.0, 90.0)])
+    field = DistanceField(rasterise_world(world))
+    x = np.linspace(1.85, 2.15, 61)
+    d = field(np.column_stack((x, np.full_like(x, 1.0))))[0] - 0.05 / 4.0
+    # signed distance to the cell boundary at x = 2.0 (positive in free space), to a millimetre
+    assert np.max(np.abs(d - (2.0 - x))) < 1e-3
+
+
+def band_and_plain_errors(inner, n=30, seed=11):
+    """Position errors [m] of registration alone and with the raster band, over ``n`` random
+    rooms (:func:`room_of_walls`), each from a start 1 cm off."""
+    from tiago_nav.geometry import transform_points
+    from tiago_nav.localisation import DistanceField, refine_on_raster, register
+    rng = np.random.default_rng(seed)
+    plain, banded = [], []
+    for _ in range(n):
+        world, pts = room_of_walls(rng, inner)
+        field = DistanceField(rasterise_world(world))
+        truth = (3.0, 2.5, 0.0)
+        local = pts - truth[:2]                      # the points in base_footprint (yaw 0)
+        start = (truth[0] + rng.normal(0, 0.01), truth[1] + rng.normal(0, 0.01), 0.0)
+        ls, _, _ = register(field, local, start, LocaliserConfig(raster_band=False))
+        refined, counts = refine_on_raster(field, local, ls, noise=0.0)
+        assert counts == (2 + inner, 2 + inner)    # every wall bounds its axis
+        plain.append(math.hypot(ls[0] - truth[0], ls[1] - truth[1]))
+        banded.append(math.hypot(refined[0] - truth[0], refined[1] - truth[1]))
+        # the refined pose keeps every wall's mean within half a cell of its band's middle
+        r = field(transform_points(refined, local))[0].reshape(-1, 60).mean(axis=1)
+        assert np.max(np.abs(r)) <= 0.025 + 1e-6
+    rms = lambda v: math.sqrt(sum(e * e for e in v) / len(v))   # noqa: E731
+    return rms(banded), rms(plain)
+
+
+def test_raster_band_with_many_walls_per_axis_beats_registration_alone():
+    # each wall's offset within its cell is uniform: the middle of the bounds (the midrange)
+    # gains on the mean as walls add up (six per axis: about 0.75 of its error)
+    banded, plain = band_and_plain_errors(inner=4)
+    assert banded < 0.85 * plain, (banded, plain)
+
+
+def test_raster_band_with_few_walls_per_axis_is_no_worse():
+    # three walls per axis: the midrange and the mean are about as good
+    banded, plain = band_and_plain_errors(inner=1)
+    assert banded <= 1.05 * plain, (banded, plain)
+
+
+def test_register_applies_the_band_unless_told_not_to():
+    from tiago_nav.localisation import DistanceField, register
+    world, pts = room_of_walls(np.random.default_rng(2))
+    field = DistanceField(rasterise_world(world))
+    local = pts - (3.0, 2.5)
+    on = register(field, local, (3.0, 2.5, 0.0), LocaliserConfig())[0]
+    off = register(field, local, (3.0, 2.5, 0.0), LocaliserConfig(raster_band=False))[0]
+    assert on != off
+    assert on[2] == off[2]                       # the heading is the registration's

@@ -32,7 +32,7 @@ from tiago_nav.detection.centres import centroid, circle_fit, radius_std
 from tiago_nav.detection.clustering import centroid_clusters
 from tiago_nav.detection.subtraction import MapDistance, subtract
 from tiago_nav.geometry import transform_points, wrap_angle
-from tiago_nav.localisation import DistanceField, LocaliserConfig, register
+from tiago_nav.localisation import DistanceField, LocaliserConfig, refine_on_raster, register
 from tiago_nav.params import ParamError, param, validate
 from tiago_nav.scan import beam_angles, hits, scan_to_points, usable_ranges
 
@@ -138,7 +138,7 @@ class Result:
 # iterations (3 loss scales) instead of 12: the start is the localisation's estimate, a few cm
 # off; over 30 course scans with 2 cm / 0.7 deg errors the result moved at most 0.3 mm /
 # 0.01 deg, at about half the cost.
-REGISTRATION = LocaliserConfig(iterations=6)
+REGISTRATION = LocaliserConfig(iterations=6, raster_band=False)
 
 
 class ObstacleDetector:
@@ -222,7 +222,11 @@ class ObstacleDetector:
         pts = local[static]
         if n > c.max_points:
             pts = pts[np.linspace(0, n - 1, c.max_points).round().astype(int)]
-        pose, _, res = register(self.field, pts, laser_pose, c)
+        pose, _, _ = register(self.field, pts, laser_pose, c)
+        # the raster's band with every static point: more of them on each wall than the
+        # registration's subsample
+        pose, _ = refine_on_raster(self.field, local[static], pose, noise=p.range_noise)
+        res = self.field(transform_points(pose, pts))[0]
         # inliers among the points used, scaled to the static part
         inliers = int(round(np.sum(np.abs(res) < c.inlier_distance) * n / len(pts)))
         delta = (pose[0] - laser_pose[0], pose[1] - laser_pose[1],
