@@ -226,10 +226,13 @@ class MoveBase:
 
     # --- inputs -----------------------------------------------------------------------------
     def on_tick(self, tick):
-        """Before an idle lockstep answer: the obstacle layer holds the tick's scans. (Also
-        while starting: otherwise the simulator runs ahead of the scans move_base takes in, in
-        order, until tf no longer holds their transforms and move_base never gets ready.)"""
-        self.take_in(tick.scan_stamp)
+        """Before an idle lockstep answer while starting: the obstacle layer holds the tick's
+        scans (otherwise the simulator runs ahead of the scans move_base takes in, in order,
+        until tf no longer holds their transforms and move_base never gets ready). Once
+        serving, an idle answer waits for nothing: the scans are taken in meanwhile, in order,
+        and a goal's first cycle waits for every scan up to its own (:meth:`sense`)."""
+        if getattr(self, 'server', None) is None:
+            self.take_in(tick.scan_stamp)
 
     def sense(self):
         """At each control cycle in lockstep: the obstacle layer holds every scan up to the
