@@ -16,6 +16,8 @@ Each scan is one :meth:`Localiser.update`:
    reweighted with Cauchy weights whose scale anneals from ``initial_scale`` to ``robust_scale``,
    so points far from any mapped cell (unmapped obstacles, people, mixed pixels) lose their pull;
    a weak prior ties directions the scan does not constrain (a corridor's axis) to the prediction;
+   then (``raster_band``) the translation moves to the middle of what the map's cells allow for
+   the axis-aligned walls in view (:func:`refine_on_raster`);
 3. **gate**: the correction is kept only if enough points end within ``inlier_distance`` of the
    map and it moves the pose no more than ``max_correction`` / ``max_correction_yaw_deg`` from
    the prediction; otherwise the prediction is kept (and the update says why).
@@ -121,11 +123,14 @@ class DistanceField:
     ``map``; points outside the grid get the border value.
 
     The occupancy grid is first refined ``upsample`` times (each cell split into ``upsample²``
-    sub-cells of the same value), so the field measures the distance to the occupied region's
-    boundary to within ``resolution / (2 upsample)`` instead of to the nearest occupied cell
-    centre: positive outside, negative inside occupied cells. The map's rasterisation marks a
-    cell occupied when an obstacle covers its central half, so a surface lies on average
-    ``resolution / 4`` inside that boundary: the field is shifted by it (a surface point reads 0).
+    sub-cells of the same value), so the field measures the signed distance to the boundary
+    between occupied and free cells (the distance between sub-cell centres less half a
+    sub-cell) instead of to the nearest occupied cell centre: positive outside, negative inside
+    occupied cells. The map's rasterisation marks a cell occupied when an obstacle covers its
+    central half, so a straight surface lies from a quarter cell outside that boundary to three
+    quarters inside, ``resolution / 4`` inside on average: the field is shifted by it (a surface
+    point reads 0 on average, and anything within half a cell of 0 is possible:
+    :func:`refine_on_raster`).
     """
 
     def __init__(self, grid, upsample=4):
