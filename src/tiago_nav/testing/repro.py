@@ -59,6 +59,20 @@ def task_record(result, state, text, feedback):
     return rec
 
 
+def goal_feedback(published, client, result, wait=10.0):
+    """The feedback of ``client``'s goal among ``published`` [(goal id, record)], once the one
+    whose state the result names has come (waiting up to ``wait`` wall seconds): ROS orders
+    nothing across topics, so the result can arrive before the last feedback, and a straggler
+    of the goal before can arrive after this one was sent."""
+    goal_id = client.gh.comm_state_machine.action_goal.goal_id.id
+    wanted = getattr(result, 'state', None)
+    end = time.monotonic() + wait
+    while wanted is not None and time.monotonic() < end and not any(
+            g == goal_id and rec[1] == wanted for g, rec in list(published)):
+        time.sleep(0.01)
+    return [rec for g, rec in list(published) if g == goal_id]
+
+
 def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0, corridor=None):
     """One launch of ``world``; after ``delay`` wall seconds a corridor_controller goal of
     ``max_distance=corridor`` [m] (None: none) is sent with a plain SimpleActionClient, then
@@ -82,10 +96,11 @@ def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0, corridor=N
         truth = {}
         rospy.Subscriber('/sim/ground_truth', Odometry, lambda m: truth.__setitem__('m', m),
                          queue_size=1)
-        published = []
+        published = []          # (goal id, [stamp s, state, status]) of every feedback message
         rospy.Subscriber('/tiago_controller/feedback', TiagoTaskActionFeedback,
-                         lambda m: published.append([m.header.stamp.to_sec(), m.feedback.state,
-                                                     m.feedback.status]), queue_size=None)
+                         lambda m: published.append((m.status.goal_id.id, [
+                             m.header.stamp.to_sec(), m.feedback.state, m.feedback.status])),
+                         queue_size=None)
         if corridor is not None:
             time.sleep(delay)
             cc = actionlib.SimpleActionClient('corridor_controller', CorridorAction)
@@ -107,13 +122,13 @@ def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0, corridor=N
             raise RuntimeError('no tiago_controller action server')
         for x, y, yaw, use_corridor_law in goals:
             time.sleep(delay)
-            del published[:]
             t0 = time.monotonic()
             client.send_goal(TiagoTaskGoal(x=x, y=y, yaw_deg=yaw, use_corridor_law=use_corridor_law))
             if not client.wait_for_result(rospy.Duration(timeout)):
                 raise RuntimeError('no result within %g s' % timeout)
-            task = task_record(client.get_result(), client.get_state(),
-                               client.get_goal_status_text(), list(published))
+            result = client.get_result()
+            task = task_record(result, client.get_state(), client.get_goal_status_text(),
+                               goal_feedback(published, client, result))
             task.update(wall_s=time.monotonic() - t0, ended_s=_result_stamp(client))
             rec['tasks'].append(task)
         if nav_goal is not None:
