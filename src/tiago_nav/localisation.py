@@ -308,9 +308,9 @@ def refine_on_raster(field, points, pose, band=None, noise=RASTER_NOISE,
         face = ok & (np.abs(grad) >= AXIS_COS * g)
         if not np.any(face):
             continue
-        sign = np.sign(grad[face])
+        rf, sign = r[face], np.sign(grad[face])
         # the band's middle line along this axis: the same for every point of one surface
-        line = q[face, axis] - sign * r[face]
+        line = q[face, axis] - sign * rf
         key = np.round(line / (field.grid.resolution / 8.0)).astype(int) * 2 + (sign > 0)
         lo, hi = [], []
         for k in np.unique(key):
@@ -318,7 +318,7 @@ def refine_on_raster(field, points, pose, band=None, noise=RASTER_NOISE,
             n = int(np.count_nonzero(sel))
             if n < min_points:
                 continue
-            m, s = float(np.mean(r[face][sel])), float(sign[sel][0])
+            m, s = float(np.mean(rf[sel])), float(sign[sel][0])
             w = band + 2.0 * noise / math.sqrt(n)
             # moving the pose by d along the axis changes this surface's mean residual by s d
             a, b = (-w - m) * s, (w - m) * s

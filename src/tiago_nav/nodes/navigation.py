@@ -145,6 +145,7 @@ class MoveBase:
         self.intake = threading.Condition()
         self.frozen = FrozenScanCheck()
         self.last_scan_stamp = None         # rospy.Time of the newest scan taken in
+        self.server = None                  # the action server, once move_base serves goals
         self.lockstep = LockstepParticipant(1.0 / p.controller_frequency, ready=self.on_tick,
                                             inputs=self._inputs_flow)
         # in lockstep every scan, in order (the cycle waits for its own); else the newest only
@@ -232,7 +233,7 @@ class MoveBase:
         until tf no longer holds their transforms and move_base never gets ready). Once
         serving, an idle answer waits for nothing: the scans are taken in meanwhile, in order,
         and a goal's first cycle waits for every scan up to its own (:meth:`sense`)."""
-        if getattr(self, 'server', None) is None:
+        if self.server is None:
             self.take_in(tick.scan_stamp)
 
     def sense(self):
