@@ -26,7 +26,6 @@ from tiago_nav.ros.conversions import pose_from_msg, pose_from_transform
 CANCEL_TIMEOUT = 15.0     # [s wall] after Ctrl-C, wait this long for the server to confirm
 SERVER_LOST = 3.0         # [s wall] a task whose server has been gone this long is lost
 FRAME_WAIT = 5.0          # [s wall] wait this long for tf to know --frame (before sending)
-_ACTIVE = (GoalStatus.PENDING, GoalStatus.ACTIVE, GoalStatus.PREEMPTING, GoalStatus.RECALLING)
 _NAMES = {GoalStatus.ABORTED: 'ABORTED', GoalStatus.PREEMPTED: 'PREEMPTED',
           GoalStatus.REJECTED: 'REJECTED', GoalStatus.RECALLED: 'RECALLED',
           GoalStatus.LOST: 'LOST'}
@@ -127,9 +126,7 @@ def run(goal, out=print, server_timeout=SERVER_TIMEOUT, action='tiago_controller
     except KeyboardInterrupt:
         out('interrupted: cancelling the task and waiting for the robot to stop...')
         client.cancel_goal()
-        t0 = time.monotonic()
-        while client.get_state() in _ACTIVE and time.monotonic() - t0 < CANCEL_TIMEOUT:
-            time.sleep(0.1)
+        client.wait_for_result(CANCEL_TIMEOUT)   # the result, not only the status, has come
     state = client.get_state()
     result = client.get_result()
     text = client.get_goal_status_text()

@@ -36,6 +36,22 @@ def write_json(path, obj):
     os.replace(tmp, path)
 
 
+
+def mission_over(client, ended_since, now):
+    """Is the goal of SimpleActionClient ``client`` over: ``(over, ended_since)``. Over once its
+    result has come (the client is DONE): the status topic can name the end state before the
+    result topic delivers the result, which carries the obstacles. A goal whose status ended
+    but whose result has not come within :data:`END_WAIT` wall seconds of ``ended_since`` is
+    over too (its result is judged as missing)."""
+    from actionlib import SimpleGoalState
+    from actionlib_msgs.msg import GoalStatus
+    if client.simple_state == SimpleGoalState.DONE:
+        return True, ended_since
+    if client.get_state() in (GoalStatus.PENDING, GoalStatus.ACTIVE):
+        return False, None
+    ended_since = now if ended_since is None else ended_since
+    return now - ended_since > END_WAIT, ended_since
+
 class Infra(Exception):
     """An infrastructure error: ``code`` (INFRA_LAUNCH, INFRA_NODE_DIED, INFRA_SCENARIO,
     INFRA_CONTRACT) and a reason."""
@@ -287,10 +303,10 @@ class Supervisor:
             self.path = [self.truth[1]]
             self.loc_bucket, self.loc_from = -1, rospy.Time.from_sec(s0)
         client.send_goal(TiagoTaskGoal(x=x, y=y, yaw_deg=yaw, use_corridor_law=self.spec['use_corridor_law']))
-        timed_out = False
+        timed_out, ended_since = False, None
         while True:
-            state = client.get_state()
-            if state not in (GoalStatus.PENDING, GoalStatus.ACTIVE, GoalStatus.PREEMPTING, GoalStatus.RECALLING):
+            over, ended_since = mission_over(client, ended_since, time.monotonic())
+            if over:
                 break
             self.check_alive_mission()
             if rospy.get_time() - s0 > lim['sim_time_limit']:

@@ -1,0 +1,38 @@
+"""The evaluation run's end of a mission (tiago_nav.nodes.evaluate_run.mission_over): a goal is over
+when its result has come, not when the status topic first names its end state."""
+import pytest
+
+pytest.importorskip('actionlib')
+from actionlib import SimpleGoalState                       # noqa: E402
+from actionlib_msgs.msg import GoalStatus                   # noqa: E402
+
+from tiago_nav.nodes.evaluate_run import END_WAIT, mission_over   # noqa: E402
+
+
+class Client:
+    """SimpleActionClient's two views of a goal: ``get_state`` follows the status topic (and the
+    result), ``simple_state`` is DONE only once the result message has come."""
+
+    def __init__(self, state, simple_state):
+        self.state, self.simple_state = state, simple_state
+
+    def get_state(self):
+        return self.state
+
+
+def test_active_goal_is_not_over():
+    assert mission_over(Client(GoalStatus.ACTIVE, SimpleGoalState.ACTIVE), None, 5.0) == (False, None)
+
+
+def test_status_ended_before_the_result_waits_for_the_result():
+    c = Client(GoalStatus.SUCCEEDED, SimpleGoalState.ACTIVE)
+    over, since = mission_over(c, None, 10.0)
+    assert (over, since) == (False, 10.0)
+    assert mission_over(c, since, 10.0 + END_WAIT / 2) == (False, 10.0)
+    c.simple_state = SimpleGoalState.DONE          # the result arrives
+    assert mission_over(c, since, 10.0 + END_WAIT / 2)[0]
+
+
+def test_a_result_that_never_comes_is_bounded():
+    c = Client(GoalStatus.ABORTED, SimpleGoalState.ACTIVE)
+    assert mission_over(c, 10.0, 10.0 + END_WAIT + 0.1) == (True, 10.0)
