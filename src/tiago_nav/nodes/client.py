@@ -22,6 +22,7 @@ from tiago_nav.mission.client import (EXIT_FAILED, EXIT_OK, EXIT_USAGE, MAP_FRAM
 from tiago_nav.mission.sentences import fmt_pose
 from tiago_nav.ros.actions import TaskClient, server_connected, wait_server
 from tiago_nav.ros.conversions import pose_from_msg, pose_from_transform
+from tiago_nav.ros.tcpros import concurrent_handshakes
 
 CANCEL_TIMEOUT = 15.0     # [s wall] after Ctrl-C, wait this long for the server to confirm
 SERVER_LOST = 3.0         # [s wall] a task whose server has been gone this long is lost
@@ -167,6 +168,7 @@ def main():
     if goal.get('help'):
         print(USAGE)
         return EXIT_OK
+    concurrent_handshakes()
     rospy.init_node('client', anonymous=True, disable_signals=True)
 
     def out(line):

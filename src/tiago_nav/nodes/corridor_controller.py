@@ -37,6 +37,7 @@ from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepPa
                                     ScanCache, goal_since, lookup_at)
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.topics import Subscription
+from tiago_nav.ros.tcpros import concurrent_handshakes
 
 NODE = 'corridor_controller'
 STOP_TIMEOUT = 2.0          # [s] after a stop command, wait at most this long for standstill
@@ -334,6 +335,7 @@ class RosIO:
 
 
 def main():
+    concurrent_handshakes()
     rospy.init_node(NODE)
     params = read_or_exit(Params, NODE)
     participant = LockstepParticipant(1.0 / params.control_rate)

@@ -38,6 +38,7 @@ from tiago_nav.ros.lockstep import CYCLE_WAIT, STARTUP_WAIT, LockstepParticipant
 from tiago_nav.ros.conversions import (gridmap_from_msg, pose_from_msg, pose_from_transform,
                                        pose_msg, transform_stamped)
 from tiago_nav.ros.topics import Subscription
+from tiago_nav.ros.tcpros import concurrent_handshakes
 from tiago_nav.scan import FrozenScanCheck
 from tiago_nav.sim.world import WorldError, load_world
 
@@ -279,6 +280,7 @@ class LocalisationNode:
 
 
 def main():
+    concurrent_handshakes()
     rospy.init_node('localisation')
     try:
         node = LocalisationNode(rosparams.read(Params))

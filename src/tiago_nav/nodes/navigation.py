@@ -38,6 +38,7 @@ from tiago_nav.ros.lockstep import (CYCLE_WAIT, STARTUP_WAIT, ClaimingActionServ
                                     wait_for_transform)
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.topics import Subscription, wait_for_message
+from tiago_nav.ros.tcpros import concurrent_handshakes
 from tiago_nav.scan import FrozenScanCheck
 
 
@@ -375,6 +376,7 @@ def _plain(pose):
 
 
 def main():
+    concurrent_handshakes()
     rospy.init_node('move_base')
     params = read_or_exit(Params, 'move_base')
     try:

@@ -34,6 +34,7 @@ from tiago_nav.ros.lockstep import lookup_at
 from tiago_nav.ros.markers import obstacle_markers
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.topics import Subscription
+from tiago_nav.ros.tcpros import concurrent_handshakes
 from tiago_nav.srv import DetectObstacles, DetectObstaclesResponse
 
 SCANS_HELD = 64     # scans kept for requests with a scan_stamp (4 s of the 15 Hz laser)
@@ -191,6 +192,7 @@ class DetectionNode:
 
 
 def main():
+    concurrent_handshakes()
     rospy.init_node('obstacle_detection')
     node = DetectionNode(read_or_exit(Params, 'obstacle_detection'))
     if not node.advertise_when_ready():

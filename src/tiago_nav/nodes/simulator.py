@@ -32,6 +32,7 @@ from tiago_nav.robot import BASE_LINK_HEIGHT
 from tiago_nav.ros import conversions
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.lockstep import ClockSource, LockstepHost, direct_publisher
+from tiago_nav.ros.tcpros import concurrent_handshakes
 from tiago_nav.sim.faults import FaultError, LaserFaults
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
@@ -486,6 +487,7 @@ def read_config(get=rospy.get_param, resolve=rospy.resolve_name):
 
 
 def main():
+    concurrent_handshakes()
     rospy.init_node('simulator')
     try:
         params, use_sim_time = read_config()

@@ -39,6 +39,7 @@ from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant, Peers,
                                     ScanCache, goal_since, lookup_at)
 from tiago_nav.ros.markers import obstacle_markers
+from tiago_nav.ros.tcpros import concurrent_handshakes
 from tiago_nav.scan import scan_to_points, usable_ranges
 from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
 
@@ -561,6 +562,7 @@ def _service_registered(name):
 
 
 def main():
+    concurrent_handshakes()
     rospy.init_node('tiago_controller')
     TiagoController(ros_params.read_or_exit(Params, 'tiago_controller'))
     rospy.spin()
