@@ -36,8 +36,8 @@ from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant,
                                     ScanCache, goal_since, lookup_at)
 from tiago_nav.ros.params import read_or_exit
-from tiago_nav.ros.topics import Subscription
 from tiago_nav.ros.tcpros import concurrent_handshakes
+from tiago_nav.ros.topics import Subscription
 
 NODE = 'corridor_controller'
 STOP_TIMEOUT = 2.0          # [s] after a stop command, wait at most this long for standstill

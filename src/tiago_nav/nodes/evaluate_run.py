@@ -36,7 +36,6 @@ def write_json(path, obj):
     os.replace(tmp, path)
 
 
-
 def mission_over(client, ended_since, now):
     """Is the goal of SimpleActionClient ``client`` over: ``(over, ended_since)``. Over once its
     result has come (the client is DONE): the status topic can name the end state before the
@@ -51,6 +50,7 @@ def mission_over(client, ended_since, now):
         return False, None
     ended_since = now if ended_since is None else ended_since
     return now - ended_since > END_WAIT, ended_since
+
 
 class Infra(Exception):
     """An infrastructure error: ``code`` (INFRA_LAUNCH, INFRA_NODE_DIED, INFRA_SCENARIO,

@@ -37,8 +37,8 @@ from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.lockstep import CYCLE_WAIT, STARTUP_WAIT, LockstepParticipant, lookup_at
 from tiago_nav.ros.conversions import (gridmap_from_msg, pose_from_msg, pose_from_transform,
                                        pose_msg, transform_stamped)
-from tiago_nav.ros.topics import Subscription
 from tiago_nav.ros.tcpros import concurrent_handshakes
+from tiago_nav.ros.topics import Subscription
 from tiago_nav.scan import FrozenScanCheck
 from tiago_nav.sim.world import WorldError, load_world
 

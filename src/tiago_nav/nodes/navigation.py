@@ -37,8 +37,8 @@ from tiago_nav.ros.lockstep import (CYCLE_WAIT, STARTUP_WAIT, ClaimingActionServ
                                     LockstepParticipant, goal_since, lookup_at,
                                     wait_for_transform)
 from tiago_nav.ros.params import read_or_exit
-from tiago_nav.ros.topics import Subscription, wait_for_message
 from tiago_nav.ros.tcpros import concurrent_handshakes
+from tiago_nav.ros.topics import Subscription, wait_for_message
 from tiago_nav.scan import FrozenScanCheck
 
 

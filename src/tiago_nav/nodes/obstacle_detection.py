@@ -33,8 +33,8 @@ from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform
 from tiago_nav.ros.lockstep import lookup_at
 from tiago_nav.ros.markers import obstacle_markers
 from tiago_nav.ros.params import read_or_exit
-from tiago_nav.ros.topics import Subscription
 from tiago_nav.ros.tcpros import concurrent_handshakes
+from tiago_nav.ros.topics import Subscription
 from tiago_nav.srv import DetectObstacles, DetectObstaclesResponse
 
 SCANS_HELD = 64     # scans kept for requests with a scan_stamp (4 s of the 15 Hz laser)
