@@ -132,6 +132,8 @@ def control_loop(p, cycles, scans, tf, out):
         out['cycles'].append(rec)
     out['still'] = p.wait_until_still(lambda: (0.0, 0.0, 0.0), lambda: out['stops'].append(p.stamp),
                                       MotionMonitor(window=0.2), timeout=1.0)
+    # the cycle that judged the base still is left open for the caller's report
+    out['held'] = (p.stamp, rospy.Time.now(), p.answer(Twist()))
     p.release()
 
 
@@ -157,7 +159,8 @@ class LockstepAdapterTest(unittest.TestCase):
         wait_for(lambda: cls.waiting.sub.sub.get_num_connections() > 0, '/waiting\'s ticks to connect')
         cls.before_inputs = None
         threading.Thread(target=cls.on_one_second, daemon=True).start()
-        cls.records = {period: dict(cycles=[], stops=[], still=None) for period in (0.1, 0.05)}
+        cls.records = {period: dict(cycles=[], stops=[], still=None, held=None)
+                       for period in (0.1, 0.05)}
         loops = []
         for p, n in ((cls.p10, 15), (cls.p20, 25)):
             p.claim(rospy.Time(0))
@@ -210,8 +213,14 @@ class LockstepAdapterTest(unittest.TestCase):
             steps = int(round(RATE * period))
             stops = rec['stops']
             self.assertEqual(stops, [step_time(steps * (n + i + 1)) for i in range(len(stops))])
-            # the monitor (window 0.2 s) judges once 0.1 to 0.2 s of samples are in
-            self.assertTrue(0.1 / period + 1 <= len(stops) <= 0.2 / period + 1, len(stops))
+            # the monitor (window 0.2 s) judges once 0.1 to 0.2 s of samples are in, at the
+            # cycle after the last stop, which it leaves unanswered: ROS time holds at its stamp
+            # until the loop answers it
+            self.assertTrue(0.1 / period <= len(stops) <= 0.2 / period, len(stops))
+            judged, now, answer = rec['held']
+            self.assertEqual(judged, step_time(steps * (n + len(stops) + 1)))
+            self.assertEqual(now, judged)
+            self.assertIsNotNone(answer, 'the judging cycle had been answered already')
 
     def test_3_each_cycle_saw_exactly_the_newest_scan_and_odometry(self):
         for rec in self.records.values():
@@ -237,9 +246,11 @@ class LockstepAdapterTest(unittest.TestCase):
         for k, v, _ in applied:
             self.assertAlmostEqual(v, step_time(k).to_sec(), delta=1e-6)
         self.assertEqual(sorted(w for _, _, w in applied), [0.05] * 25 + [0.1] * 15)
-        # the stopping cycles' zero commands, each at its cycle's stamp
+        # the stopping cycles' zero commands, each at its cycle's stamp, and the loop's own
+        # answer to the cycle that judged it still
         self.assertEqual(sorted(step_time(k) for k in zeros),
-                         sorted(t for rec in self.records.values() for t in rec['stops']))
+                         sorted([t for rec in self.records.values() for t in rec['stops']]
+                                + [rec['held'][0] for rec in self.records.values()]))
 
     def test_5_cmd_vel_of_a_participant_is_ignored_until_it_leaves(self):
         pub = rospy.Publisher('/mobile_base_controller/cmd_vel', Twist, queue_size=10)

@@ -183,10 +183,12 @@ class CorridorParticipant(Participant):
         self.releases += 1
 
     def wait_until_still(self, pose, stop, monitor, timeout):
-        for _ in range(3):
+        # as LockstepParticipant's: stops on cycles; the cycle that judges still stays open
+        for i in range(3):
             self.tick()
+            if i == 2:
+                return True
             stop()
-        return True
 
 
 def test_corridor_server_claims_the_goal_answers_each_cycle_and_releases():
@@ -197,8 +199,13 @@ def test_corridor_server_claims_the_goal_answers_each_cycle_and_releases():
     rig.node.participant = part
     goal_id = type('GoalId', (), {'stamp': rospy.Time(0)})()
     rig.server.current_goal = type('Handle', (), {'get_goal_id': lambda self: goal_id})()
+    reported = []
+    succeed = rig.server.set_succeeded
+    rig.server.set_succeeded = lambda *a: reported.append((part.stamp, part.answers[-1][0])) or succeed(*a)
     rig.node.execute(msg.CorridorGoal())
     assert rig.server.state == 'succeeded', rig.server.text
+    # the result goes out while its cycle is still open (simulated time holds at its stamp)
+    assert len(reported) == 1 and reported[0][1] < reported[0][0]
     assert part.claims == [None] and part.releases == 1
     stamps = [s for s, _ in part.answers]
     assert len(stamps) == part.ticks and stamps == sorted(set(stamps))   # every cycle, once

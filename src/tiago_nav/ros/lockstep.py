@@ -523,20 +523,23 @@ class LockstepParticipant:
         """:func:`tiago_nav.motion.wait_until_still` for a claimed control loop: each cycle
         calls ``stop()`` (the node's stop, for observers) and answers with a zero command
         (the simulator ignores a participant's cmd_vel), until ``monitor`` judges the poses
-        ``pose()`` still (True) or ``timeout`` [s ROS] has passed (False)."""
+        ``pose()`` still (True) or ``timeout`` [s ROS] has passed (False). The cycle of that
+        judgement is left unanswered: simulated time holds at its stamp while the caller reports
+        the end (a result stamped then is the same in every run), and the caller's next answer
+        (its stop, or :meth:`release`) lets time go on."""
         if self.ticker is not None:
             return motion.wait_until_still(self.clock, pose, stop, monitor, timeout, stall=self.stall)
         monitor.reset()
         t0 = None
         while self.tick():
-            stop()
-            self.answer(Twist())
             now = self.stamp.to_sec()
             t0 = now if t0 is None else t0
             if monitor.update(now, pose()) is False:
                 return True
             if now - t0 > timeout:
                 return False
+            stop()
+            self.answer(Twist())
         return False
 
     def leave(self, cmd=None):
