@@ -69,7 +69,7 @@ def concurrent_handshakes():
             header = peek_header(sock, timeout or HEADER_TIMEOUT)
         except (OSError, ROSHandshakeException) as e:
             logwarn('Inbound TCP/IP connection from %s:%s failed: %s'
-                                % (client_addr[0], client_addr[1], e))
+                    % (client_addr[0], client_addr[1], e))
             sock.close()
             return
         sock.settimeout(timeout)
