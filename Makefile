@@ -23,6 +23,8 @@ PIP_PACKAGES := pybullet==3.2.7 'dask[distributed]==2026.8.0' distributed==2026.
 # What the workspace build depends on (file(GLOB) lists are re-read when these change).
 WS_INPUTS := CMakeLists.txt package.xml setup.py $(wildcard msg/* srv/* action/* nodes/* test/*.test env-hooks/*)
 ROS_ENV := source $(WS)/devel/setup.bash
+# tysik/obstacle_detector for the detection benchmark's comparison (`make obstacle-detector`)
+OD_WS := $(ROOT)/.od_ws
 # `make bench BENCH=detection` runs one benchmark (names: src/tiago_nav/benchmarks.py)
 BENCH ?= all
 SUITE ?= suites/smoke.yaml
@@ -33,7 +35,7 @@ ROS_HOSTNAME ?= localhost
 ROS_IP ?= 127.0.0.1
 export ROS_HOSTNAME ROS_IP
 
-.PHONY: setup apt venv ws demo test unit rostest bench docs evaluate lint clean
+.PHONY: setup apt venv ws demo test unit rostest bench obstacle-detector docs evaluate lint clean
 .DEFAULT_GOAL := setup
 
 setup: apt venv ws
@@ -83,9 +85,15 @@ rostest: setup
 	@$(ROS_ENV) && $(SYS_PY) $(ROOT)/test/run_all.py --rostest-only
 
 # every JSON under bench/results/ that docs/benchmarks.md shows, then that page again
+# (with obstacle_detector's workspace on top when `make obstacle-detector` built it)
 bench: setup
 	@mkdir -p bench/results
-	@$(ROS_ENV) && $(SYS_PY) -m tiago_nav.benchmarks $(BENCH) && $(SYS_PY) -m tiago_nav.docs
+	@$(ROS_ENV) && { [ ! -f $(OD_WS)/devel/setup.bash ] || source $(OD_WS)/devel/setup.bash --extend; } \
+	  && $(SYS_PY) -m tiago_nav.benchmarks $(BENCH) && $(SYS_PY) -m tiago_nav.docs
+
+# builds tysik/obstacle_detector in .od_ws (not a Debian package), for `make bench BENCH=detection`
+obstacle-detector: setup
+	@bash bench/obstacle_detector/build.sh $(OD_WS)
 
 # the generated pages: docs/ros_api.md (from the code) and docs/benchmarks.md (from bench/results)
 docs: setup
@@ -108,4 +116,4 @@ lint: setup
 	  $(ROOT)/CHANGELOG.rst $(ROOT)
 
 clean:
-	rm -rf $(WS) $(VENV)
+	rm -rf $(WS) $(VENV) $(OD_WS)

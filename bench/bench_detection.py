@@ -12,6 +12,8 @@ The scans are placed with their exact poses, so the pose correction is off unles
 --correct-pose (bench_detection_sensing.py measures it under the localisation's error).
 Latency is one library call (scan ranges -> obstacles in the map frame); the service round trip
 (ROS, the wait for a fresh scan, tf) is measured separately with the node on its own master.
+With tysik/obstacle_detector installed (``make obstacle-detector`` builds it in .od_ws; else it
+is skipped, saying so), the live comparison on the course mission (:func:`live_comparison`).
 Writes bench/results/detection.json and detection.png.
 Usage: bench/bench_detection.py [--quick] [--no-service] [--laser-model ideal|tiago] [--correct-pose]
 """
@@ -345,19 +347,192 @@ def obstacle_detector_available():
     return True, out.stdout.strip()
 
 
-def obstacle_detector_comparison(laser_model):
+OD_SCANS = 20             # live scans at pose B compared
+COURSE_B = (11.0, 0.0, -45.0)
+
+
+def obstacle_detector_comparison(laser_model, quick=False):
     """The live-scan comparison with obstacle_detector under ``laser_model``: skipped, with the
-    reason, when the package is not installed. When it is, the comparison itself (its
-    obstacle_extractor on the simulator's /scan beside this package's service, both judged
-    against the world file) is still to be written: the package was never available here."""
+    reason, when the package is not installed; else :func:`live_comparison` in a child process
+    on its own master."""
     ok, info = obstacle_detector_available()
     if not ok:
         print('\nobstacle_detector comparison (%s laser): skipped: %s' % (laser_model, info))
         return {'skipped': True, 'reason': info, 'laser_model': laser_model}
-    print('\nobstacle_detector comparison (%s laser): obstacle_detector found at %s, but the '
-          'live comparison is not implemented yet' % (laser_model, info))
-    return {'skipped': True, 'installed_at': info, 'laser_model': laser_model,
-            'reason': 'installed, but the live comparison is not implemented yet'}
+    scans = 10 if quick else OD_SCANS
+    try:
+        out = subprocess.run([sys.executable, os.path.abspath(__file__), '--od-child',
+                              laser_model, str(scans)],
+                             stdout=subprocess.PIPE, text=True, timeout=600)
+        lines = out.stdout.strip().splitlines()
+        if out.returncode != 0 or not lines:
+            raise RuntimeError('the comparison child failed (exit %d)' % out.returncode)
+        res = json.loads(lines[-1])
+    except (RuntimeError, subprocess.TimeoutExpired, ValueError) as e:
+        print('\nobstacle_detector comparison (%s laser): failed: %s' % (laser_model, e))
+        return {'skipped': True, 'reason': 'failed: %s' % e, 'laser_model': laser_model}
+    res.update(skipped=False, installed_at=info, laser_model=laser_model)
+    print('\nobstacle_detector comparison (%s laser, the course mission, then %d live scans at '
+          'pose B; obstacle_detector reads the scan with the self-hits and veils set invalid):'
+          % (laser_model, res['scans']))
+    for k in ('tiago_nav', 'obstacle_detector'):
+        m = res[k]
+        print('  %-18s found %3d/%3d, RMS %.2f cm, max %.2f cm, %d false positives (%d off the '
+              'static map)' % (k, m['found'], m['must_find'], 100 * (m['rms_error_m'] or 0),
+                               100 * (m['max_error_m'] or 0), m['false_positives'],
+                               m['false_positives_off_map']))
+    if res.get('rms_ratio'):
+        print('  obstacle_detector\'s centre RMS is %.1fx tiago_nav\'s' % res['rms_ratio'])
+    return res
+
+
+def _judge_centres(truth, found, near_map):
+    """Errors of the found centres ``[(x, y)]`` matched one-to-one (Hungarian, within the
+    evaluator's gate) to ``truth`` ``[(x, y)]``; unmatched ones are false positives, those
+    ``near_map`` says are on the static map counted apart."""
+    from tiago_nav.testing.evaluation import match_obstacles
+    pairs, missed, fps = match_obstacles(truth, found)
+    off = [j for j in fps if not near_map(found[j])]
+    return [e for _, _, e in pairs], len(missed), len(fps), len(off)
+
+
+def live_comparison(laser_model, scans):
+    """Run the course mission (demo.launch at real-time factor 2, seed 0, the default
+    odometry and localisation, ``laser_model``), then, over the next ``scans`` scans at pose B,
+    ask this package's obstacle_detection for each scan (``scan_stamp``) and take
+    obstacle_detector's obstacle_extractor's circles for the same scan (it reads /scan with
+    the beams :func:`tiago_nav.scan.usable_ranges` drops set to NaN: the robot's own body and
+    the veils, filtered for it as for this package; its circles come out in map through tf at
+    the scan's stamp). Both are judged against the world file: the movable obstacles hit by at
+    least 10 beams from the true pose must be found; a found centre matching none (within
+    0.3 m) is a false positive, counted apart when it lies on the static map (a wall or a
+    mapped cylinder, which the map subtraction of this package removes by design)."""
+    import actionlib
+    import rospy
+    from actionlib_msgs.msg import GoalStatus
+    from nav_msgs.msg import Odometry
+    from obstacle_detector.msg import Obstacles
+    from sensor_msgs.msg import LaserScan
+    from tiago_nav.msg import TiagoTaskAction, TiagoTaskGoal
+    from tiago_nav.scan import usable_ranges
+    from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
+    world_path = os.path.join(ROOT, 'worlds', WORLDS[0])
+    world = load_world(world_path)
+    grid = rasterise_world(world)
+    distance = MapDistance(grid)
+    port = free_port()
+    env = dict(os.environ, ROS_MASTER_URI='http://localhost:%d' % port)
+    os.environ['ROS_MASTER_URI'] = env['ROS_MASTER_URI']
+    launch = subprocess.Popen(
+        ['roslaunch', '-p', str(port), 'tiago_nav', 'demo.launch', 'real_time_factor:=2.0',
+         'laser_model:=' + laser_model, 'seed:=0'],
+        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    extractor = None
+    try:
+        deadline = time.time() + 60
+        while True:
+            try:
+                rospy.init_node('bench_obstacle_detector', anonymous=True, disable_signals=True)
+                break
+            except Exception:
+                if time.time() > deadline:
+                    raise
+                time.sleep(0.5)
+        relay = rospy.Publisher('/scan_usable', LaserScan, queue_size=100)
+        stamps, circles, truth_pose = [], {}, {}
+
+        def on_scan(msg):
+            msg.ranges = list(usable_ranges(msg.ranges, msg.angle_min, msg.angle_increment,
+                                            msg.range_min, msg.range_max))
+            relay.publish(msg)
+            stamps.append(msg.header.stamp)
+
+        def on_obstacles(msg):
+            circles[msg.header.stamp] = [(c.center.x, c.center.y) for c in msg.circles]
+
+        def on_truth(msg):
+            q = msg.pose.pose.orientation
+            truth_pose['pose'] = (msg.pose.pose.position.x, msg.pose.pose.position.y,
+                                  2 * math.atan2(q.z, q.w))
+        rospy.Subscriber('/scan', LaserScan, on_scan, queue_size=100)
+        rospy.Subscriber('/raw_obstacles', Obstacles, on_obstacles, queue_size=100)
+        rospy.Subscriber('/sim/ground_truth', Odometry, on_truth, queue_size=1)
+        # obstacle_extractor_node with its defaults, but reading the scan, circles in map, and
+        # its window on them (default +-10 m about map's origin) wide enough for the world
+        b = world.bounds
+        extractor = subprocess.Popen(
+            ['rosrun', 'obstacle_detector', 'obstacle_extractor_node', 'scan:=/scan_usable',
+             '__name:=obstacle_extractor', '_frame_id:=map', '_use_scan:=true',
+             '_use_pcl:=false', '_min_x_limit:=%g' % b[0], '_min_y_limit:=%g' % b[1],
+             '_max_x_limit:=%g' % b[2], '_max_y_limit:=%g' % b[3]],
+            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            start_new_session=True)
+        client = actionlib.SimpleActionClient('tiago_controller', TiagoTaskAction)
+        if not client.wait_for_server(rospy.Duration(120.0)):
+            raise RuntimeError('no tiago_controller')
+        rospy.wait_for_service('obstacle_detection', timeout=60)
+        detect = rospy.ServiceProxy('obstacle_detection', DetectObstacles, persistent=True)
+        client.send_goal(TiagoTaskGoal(x=COURSE_B[0], y=COURSE_B[1], yaw_deg=COURSE_B[2],
+                                       use_corridor_law=True))
+        deadline = time.time() + 180
+        while client.get_state() in (GoalStatus.PENDING, GoalStatus.ACTIVE) \
+                or client.get_result() is None:
+            if time.time() > deadline:
+                raise RuntimeError('the course mission did not end within 180 s')
+            time.sleep(0.05)
+        if client.get_state() != GoalStatus.SUCCEEDED:
+            raise RuntimeError('the course mission ended %s: %s'
+                               % (GoalStatus.to_string(client.get_state()),
+                                  client.get_goal_status_text()))
+        start = len(stamps)
+        with Scene(world) as scene:
+            rows = []
+            while len(rows) < scans:
+                deadline = time.time() + 10
+                while len(stamps) <= start + len(rows):
+                    if time.time() > deadline:
+                        raise RuntimeError('no scan at pose B')
+                    time.sleep(0.01)
+                stamp = stamps[start + len(rows)]
+                resp = detect(DetectObstaclesRequest(method='circle_fit', scan_stamp=stamp))
+                if not resp.success:
+                    raise RuntimeError('obstacle_detection failed: %s' % resp.message)
+                deadline = time.time() + 10
+                while stamp not in circles:
+                    if time.time() > deadline:
+                        raise RuntimeError('obstacle_detector did not answer the scan at %.3f'
+                                           % stamp.to_sec())
+                    time.sleep(0.01)
+                _, ids = scene.cast(truth_pose['pose'])
+                must = [i for i, b in enumerate(scene.movable_ids) if np.sum(ids == b) >= 10]
+                rows.append({'truth': [(world.movable_obstacles[i].x,
+                                        world.movable_obstacles[i].y) for i in must],
+                             'tiago_nav': [(o.center.x, o.center.y) for o in resp.obstacles],
+                             'obstacle_detector': circles[stamp]})
+
+        def near_map(xy):
+            return bool(distance(np.array([xy]))[0] <= 0.3)
+        out = {'scans': scans, 'world': world.name, 'pose_b': list(COURSE_B),
+               'truth_pose': [round(v, 4) for v in truth_pose['pose']]}
+        for k in ('tiago_nav', 'obstacle_detector'):
+            errs, missed, fps, off = [], 0, 0, 0
+            for r in rows:
+                e, m, f, o = _judge_centres(r['truth'], r[k], near_map)
+                errs += e
+                missed, fps, off = missed + m, fps + f, off + o
+            errs = np.array(errs)
+            must = sum(len(r['truth']) for r in rows)
+            out[k] = {'must_find': must, 'found': must - missed,
+                      'rms_error_m': (round(float(np.sqrt(np.mean(errs ** 2))), 4)
+                                      if errs.size else None),
+                      'max_error_m': round(float(errs.max()), 4) if errs.size else None,
+                      'false_positives': fps, 'false_positives_off_map': off}
+        a, b = out['tiago_nav']['rms_error_m'], out['obstacle_detector']['rms_error_m']
+        out['rms_ratio'] = round(b / a, 2) if a and b else None
+        return out
+    finally:
+        for p in (extractor, launch):
+            stop_process(p)
 
 
 def _is_float(w):
@@ -455,7 +630,11 @@ def main():
                          'raster\'s bias; bench_detection_sensing.py measures it with the '
                          'localisation\'s error)')
     ap.add_argument('--service-child', nargs=4, help=argparse.SUPPRESS)
+    ap.add_argument('--od-child', nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.od_child:
+        print(json.dumps(live_comparison(args.od_child[0], int(args.od_child[1]))))
+        return
     if args.service_child:
         w, start, calls, rtf = args.service_child
         print(json.dumps(measure_service(w, start, int(calls), rtf)))
@@ -515,7 +694,7 @@ def main():
         except (RuntimeError, subprocess.TimeoutExpired) as e:
             out['service'] = {'error': str(e)}
             print('\nservice round trip: not measured (%s)' % e)
-    out['obstacle_detector'] = obstacle_detector_comparison(args.laser_model)
+    out['obstacle_detector'] = obstacle_detector_comparison(args.laser_model, args.quick)
     # targets, circle_fit, over all worlds
     cf = [s['methods']['circle_fit'] for s in out['worlds'].values()]
     errs_sq = sum((c['rms_error_m'] or 0) ** 2 * c['found_in_view'] for c in cf)
@@ -552,7 +731,8 @@ def main():
     stem = 'detection' if args.laser_model == 'ideal' else 'detection_' + args.laser_model
     out['laser_model'] = args.laser_model
     plot(os.path.join(RESULTS, stem + '.png'), runs, rows)
-    out['meta'] = meta({k: v for k, v in vars(args).items() if k != 'service_child'},
+    out['meta'] = meta({k: v for k, v in vars(args).items()
+                        if k not in ('service_child', 'od_child')},
                        quick=args.quick, laser_model=args.laser_model,
                        odometry_model='n/a (scans from set poses)',
                        real_time_factor='in process' + ('' if args.no_service else

@@ -89,7 +89,15 @@ ABOUT = {
         'course\'s pose B and at random poses B in the shipped, test and soak worlds. An '
         'obstacle hit by at least 10 beams (the laser\'s hits on the robot\'s own body not '
         'counted) must be found, its centre within 3 cm; a found centre that no obstacle a beam '
-        'reaches takes (one-to-one, within 0.3 m) is a false positive.'),
+        'reaches takes (one-to-one, within 0.3 m) is a false positive. The comparison with '
+        'tysik/obstacle_detector (`make obstacle-detector` builds it; skipped when it is not '
+        'installed): `bench_detection.py` runs the course mission (demo.launch at real-time '
+        'factor 2, the default sensing), then gives each of the next 20 scans at pose B to this '
+        'package\'s service and to obstacle_detector\'s obstacle_extractor (its default '
+        'parameters, reading the scan with the robot\'s own body and the veils set invalid, its '
+        'circles placed in map through tf at the scan\'s stamp); both are judged against the '
+        'world file as above (obstacles hit by at least 10 beams from the true pose; false '
+        'positives on the static map counted apart: this package subtracts the map by design).'),
     'navigation': (
         'The move_base node\'s own goal runner and navigator, in process, drive the simulator '
         'library to seeded random reachable goals, one after the other from the world\'s start '
@@ -329,6 +337,21 @@ def render_detection(d):
         out += ['', 'Service round trip (%s calls): median %s ms, p95 %s ms (processing %s ms).'
                 % (_f(s.get('calls')), _f(s.get('round_trip_ms_median')),
                    _f(s.get('round_trip_ms_p95')), _f(s.get('processing_ms_median')))]
+    od = d.get('obstacle_detector')
+    if od and od.get('skipped'):
+        out += ['', 'obstacle_detector comparison: skipped (%s).' % od.get('reason')]
+    elif od:
+        out += ['', 'obstacle_detector comparison, %s laser: the course mission, then %s live scans '
+                'at pose B (the robot at %s), each given to both detectors.'
+                % (od.get('laser_model'), _f(od.get('scans')), od.get('truth_pose')), '']
+        out += _table(('detector', 'found', 'false positives (off the map)', 'RMS error [m]',
+                       'max error [m]'),
+                      [(k, '%s/%s' % (_f(od[k].get('found')), _f(od[k].get('must_find'))),
+                        '%s (%s)' % (_f(od[k].get('false_positives')),
+                                     _f(od[k].get('false_positives_off_map'))),
+                        od[k].get('rms_error_m'), od[k].get('max_error_m'))
+                       for k in ('tiago_nav', 'obstacle_detector')])
+        out += ['', 'obstacle_detector\'s centre RMS is %s× tiago_nav\'s.' % _f(od.get('rms_ratio'))]
     return out
 
 

@@ -223,6 +223,23 @@ def test_detection_sensing_is_rendered_from_its_own_structure():
     assert rows[3].startswith('| random poses B | pose correction on |')
 
 
+def test_obstacle_detector_comparison_is_rendered_or_its_skip_explained():
+    """detection.json's comparison with obstacle_detector: a row per detector with its figures,
+    or, when the package was not installed, the reason it was skipped."""
+    ours = {'must_find': 80, 'found': 80, 'rms_error_m': 0.0083, 'max_error_m': 0.0147,
+            'false_positives': 0, 'false_positives_off_map': 0}
+    theirs = dict(ours, rms_error_m=0.051, max_error_m=0.0729, false_positives=3)
+    ran = benchmarks.render_detection({'obstacle_detector': {
+        'skipped': False, 'laser_model': 'tiago', 'scans': 20, 'truth_pose': [11.0, 0.0, -0.8],
+        'tiago_nav': ours, 'obstacle_detector': theirs, 'rms_ratio': 6.14}})
+    assert '| tiago_nav | 80/80 | 0 (0) | 0.0083 | 0.0147 |' in ran
+    assert '| obstacle_detector | 80/80 | 3 (0) | 0.051 | 0.0729 |' in ran
+    assert any('6.14×' in ln for ln in ran)
+    skipped = benchmarks.render_detection({'obstacle_detector': {
+        'skipped': True, 'reason': 'obstacle_detector is not installed'}})
+    assert skipped[-1] == 'obstacle_detector comparison: skipped (obstacle_detector is not installed).'
+
+
 def test_every_benchmark_json_renders_rows():
     """No rendered table of the page is an empty header (a renderer that does not know its
     JSON's structure)."""
