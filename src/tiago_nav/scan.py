@@ -49,6 +49,24 @@ def informative_fraction(ranges, range_min, range_max):
     return float(np.mean(c != INVALID)) if c.size else 0.0
 
 
+def median_ranges(scans, range_min, range_max):
+    """Per beam, the median of the hits of several scans of one sensor at one pose (the
+    first of ``scans`` is the reference scan: a list of ``(n,)`` range arrays [m], one beam
+    geometry): where more than half of the scans hit (REP 117, within ``[range_min,
+    range_max]``), the median of those hits; elsewhere the reference scan's own value (no
+    return, too close or invalid keep their meaning). A mixed pixel or a dropout in one scan
+    is outvoted; the range noise of the median of K scans is about ``sqrt(pi / 2K)`` of one
+    scan's. Returns an ``(n,)`` float array."""
+    r = np.asarray(scans, dtype=float)
+    ok = (classify(r, range_min, range_max) == HIT)
+    out = np.array(r[0], dtype=float)
+    majority = 2 * ok.sum(axis=0) > len(r)
+    if np.any(majority):
+        masked = np.where(ok[:, majority], r[:, majority], np.nan)
+        out[majority] = np.nanmedian(masked, axis=0)
+    return out
+
+
 def scan_to_points(ranges, angle_min, angle_increment, range_min=0.0, range_max=np.inf):
     """The hits of a scan as points in the laser frame.
 

@@ -103,6 +103,9 @@ class Sensors:
         return Scan(tuple(self.r), L.angle_min, L.angle_increment, L.range_min, L.range_max,
                     1.0, 'base_laser_link')
 
+    def scans_before(self, scan, count):
+        return []
+
     def transform(self, target, source, stamp, timeout):
         return self.poses[target]
 

@@ -1,7 +1,8 @@
 """tiago_nav.scan.usable_ranges, the one filter every scan consumer applies, and the consumers
 with the simulator's ``tiago`` laser model (self-hits, mixed pixels, dropouts): the costmap
 marks no body next to the robot, detection invents nothing at cylinder edges, the corridor law
-still centres, localisation still meets its bar."""
+still centres, localisation still meets its bar. And tiago_nav.scan.median_ranges, detection's
+combination of the scans at rest."""
 import math
 import os
 
@@ -11,7 +12,7 @@ import pytest
 from conftest import WORLDS
 from tiago_nav.detection.pipeline import DetectionParams, ObstacleDetector
 from tiago_nav.geometry import compose, inverse
-from tiago_nav.scan import beam_angles, body_returns, usable_ranges
+from tiago_nav.scan import beam_angles, body_returns, median_ranges, usable_ranges
 from tiago_nav.sim.laser import LaserModel
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
@@ -223,3 +224,25 @@ def test_the_corridor_law_blocks_on_a_frozen_laser():
     f.update_laser(scan, (0.3, 0.0, 0.0), (0.1, 0.0, 0.0))          # same ranges 10 cm further on
     assert 'repeats its last scan' in f.unusable
     assert f.command((0.1, 0.0, 0.0)).state == 'blocked'
+
+
+def test_median_ranges_outvotes_one_scan_and_keeps_rep117_meanings():
+    inf, nan = math.inf, math.nan
+    scans = [[1.00, inf, nan, 2.0, -inf, 3.0],
+             [1.02, 4.0, 5.0, nan, -inf, 9.0],      # 9.0: a mixed pixel in one scan
+             [0.98, 4.0, 5.1, nan, 0.01, 3.1]]
+    out = median_ranges(scans, 0.05, 25.0)
+    assert out[0] == 1.0                     # the median of three hits
+    assert out[1] == 4.0                     # most hit: their median, not the reference's +inf
+    assert out[2] == 5.05                    # the reference's NaN outvoted
+    assert out[3] == 2.0                     # one hit of three: the reference's own value
+    assert out[4] == -inf                    # too close stays too close
+    assert out[5] == 3.1                     # the mixed pixel outvoted
+
+
+def test_median_of_five_scans_halves_the_range_noise():
+    rng = np.random.default_rng(0)
+    truth = np.full(2000, 3.0)
+    single = truth + rng.normal(0, 0.01, truth.size)
+    five = median_ranges([truth + rng.normal(0, 0.01, truth.size) for _ in range(5)], 0.05, 25.0)
+    assert np.std(five - truth) < 0.6 * np.std(single - truth)

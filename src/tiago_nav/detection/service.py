@@ -15,9 +15,18 @@ seconds.
 * ``scan_at(stamp, timeout)``: the first :class:`Scan` stamped at or after ``stamp`` (a request's
   ``scan_stamp``), waiting up to ``timeout`` wall seconds for it; None when it does not come;
   :class:`Failure` when it is no longer held;
+* ``scans_before(scan, count)``: up to ``count`` held scans stamped just before ``scan``,
+  newest first (``[]`` when none is held);
 * ``transform(target, source, stamp, timeout)``: the pose ``(x, y, yaw)`` of frame ``source`` in
   frame ``target`` at ``stamp``, waiting up to ``timeout`` wall seconds; raises
   :class:`LookupError` (its text says why) when there is none.
+
+Scans at rest: the scan a call names is combined with the held scans just before it that were
+taken from the same pose (the laser in the odometry frame within :data:`REST_TRANSLATION` and
+:data:`REST_ROTATION`; ``rest_scans`` in all), by the per-beam median of their hits
+(:func:`tiago_nav.scan.median_ranges`): a robot standing still sees the same scene in each, and
+the median's range noise is about half a scan's for five. A scan taken while the robot moved
+ends the run; a moving robot's call uses its one scan.
 """
 import math
 import time
@@ -25,10 +34,13 @@ from dataclasses import dataclass
 
 from tiago_nav.detection.pipeline import METHODS, ObstacleDetector
 from tiago_nav.geometry import compose, inverse, wrap_angle
-from tiago_nav.scan import informative_fraction
+from tiago_nav.scan import informative_fraction, median_ranges
 
 # request fields that override a DetectionParams field (0 keeps the node's default)
 REQUEST_THRESHOLDS = ('scan_minus_map_threshold', 'cluster_threshold')
+REST_TRANSLATION = 0.001             # [m] two scans are from one pose within this ...
+REST_ROTATION = math.radians(0.05)   # [rad] ... and this (odometry at rest does not move)
+REST_TF_TIMEOUT = 0.1                # [s wall] for the transform at an earlier, held scan
 
 
 class Failure(Exception):
@@ -127,7 +139,7 @@ class DetectionService:
 
     ``params`` has the fields of :class:`tiago_nav.nodes.obstacle_detection.Params`
     (``detection``, ``method``, ``scan_timeout``, ``tf_timeout``,
-    ``min_informative_fraction``, frames and topics).
+    ``min_informative_fraction``, ``rest_scans``, frames and topics).
     """
 
     def __init__(self, params):
@@ -169,7 +181,8 @@ class DetectionService:
                                                                      self.params.scan_timeout))
             check_scan(scan, self.params.min_informative_fraction)
             laser_in_map, laser_in_robot = self._poses(scan, sensors)
-            return self._detect(detector, scan, laser_in_map, laser_in_robot, method,
+            rest = self._at_rest(scan, sensors)
+            return self._detect(detector, scan, rest, laser_in_map, laser_in_robot, method,
                                 scan_minus_map_threshold, cluster_threshold)
         except Failure as e:
             return Answer(False, (), str(e))
@@ -186,12 +199,40 @@ class DetectionService:
                               % (target, scan.frame_id, p.tf_timeout, e)) from None
         return poses
 
-    def _detect(self, detector, scan, laser_in_map, laser_in_robot, method,
+    def _at_rest(self, scan, sensors):
+        """``scan`` and the held scans just before it taken from the same pose (newest
+        first, ``rest_scans`` at most; see the module's doc)."""
+        p = self.params
+        earlier = sensors.scans_before(scan, p.rest_scans - 1) if p.rest_scans > 1 else []
+        if not earlier:
+            return [scan]
+        shape = (len(scan.ranges), scan.angle_min, scan.angle_increment, scan.frame_id)
+        try:
+            ref = sensors.transform(p.odom_frame, scan.frame_id, scan.stamp, p.tf_timeout)
+        except LookupError:
+            return [scan]
+        out = [scan]
+        for s in earlier:
+            if (len(s.ranges), s.angle_min, s.angle_increment, s.frame_id) != shape:
+                break
+            try:
+                pose = sensors.transform(p.odom_frame, s.frame_id, s.stamp, REST_TF_TIMEOUT)
+            except LookupError:
+                break
+            if (math.hypot(pose[0] - ref[0], pose[1] - ref[1]) > REST_TRANSLATION
+                    or abs(wrap_angle(pose[2] - ref[2])) > REST_ROTATION):
+                break
+            out.append(s)
+        return out
+
+    def _detect(self, detector, scan, rest, laser_in_map, laser_in_robot, method,
                 scan_minus_map_threshold, cluster_threshold):
         t0 = time.perf_counter()
+        ranges = scan.ranges if len(rest) == 1 else median_ranges(
+            [s.ranges for s in rest], scan.range_min, scan.range_max)
         try:
             result = detector.locate(
-                scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
+                ranges, scan.angle_min, scan.angle_increment, scan.range_min,
                 scan.range_max, laser_in_map, method, laser_in_base=laser_in_robot,
                 scan_minus_map_threshold=scan_minus_map_threshold,
                 cluster_threshold=cluster_threshold)
@@ -211,6 +252,8 @@ class DetectionService:
         phrase = corr.describe() if not corr.applied else (
             'pose corrected by (%+.3f m, %+.3f m, %+.2f deg) from %d static points'
             % (delta[0], delta[1], math.degrees(delta[2]), corr.static_points))
-        return Answer(True, obstacles, '%d obstacle(s) found with %s on the scan at %s; %s'
-                      % (len(obstacles), method, _seconds(scan.stamp), phrase), scan.stamp, delta,
-                      corr.applied)
+        rested = (' (the median of %d scans at rest, from %s)'
+                  % (len(rest), _seconds(rest[-1].stamp)) if len(rest) > 1 else '')
+        return Answer(True, obstacles, '%d obstacle(s) found with %s on the scan at %s%s; %s'
+                      % (len(obstacles), method, _seconds(scan.stamp), rested, phrase),
+                      scan.stamp, delta, corr.applied)

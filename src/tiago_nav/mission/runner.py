@@ -354,7 +354,7 @@ class MissionRunner:
                                 period=self.cfg.poll_period * 2, stall=self.cfg.clock_timeout)
 
     def _detect(self):
-        self.feedback(DETECTING, 'looking for obstacles in one laser scan')
+        self.feedback(DETECTING, 'looking for obstacles in the laser scan')
         if self.b.preempt_requested():
             raise _Preempted('detection')
         try:

@@ -57,6 +57,10 @@ class Params:
     map_timeout: float = param(30.0, '[s wall] at start-up, wait this long for a usable map before '
                                'giving up (fatal, exit 1); the service is advertised after it',
                                gt=0)
+    rest_scans: int = param(
+        5, '[scans] combine the scan a call names with the held scans just before it that were '
+        'taken from the same pose (odom_frame -> laser within 1 mm and 0.05 deg), this many in '
+        'all: the per-beam median of their hits (1: the one scan)', ge=1, le=SCANS_HELD)
     min_informative_fraction: float = param(
         0.5, '[fraction] a scan with fewer valid beams (REP 117: hit, no return or too close) '
         'is too broken to judge: the call fails', ge=0, le=1)
@@ -67,6 +71,8 @@ class Params:
                            nonempty=True)
     robot_frame: str = param('base_footprint', 'frame of the obstacles\' center_robot',
                              nonempty=True)
+    odom_frame: str = param('odom', 'odometry frame: scans with the laser at one pose in it '
+                            'were taken at rest (rest_scans)', nonempty=True)
 
     def __post_init__(self):
         validate(self)
@@ -120,6 +126,13 @@ class RosSensors:
                     return None
                 self.cond.wait(min(left, 0.1))
         return None
+
+    def scans_before(self, scan, count):
+        """Up to ``count`` held scans stamped just before the :class:`Scan` ``scan``, newest
+        first."""
+        with self.cond:
+            held = [s for s in self.scans if s.header.stamp < scan.stamp]
+        return [_plain_scan(s) for s in reversed(held[-count:])] if count > 0 else []
 
     def fresh_scan(self, timeout):
         """The first scan stamped at or after now (ROS time), or None after ``timeout`` wall
