@@ -375,14 +375,17 @@ def obstacle_detector_comparison(laser_model, quick=False):
     print('\nobstacle_detector comparison (%s laser, the course mission, then %d live scans at '
           'pose B; obstacle_detector reads the scan with the self-hits and veils set invalid):'
           % (laser_model, res['scans']))
-    for k in ('tiago_nav', 'obstacle_detector'):
+    for k in ('tiago_nav_one_scan', 'tiago_nav', 'obstacle_detector'):
         m = res[k]
         print('  %-18s found %3d/%3d, RMS %.2f cm, max %.2f cm, %d false positives (%d off the '
               'static map)' % (k, m['found'], m['must_find'], 100 * (m['rms_error_m'] or 0),
                                100 * (m['max_error_m'] or 0), m['false_positives'],
                                m['false_positives_off_map']))
+    print('  (tiago_nav: the service\'s median of the scans at rest, %s scans per call)'
+          % sorted(set(res['rest_scans_used'])))
     if res.get('rms_ratio'):
-        print('  obstacle_detector\'s centre RMS is %.1fx tiago_nav\'s' % res['rms_ratio'])
+        print('  obstacle_detector\'s centre RMS is %.1fx tiago_nav\'s on the one scan, %.1fx '
+              'with the scans at rest' % (res['rms_ratio'], res['rms_ratio_rest'] or 0))
     return res
 
 
@@ -399,8 +402,10 @@ def _judge_centres(truth, found, near_map):
 def live_comparison(laser_model, scans):
     """Run the course mission (demo.launch at real-time factor 2, seed 0, the default
     odometry and localisation, ``laser_model``), then, over the next ``scans`` scans at pose B,
-    ask this package's obstacle_detection for each scan (``scan_stamp``) and take
-    obstacle_detector's obstacle_extractor's circles for the same scan (it reads /scan with
+    ask this package's obstacle_detection for each scan (``scan_stamp``; ``tiago_nav``: the
+    launch's node, which combines the scan with the scans at rest before it, ``rest_scans``;
+    ``tiago_nav_one_scan``: a second node with ``rest_scans`` 1, the like-for-like comparison)
+    and take obstacle_detector's obstacle_extractor's circles for the same scan (it reads /scan with
     the beams :func:`tiago_nav.scan.usable_ranges` drops set to NaN: the robot's own body and
     the veils, filtered for it as for this package; its circles come out in map through tf at
     the scan's stamp). Both are judged against the world file: the movable obstacles hit by at
@@ -427,7 +432,7 @@ def live_comparison(laser_model, scans):
         ['roslaunch', '-p', str(port), 'tiago_nav', 'demo.launch', 'real_time_factor:=2.0',
          'laser_model:=' + laser_model, 'seed:=0'],
         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-    extractor = None
+    extractor = one = None
     try:
         deadline = time.time() + 60
         while True:
@@ -467,11 +472,19 @@ def live_comparison(laser_model, scans):
              '_max_x_limit:=%g' % b[2], '_max_y_limit:=%g' % b[3]],
             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
             start_new_session=True)
+        one = subprocess.Popen(
+            ['rosrun', 'tiago_nav', 'obstacle_detection', '__name:=obstacle_detection_one',
+             'obstacle_detection:=obstacle_detection_one', '_rest_scans:=1'],
+            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            start_new_session=True)
         client = actionlib.SimpleActionClient('tiago_controller', TiagoTaskAction)
         if not client.wait_for_server(rospy.Duration(120.0)):
             raise RuntimeError('no tiago_controller')
-        rospy.wait_for_service('obstacle_detection', timeout=60)
-        detect = rospy.ServiceProxy('obstacle_detection', DetectObstacles, persistent=True)
+        detect = {}
+        for k, name in (('tiago_nav', 'obstacle_detection'),
+                        ('tiago_nav_one_scan', 'obstacle_detection_one')):
+            rospy.wait_for_service(name, timeout=60)
+            detect[k] = rospy.ServiceProxy(name, DetectObstacles, persistent=True)
         client.send_goal(TiagoTaskGoal(x=COURSE_B[0], y=COURSE_B[1], yaw_deg=COURSE_B[2],
                                        use_corridor_law=True))
         deadline = time.time() + 180
@@ -494,9 +507,11 @@ def live_comparison(laser_model, scans):
                         raise RuntimeError('no scan at pose B')
                     time.sleep(0.01)
                 stamp = stamps[start + len(rows)]
-                resp = detect(DetectObstaclesRequest(method='circle_fit', scan_stamp=stamp))
-                if not resp.success:
-                    raise RuntimeError('obstacle_detection failed: %s' % resp.message)
+                resp = {}
+                for k, call in detect.items():
+                    resp[k] = call(DetectObstaclesRequest(method='circle_fit', scan_stamp=stamp))
+                    if not resp[k].success:
+                        raise RuntimeError('%s failed: %s' % (k, resp[k].message))
                 deadline = time.time() + 10
                 while stamp not in circles:
                     if time.time() > deadline:
@@ -507,14 +522,19 @@ def live_comparison(laser_model, scans):
                 must = [i for i, b in enumerate(scene.movable_ids) if np.sum(ids == b) >= 10]
                 rows.append({'truth': [(world.movable_obstacles[i].x,
                                         world.movable_obstacles[i].y) for i in must],
-                             'tiago_nav': [(o.center.x, o.center.y) for o in resp.obstacles],
+                             'rest_message': resp['tiago_nav'].message,
+                             **{k: [(o.center.x, o.center.y) for o in r.obstacles]
+                                for k, r in resp.items()},
                              'obstacle_detector': circles[stamp]})
 
         def near_map(xy):
             return bool(distance(np.array([xy]))[0] <= 0.3)
         out = {'scans': scans, 'world': world.name, 'pose_b': list(COURSE_B),
-               'truth_pose': [round(v, 4) for v in truth_pose['pose']]}
-        for k in ('tiago_nav', 'obstacle_detector'):
+               'truth_pose': [round(v, 4) for v in truth_pose['pose']],
+               'rest_scans_used': [int(m.split('the median of ')[1].split()[0])
+                                   if 'the median of ' in m else 1
+                                   for m in (r['rest_message'] for r in rows)]}
+        for k in ('tiago_nav', 'tiago_nav_one_scan', 'obstacle_detector'):
             errs, missed, fps, off = [], 0, 0, 0
             for r in rows:
                 e, m, f, o = _judge_centres(r['truth'], r[k], near_map)
@@ -527,11 +547,13 @@ def live_comparison(laser_model, scans):
                                       if errs.size else None),
                       'max_error_m': round(float(errs.max()), 4) if errs.size else None,
                       'false_positives': fps, 'false_positives_off_map': off}
-        a, b = out['tiago_nav']['rms_error_m'], out['obstacle_detector']['rms_error_m']
-        out['rms_ratio'] = round(b / a, 2) if a and b else None
+        b = out['obstacle_detector']['rms_error_m']
+        for k, key in (('tiago_nav_one_scan', 'rms_ratio'), ('tiago_nav', 'rms_ratio_rest')):
+            a = out[k]['rms_error_m']
+            out[key] = round(b / a, 2) if a and b else None
         return out
     finally:
-        for p in (extractor, launch):
+        for p in (one, extractor, launch):
             stop_process(p)
 
 

@@ -1,8 +1,10 @@
 #!/usr/bin/python3
 """obstacle_detection under the default sensing, at library level (no ROS): the tiago laser
 (self-hits, mixed pixels, dropouts, 1 mm quantisation, 0.01 m noise) and the localisation's
-error at the detection instant: the pose correction on and off, and ``before`` (neither the
-pose correction nor the shared radius: the pipeline as it was).
+error at the detection instant: the pose correction on and off, ``before`` (neither the
+pose correction nor the shared radius: the pipeline as it was), and ``rest`` (what the service
+does at a stop: the pose correction on, the scan combined with the service's ``rest_scans`` - 1
+scans at rest before it by their per-beam median, tiago_nav.scan.median_ranges).
 
 The localisation's error is emulated with the localisation library, as the live chain makes
 it at a stop: the odometry's drift leaves a predicted pose off by a random error (std
@@ -50,6 +52,8 @@ import bench_soak  # noqa: E402
 from tiago_nav.detection import DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.geometry import compose, inverse  # noqa: E402
 from tiago_nav.localisation import Localiser, LocaliserConfig, register  # noqa: E402
+from tiago_nav.nodes.obstacle_detection import Params  # noqa: E402
+from tiago_nav.scan import median_ranges  # noqa: E402
 from tiago_nav.sim.laser import SELF_HIT, LaserModel  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.scene import LaserConfig, Scene  # noqa: E402
@@ -60,6 +64,8 @@ NOISE = 0.01                                  # [m] range noise std (the simulat
 DRIFT = (0.03, 0.03, math.radians(1.0))       # [m, m, rad] std of the prediction's error at a stop
 REST_SCANS = 5                                # LocaliserConfig.rest_updates
 INJECTED = (0.01, 0.01, math.radians(0.3))    # [m, m, rad] course_injected: pose error std
+DETECTION_REST_SCANS = Params().rest_scans    # the service's median of scans at rest
+REST_SEED = 1
 MIN_BEAMS = 10                                # an obstacle this many beams hit must be found
 TOL = 0.03                                    # [m] ... within this
 GATE = 0.30                                   # [m] evaluation.MATCH_GATE
@@ -81,6 +87,9 @@ class Sensing:
                                                                   shared_radius=False))
         self.loc = Localiser(self.grid, (0.0, 0.0, 0.0))
         self.scene = Scene(self.world)
+        # the scans at rest before the detection's (``rest``): their own noise draws, so that
+        # every other variant sees the scans it saw without them
+        self.rest_rng = np.random.default_rng(REST_SEED)
 
     def close(self):
         self.scene.close()
@@ -110,9 +119,14 @@ class Sensing:
         out = {'pose': [round(v, 4) for v in pose], 'beams': beams,
                'localisation_error_m': math.hypot(loc_err[0], loc_err[1]),
                'localisation_error_deg': math.degrees(loc_err[2])}
-        for name, det in (('on', self.on), ('off', self.off), ('before', self.before)):
+        earlier = [laser_model.apply(clean, cfg, NOISE, self.rest_rng).ranges
+                   for _ in range(DETECTION_REST_SCANS - 1)]
+        for name, det in (('rest', self.on), ('on', self.on), ('off', self.off),
+                          ('before', self.before)):
             t, c = time.perf_counter(), time.process_time()
-            res = det.locate(r, cfg.angle_min, cfg.angle_increment, cfg.range_min,
+            ranges = r if name != 'rest' else median_ranges([r] + earlier, cfg.range_min,
+                                                            cfg.range_max)
+            res = det.locate(ranges, cfg.angle_min, cfg.angle_increment, cfg.range_min,
                              cfg.range_max, compose(est, lib), 'circle_fit', laser_in_base=lib)
             ms, cpu = (time.perf_counter() - t) * 1e3, (time.process_time() - c) * 1e3
             out[name] = judge(self.world, beams, res.detections)
@@ -186,6 +200,7 @@ def main():
     out['course'] = {'world': name, 'pose_deg': [11.0, 0.0, -45.0],
                      'localisation_error_m_rms': round(float(np.sqrt(np.mean(loc ** 2))), 4),
                      'localisation_error_m_max': round(float(loc.max()), 4),
+                     'rest': summarise(rows, 'rest'),
                      'correction_on': summarise(rows, 'on'),
                      'correction_off': summarise(rows, 'off'),
                      'before': summarise(rows, 'before')}
@@ -203,6 +218,7 @@ def main():
                               'injected_std': [INJECTED[0], INJECTED[1], math.degrees(INJECTED[2])],
                               'localisation_error_m_rms': round(float(np.sqrt(np.mean(loc ** 2))), 4),
                               'localisation_error_m_max': round(float(loc.max()), 4),
+                              'rest': summarise(rows, 'rest'),
                               'correction_on': summarise(rows, 'on'),
                               'correction_off': summarise(rows, 'off'),
                               'before': summarise(rows, 'before')}
@@ -225,13 +241,14 @@ def main():
     out['missions'] = {'worlds': [os.path.basename(p) for p in paths],
                        'localisation_error_m_rms': round(float(np.sqrt(np.mean(loc ** 2))), 4),
                        'localisation_error_m_p95': round(float(np.percentile(loc, 95)), 4),
+                       'rest': summarise(scenes, 'rest'),
                        'correction_on': summarise(scenes, 'on'),
                        'correction_off': summarise(scenes, 'off'),
                        'before': summarise(scenes, 'before')}
     for part in ('course', 'course_injected', 'missions'):
         o = out[part]
         print('%s: localisation error (emulated) rms %.2f cm' % (part, 100 * o['localisation_error_m_rms']))
-        for k in ('before', 'correction_off', 'correction_on'):
+        for k in ('before', 'correction_off', 'correction_on', 'rest'):
             m = o[k]
             print('  %-15s %3d scenes, %3d/%3d found (>= %d beams), %d FP, RMS %.2f cm, max %.2f cm, '
                   '%d beyond %.0f cm, corrected %.0f %%, call %.2f ms median, p95 %.2f ms '

@@ -85,7 +85,8 @@ ABOUT = {
         'same pipeline under the default sensing, in process: the tiago laser and the '
         'localisation\'s error at the detection instant (emulated: odometry drift at a stop, '
         'then five scans registered at rest; or an injected error of a live mission\'s size), '
-        'with the pose correction on, off, and with neither it nor the shared radius; at the '
+        'with the pose correction on, off, with neither it nor the shared radius, and as the '
+        'service runs at a stop (the pose correction on, the median of 5 scans at rest); at the '
         'course\'s pose B and at random poses B in the shipped, test and soak worlds. An '
         'obstacle hit by at least 10 beams (the laser\'s hits on the robot\'s own body not '
         'counted) must be found, its centre within 3 cm; a found centre that no obstacle a beam '
@@ -342,16 +343,22 @@ def render_detection(d):
         out += ['', 'obstacle_detector comparison: skipped (%s).' % od.get('reason')]
     elif od:
         out += ['', 'obstacle_detector comparison, %s laser: the course mission, then %s live scans '
-                'at pose B (the robot at %s), each given to both detectors.'
+                'at pose B (the robot at %s), each given to every detector.'
                 % (od.get('laser_model'), _f(od.get('scans')), od.get('truth_pose')), '']
+        names = (('tiago_nav_one_scan', 'tiago_nav, the one scan'),
+                 ('tiago_nav', 'tiago_nav, median of the scans at rest'),
+                 ('obstacle_detector', 'obstacle_detector, the one scan'))
         out += _table(('detector', 'found', 'false positives (off the map)', 'RMS error [m]',
                        'max error [m]'),
-                      [(k, '%s/%s' % (_f(od[k].get('found')), _f(od[k].get('must_find'))),
+                      [(label, '%s/%s' % (_f(od[k].get('found')), _f(od[k].get('must_find'))),
                         '%s (%s)' % (_f(od[k].get('false_positives')),
                                      _f(od[k].get('false_positives_off_map'))),
                         od[k].get('rms_error_m'), od[k].get('max_error_m'))
-                       for k in ('tiago_nav', 'obstacle_detector')])
-        out += ['', 'obstacle_detector\'s centre RMS is %s× tiago_nav\'s.' % _f(od.get('rms_ratio'))]
+                       for k, label in names if k in od])
+        out += ['', 'obstacle_detector\'s centre RMS is %s× tiago_nav\'s on the same scan, %s× '
+                'the service\'s (the median of the scans at rest, %s per call).'
+                % (_f(od.get('rms_ratio')), _f(od.get('rms_ratio_rest')),
+                   ' or '.join(str(n) for n in sorted(set(od.get('rest_scans_used') or []))) or '–')]
     return out
 
 
@@ -359,7 +366,8 @@ def render_detection(d):
 SENSING_SCENES = (('course', 'course pose B'),
                   ('course_injected', 'course pose B, injected pose error'),
                   ('missions', 'random poses B'))
-SENSING_VARIANTS = (('correction_on', 'pose correction on'),
+SENSING_VARIANTS = (('rest', 'median of 5 scans at rest, pose correction on'),
+                    ('correction_on', 'pose correction on'),
                     ('correction_off', 'pose correction off'),
                     ('before', 'no pose correction, no shared radius'))
 

@@ -229,12 +229,16 @@ def test_obstacle_detector_comparison_is_rendered_or_its_skip_explained():
     ours = {'must_find': 80, 'found': 80, 'rms_error_m': 0.0083, 'max_error_m': 0.0147,
             'false_positives': 0, 'false_positives_off_map': 0}
     theirs = dict(ours, rms_error_m=0.051, max_error_m=0.0729, false_positives=3)
+    rest = dict(ours, rms_error_m=0.0071)
     ran = benchmarks.render_detection({'obstacle_detector': {
         'skipped': False, 'laser_model': 'tiago', 'scans': 20, 'truth_pose': [11.0, 0.0, -0.8],
-        'tiago_nav': ours, 'obstacle_detector': theirs, 'rms_ratio': 6.14}})
-    assert '| tiago_nav | 80/80 | 0 (0) | 0.0083 | 0.0147 |' in ran
-    assert '| obstacle_detector | 80/80 | 3 (0) | 0.051 | 0.0729 |' in ran
-    assert any('6.14×' in ln for ln in ran)
+        'tiago_nav_one_scan': ours, 'tiago_nav': rest, 'obstacle_detector': theirs,
+        'rms_ratio': 6.14, 'rms_ratio_rest': 7.18, 'rest_scans_used': [5] * 20}})
+    assert '| tiago_nav, the one scan | 80/80 | 0 (0) | 0.0083 | 0.0147 |' in ran
+    assert '| tiago_nav, median of the scans at rest | 80/80 | 0 (0) | 0.0071 | 0.0147 |' in ran
+    assert '| obstacle_detector, the one scan | 80/80 | 3 (0) | 0.051 | 0.0729 |' in ran
+    assert any('6.14× tiago_nav\'s on the same scan, 7.18×' in ln and '5 per call' in ln
+               for ln in ran)
     skipped = benchmarks.render_detection({'obstacle_detector': {
         'skipped': True, 'reason': 'obstacle_detector is not installed'}})
     assert skipped[-1] == 'obstacle_detector comparison: skipped (obstacle_detector is not installed).'
