@@ -93,12 +93,13 @@ class NavigationTest(SimTestCase):
             self.reach(x, y, yaw)
 
     def test_2_goal_inside_a_wall_aborts_quickly(self):
+        # rejected on arrival, before any planning (not after the planner's patience); simulated
+        # time runs free here (wait_for_work false), so its duration would measure the host
         w = self.world.walls[len(self.world.walls) // 2]
-        t0 = rospy.Time.now()
         state, text, _ = self.send_and_wait(goal_msg(w.x, w.y, 0.0), 10.0)
         self.assertEqual(state, GoalStatus.ABORTED)
-        self.assertIn('obstacle', text)
-        self.assertLess((rospy.Time.now() - t0).to_sec(), 2.0)
+        self.assertTrue(text.startswith('goal rejected: '), text)
+        self.assertIn('inside an obstacle', text)
 
     def test_3_goal_outside_the_map_aborts(self):
         xmin, ymin, xmax, ymax = self.world.bounds

@@ -356,17 +356,27 @@ class LockstepParticipant:
             return False
 
     def wait_joined(self, timeout):
-        """Wait up to ``timeout`` wall seconds until registered with the simulator (True at once
-        when not taking part); False, with a warning, if it did not happen. A node should serve
+        """Wait up to ``timeout`` wall seconds until registered with the simulator (at once when
+        not taking part), and until this node's ROS time runs (its first /clock has come, under
+        /use_sim_time); False, with a warning, if either did not happen. A node should serve
         goals only then: a goal that began before would run free, and at the simulator's full
         speed a free control loop falls behind it (a corridor law drove into the obstacle it
-        should have stopped before)."""
-        if self.ticker is not None or self.joined.wait(timeout):
-            return True
-        rospy.logwarn('%s: not registered in lockstep within %g s (is the simulator holding? do '
-                      'its inputs flow?): serving anyway, running free until it registers',
-                      self.name, timeout)
-        return False
+        should have stopped before); and what it stamped before its first /clock would say 0
+        (a mission's first feedback did, in one run of two: /clock travels on a connection of its
+        own, which may come up after the scans and tf that let the node register)."""
+        deadline = time.monotonic() + timeout
+        if self.ticker is None and not self.joined.wait(timeout):
+            rospy.logwarn('%s: not registered in lockstep within %g s (is the simulator holding? '
+                          'do its inputs flow?): serving anyway, running free until it registers',
+                          self.name, timeout)
+            return False
+        while self.clock.now() <= 0.0 and not rospy.is_shutdown():
+            if time.monotonic() > deadline:
+                rospy.logwarn('%s: no /clock within %g s: serving anyway, with ROS time 0 until '
+                              'it comes', self.name, timeout)
+                return False
+            time.sleep(JOIN_POLL)
+        return True
 
     def _join_when_ready(self):
         while not rospy.is_shutdown():
