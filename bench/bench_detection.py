@@ -34,7 +34,7 @@ if os.path.join(ROOT, 'src') not in sys.path:
     sys.path.append(os.path.join(ROOT, 'src'))   # after the workspace's (which has the messages)
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
-from tiago_nav.testing.harness import free_port, stop_process  # noqa: E402
+from tiago_nav.testing.harness import Harness, free_port, stop_process  # noqa: E402
 from tiago_nav.detection import METHODS, DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.detection.subtraction import MapDistance, brute_force_distance  # noqa: E402
 from tiago_nav import robot  # noqa: E402
@@ -405,46 +405,28 @@ def live_comparison(laser_model, scans):
     ask this package's obstacle_detection for each scan (``scan_stamp``; ``tiago_nav``: the
     launch's node, which combines the scan with the scans at rest before it, ``rest_scans``;
     ``tiago_nav_one_scan``: a second node with ``rest_scans`` 1, the like-for-like comparison)
-    and take obstacle_detector's obstacle_extractor's circles for the same scan (it reads /scan with
-    the beams :func:`tiago_nav.scan.usable_ranges` drops set to NaN: the robot's own body and
+    and take obstacle_detector's obstacle_extractor's circles for the same scan (it reads /scan
+    with the beams :func:`tiago_nav.scan.usable_ranges` drops set to NaN: the robot's own body and
     the veils, filtered for it as for this package; its circles come out in map through tf at
-    the scan's stamp). Both are judged against the world file: the movable obstacles hit by at
+    the scan's stamp). All are judged against the world file: the movable obstacles hit by at
     least 10 beams from the true pose must be found; a found centre matching none (within
     0.3 m) is a false positive, counted apart when it lies on the static map (a wall or a
     mapped cylinder, which the map subtraction of this package removes by design)."""
-    import actionlib
     import rospy
-    from actionlib_msgs.msg import GoalStatus
-    from nav_msgs.msg import Odometry
     from obstacle_detector.msg import Obstacles
     from sensor_msgs.msg import LaserScan
-    from tiago_nav.msg import TiagoTaskAction, TiagoTaskGoal
     from tiago_nav.scan import usable_ranges
     from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
     world_path = os.path.join(ROOT, 'worlds', WORLDS[0])
     world = load_world(world_path)
-    grid = rasterise_world(world)
-    distance = MapDistance(grid)
-    port = free_port()
-    env = dict(os.environ, ROS_MASTER_URI='http://localhost:%d' % port)
-    os.environ['ROS_MASTER_URI'] = env['ROS_MASTER_URI']
-    launch = subprocess.Popen(
-        ['roslaunch', '-p', str(port), 'tiago_nav', 'demo.launch', 'real_time_factor:=2.0',
-         'laser_model:=' + laser_model, 'seed:=0'],
-        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    distance = MapDistance(rasterise_world(world))
+    h = Harness(world_path, real_time_factor=2.0,
+                extra_args=('laser_model:=' + laser_model, 'seed:=0'))
     extractor = one = None
     try:
-        deadline = time.time() + 60
-        while True:
-            try:
-                rospy.init_node('bench_obstacle_detector', anonymous=True, disable_signals=True)
-                break
-            except Exception:
-                if time.time() > deadline:
-                    raise
-                time.sleep(0.5)
+        h.connect()
         relay = rospy.Publisher('/scan_usable', LaserScan, queue_size=100)
-        stamps, circles, truth_pose = [], {}, {}
+        stamps, circles = [], {}
 
         def on_scan(msg):
             msg.ranges = list(usable_ranges(msg.ranges, msg.angle_min, msg.angle_increment,
@@ -454,71 +436,41 @@ def live_comparison(laser_model, scans):
 
         def on_obstacles(msg):
             circles[msg.header.stamp] = [(c.center.x, c.center.y) for c in msg.circles]
-
-        def on_truth(msg):
-            q = msg.pose.pose.orientation
-            truth_pose['pose'] = (msg.pose.pose.position.x, msg.pose.pose.position.y,
-                                  2 * math.atan2(q.z, q.w))
         rospy.Subscriber('/scan', LaserScan, on_scan, queue_size=100)
         rospy.Subscriber('/raw_obstacles', Obstacles, on_obstacles, queue_size=100)
-        rospy.Subscriber('/sim/ground_truth', Odometry, on_truth, queue_size=1)
         # obstacle_extractor_node with its defaults, but reading the scan, circles in map, and
         # its window on them (default +-10 m about map's origin) wide enough for the world
         b = world.bounds
-        extractor = subprocess.Popen(
-            ['rosrun', 'obstacle_detector', 'obstacle_extractor_node', 'scan:=/scan_usable',
-             '__name:=obstacle_extractor', '_frame_id:=map', '_use_scan:=true',
-             '_use_pcl:=false', '_min_x_limit:=%g' % b[0], '_min_y_limit:=%g' % b[1],
-             '_max_x_limit:=%g' % b[2], '_max_y_limit:=%g' % b[3]],
-            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            start_new_session=True)
-        one = subprocess.Popen(
-            ['rosrun', 'tiago_nav', 'obstacle_detection', '__name:=obstacle_detection_one',
-             'obstacle_detection:=obstacle_detection_one', '_rest_scans:=1'],
-            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            start_new_session=True)
-        client = actionlib.SimpleActionClient('tiago_controller', TiagoTaskAction)
-        if not client.wait_for_server(rospy.Duration(120.0)):
-            raise RuntimeError('no tiago_controller')
+        extractor = _node(h, ['obstacle_detector', 'obstacle_extractor_node',
+                              'scan:=/scan_usable', '__name:=obstacle_extractor',
+                              '_frame_id:=map', '_use_scan:=true', '_use_pcl:=false',
+                              '_min_x_limit:=%g' % b[0], '_min_y_limit:=%g' % b[1],
+                              '_max_x_limit:=%g' % b[2], '_max_y_limit:=%g' % b[3]])
+        one = _node(h, ['tiago_nav', 'obstacle_detection', '__name:=obstacle_detection_one',
+                        'obstacle_detection:=obstacle_detection_one', '_rest_scans:=1'])
         detect = {}
         for k, name in (('tiago_nav', 'obstacle_detection'),
                         ('tiago_nav_one_scan', 'obstacle_detection_one')):
             rospy.wait_for_service(name, timeout=60)
             detect[k] = rospy.ServiceProxy(name, DetectObstacles, persistent=True)
-        client.send_goal(TiagoTaskGoal(x=COURSE_B[0], y=COURSE_B[1], yaw_deg=COURSE_B[2],
-                                       use_corridor_law=True))
-        deadline = time.time() + 180
-        while client.get_state() in (GoalStatus.PENDING, GoalStatus.ACTIVE) \
-                or client.get_result() is None:
-            if time.time() > deadline:
-                raise RuntimeError('the course mission did not end within 180 s')
-            time.sleep(0.05)
-        if client.get_state() != GoalStatus.SUCCEEDED:
-            raise RuntimeError('the course mission ended %s: %s'
-                               % (GoalStatus.to_string(client.get_state()),
-                                  client.get_goal_status_text()))
+        lines = []
+        code, _, _, _ = h.mission(*COURSE_B, True, out=lines.append, limit=180.0)
+        if code != 0:
+            raise RuntimeError('the course mission failed: %s' % (lines[-1] if lines else code))
         start = len(stamps)
         with Scene(world) as scene:
             rows = []
             while len(rows) < scans:
-                deadline = time.time() + 10
-                while len(stamps) <= start + len(rows):
-                    if time.time() > deadline:
-                        raise RuntimeError('no scan at pose B')
-                    time.sleep(0.01)
+                _wait(lambda: len(stamps) > start + len(rows), 'no scan at pose B')
                 stamp = stamps[start + len(rows)]
                 resp = {}
                 for k, call in detect.items():
                     resp[k] = call(DetectObstaclesRequest(method='circle_fit', scan_stamp=stamp))
                     if not resp[k].success:
                         raise RuntimeError('%s failed: %s' % (k, resp[k].message))
-                deadline = time.time() + 10
-                while stamp not in circles:
-                    if time.time() > deadline:
-                        raise RuntimeError('obstacle_detector did not answer the scan at %.3f'
-                                           % stamp.to_sec())
-                    time.sleep(0.01)
-                _, ids = scene.cast(truth_pose['pose'])
+                _wait(lambda: stamp in circles, 'obstacle_detector did not answer the scan at '
+                      '%.3f' % stamp.to_sec())
+                _, ids = scene.cast(h.pose())
                 must = [i for i, b in enumerate(scene.movable_ids) if np.sum(ids == b) >= 10]
                 rows.append({'truth': [(world.movable_obstacles[i].x,
                                         world.movable_obstacles[i].y) for i in must],
@@ -530,7 +482,7 @@ def live_comparison(laser_model, scans):
         def near_map(xy):
             return bool(distance(np.array([xy]))[0] <= 0.3)
         out = {'scans': scans, 'world': world.name, 'pose_b': list(COURSE_B),
-               'truth_pose': [round(v, 4) for v in truth_pose['pose']],
+               'truth_pose': [round(v, 4) for v in h.pose()],
                'rest_scans_used': [int(m.split('the median of ')[1].split()[0])
                                    if 'the median of ' in m else 1
                                    for m in (r['rest_message'] for r in rows)]}
@@ -553,8 +505,25 @@ def live_comparison(laser_model, scans):
             out[key] = round(b / a, 2) if a and b else None
         return out
     finally:
-        for p in (one, extractor, launch):
+        for p in (one, extractor):
             stop_process(p)
+        h.close()
+
+
+def _node(h, args):
+    """``rosrun ARGS`` on the harness ``h``'s master, in a session of its own."""
+    return subprocess.Popen(['rosrun'] + args, env=h.env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+
+
+def _wait(condition, failure, timeout=10.0):
+    """Wait up to ``timeout`` wall seconds for ``condition()``; RuntimeError(``failure``)
+    otherwise."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise RuntimeError(failure)
+        time.sleep(0.01)
 
 
 def _is_float(w):

@@ -342,8 +342,8 @@ def render_detection(d):
     if od and od.get('skipped'):
         out += ['', 'obstacle_detector comparison: skipped (%s).' % od.get('reason')]
     elif od:
-        out += ['', 'obstacle_detector comparison, %s laser: the course mission, then %s live scans '
-                'at pose B (the robot at %s), each given to every detector.'
+        out += ['', 'obstacle_detector comparison, %s laser: the course mission, then %s live '
+                'scans at pose B (the robot at %s), each given to every detector.'
                 % (od.get('laser_model'), _f(od.get('scans')), od.get('truth_pose')), '']
         names = (('tiago_nav_one_scan', 'tiago_nav, the one scan'),
                  ('tiago_nav', 'tiago_nav, median of the scans at rest'),
@@ -355,10 +355,11 @@ def render_detection(d):
                                      _f(od[k].get('false_positives_off_map'))),
                         od[k].get('rms_error_m'), od[k].get('max_error_m'))
                        for k, label in names if k in od])
+        used = sorted(set(od.get('rest_scans_used') or []))
         out += ['', 'obstacle_detector\'s centre RMS is %s× tiago_nav\'s on the same scan, %s× '
                 'the service\'s (the median of the scans at rest, %s per call).'
                 % (_f(od.get('rms_ratio')), _f(od.get('rms_ratio_rest')),
-                   ' or '.join(str(n) for n in sorted(set(od.get('rest_scans_used') or []))) or '–')]
+                   ' or '.join(str(n) for n in used) or '–')]
     return out
 
 

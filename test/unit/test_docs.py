@@ -241,7 +241,8 @@ def test_obstacle_detector_comparison_is_rendered_or_its_skip_explained():
                for ln in ran)
     skipped = benchmarks.render_detection({'obstacle_detector': {
         'skipped': True, 'reason': 'obstacle_detector is not installed'}})
-    assert skipped[-1] == 'obstacle_detector comparison: skipped (obstacle_detector is not installed).'
+    assert skipped[-1] == ('obstacle_detector comparison: skipped '
+                           '(obstacle_detector is not installed).')
 
 
 def test_every_benchmark_json_renders_rows():
