@@ -530,7 +530,9 @@ def render_page(results, header):
              'The current figures, rendered from `bench/results/*.json` by `make docs`. Each table '
              'is headed by the command that regenerates its JSON (`make bench` runs them all; the '
              'benchmarks do not run in the test suite). Each JSON\'s `meta` block says which code, '
-             'machine and conditions it comes from. Targets: the quality bars in [design-decisions.md](design-decisions.md#quality-bars).', '']
+             'machine and conditions it comes from. Each benchmark\'s own targets are in its paragraph '
+             '(some are stricter than the quality bars in '
+             '[design-decisions.md](design-decisions.md#quality-bars)).', '']
     for name, title, runs in BENCHMARKS:
         lines += ['## %s' % title, '']
         if name in ABOUT:

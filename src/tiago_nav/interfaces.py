@@ -156,27 +156,34 @@ NODES = (
         'executable': 'obstacle_detection',
         'params': 'tiago_nav.nodes.obstacle_detection',
         'launch': 'demo.launch',
-        'summary': 'Finds the obstacles that are not in the static map in one fresh scan: map '
-                   'subtraction, clustering, one centre per cluster. Advertises its service '
-                   'once a usable map has come.',
+        'summary': 'Finds the obstacles that are not in the static map in the scan a call names '
+                   '(combined with the scans at rest just before it): map subtraction, '
+                   'clustering, one centre per cluster. Advertises its service once a usable '
+                   'map has come.',
         'subscribed_topics': [
             ('{map_topic}', 'nav_msgs/OccupancyGrid', 'latched: what is not an obstacle'),
             ('{scan_topic}', 'sensor_msgs/LaserScan',
-             'a call uses the first scan stamped at or after it'),
+             'held (the last 4 s): a call uses the first scan stamped at or after its '
+             '`scan_stamp` (0: at or after the call), with the `~rest_scans` - 1 before it '
+             'taken from the same pose'),
         ],
         'published_topics': [
             ('~obstacles', 'visualization_msgs/MarkerArray',
-             'latched: the last call\'s obstacles, in `~map_frame`'),
+             'latched: the last successful call\'s obstacles, in `~map_frame`'),
         ],
         'services_provided': [
             ('obstacle_detection', 'tiago_nav/DetectObstacles',
-             'request thresholds and method (0 / "": the node\'s defaults); response `success`, '
-             'the obstacles (centres in `~map_frame` and `~robot_frame`) and a message saying '
-             'why when `success` is false'),
+             'request thresholds, method (0 / "": the node\'s defaults) and `scan_stamp`; '
+             'response `success`, the obstacles (centres in `~map_frame` and `~robot_frame`), '
+             'a message (why, when `success` is false), and the pose correction applied '
+             '(`pose_correction`, `pose_corrected`)'),
         ],
         'tf_required': [
             ('{map_frame}', '<scan frame>', 'at the scan\'s stamp'),
             ('{robot_frame}', '<scan frame>', 'at the scan\'s stamp'),
+            ('{odom_frame}', '<scan frame>',
+             'at the stamps of the named scan and the held ones before it: which were taken '
+             'at rest'),
         ],
     },
     {
@@ -190,7 +197,8 @@ NODES = (
             ('{action_name}', 'tiago_nav/TiagoTaskAction',
              'goal pose B `x`, `y`, `yaw_deg` in `~global_frame` and `use_corridor_law`; feedback '
              'the stage (`state`), a sentence and the robot\'s pose; result the obstacles, the '
-             'final pose and a message naming the stage and reason of any failure'),
+             'final pose, a message naming the stage and reason of any failure, and the last '
+             'feedback `state`'),
         ],
         'action_clients': [
             ('{corridor_action}', 'tiago_nav/CorridorAction',
@@ -226,7 +234,10 @@ NODES = (
         'summary': 'Scan-to-map localisation: matches each scan to the static map and publishes '
                    'the map -> odom correction, as AMCL does.',
         'subscribed_topics': [
-            ('{scan_topic}', 'sensor_msgs/LaserScan', 'every scan is matched to the map'),
+            ('{scan_topic}', 'sensor_msgs/LaserScan',
+             'every scan advances the estimate; it is matched to the map after '
+             '`~min_update_distance` / `~min_update_yaw_deg` of motion and for the first '
+             '`~rest_updates` at rest'),
             ('{map_topic}', 'nav_msgs/OccupancyGrid', 'latched: the static map'),
             ('{initialpose_topic}', 'geometry_msgs/PoseWithCovarianceStamped',
              'resets the pose (in `~map_frame`), as AMCL takes it'),

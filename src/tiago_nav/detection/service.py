@@ -8,7 +8,7 @@ laser's (the scan's ``frame_id``), all named by the node's parameters. Units: me
 seconds.
 
 :class:`DetectionService` reaches the sensors through a *sensors* object (the ROS one is in
-:mod:`tiago_nav.nodes.obstacle_detection`; unit tests pass a fake) with two methods:
+:mod:`tiago_nav.nodes.obstacle_detection`; unit tests pass a fake) with four methods:
 
 * ``fresh_scan(timeout)``: the first :class:`Scan` stamped at or after the call, or None after
   ``timeout`` wall seconds;

@@ -28,7 +28,7 @@ ACTIVE, SUCCEEDED, ABORTED, PREEMPTED, REJECTED, LOST = ('active', 'succeeded', 
                                                          'preempted', 'rejected', 'lost')
 
 
-@dataclass
+@dataclass(frozen=True)
 class MissionConfig:
     """Timeouts and thresholds of the mission.
 

@@ -56,7 +56,7 @@ _POLL = {GoalStatus.PENDING: mission.ACTIVE, GoalStatus.ACTIVE: mission.ACTIVE,
          GoalStatus.REJECTED: mission.REJECTED, GoalStatus.LOST: mission.LOST}
 
 
-@dataclass
+@dataclass(frozen=True)
 class Params:
     """Parameters of the tiago_controller node (the TiagoTask proxy).
 
