@@ -10,6 +10,7 @@ import datetime
 import json
 import math
 import os
+import platform as _platform
 import shlex
 import subprocess
 import sys
@@ -183,6 +184,37 @@ def commit(root=ROOT):
     return head + ('-dirty' if dirty else '')
 
 
+# what the platform table (docs/getting-started.md) tells apart: the distribution, ROS 1, Python and
+# the Python packages whose versions differ between its rows
+PLATFORM_PACKAGES = ('rospy', 'numpy', 'scipy', 'matplotlib', 'PyYAML', 'pybullet', 'dask')
+
+
+def os_release(path='/etc/os-release'):
+    """``PRETTY_NAME`` of ``/etc/os-release`` (e.g. ``Debian GNU/Linux 12 (bookworm)``), or
+    ``platform.platform()`` where there is none."""
+    try:
+        with open(path) as f:
+            for line in f:
+                if line.startswith('PRETTY_NAME='):
+                    return shlex.split(line.partition('=')[2])[0]
+    except (OSError, ValueError, IndexError):
+        pass
+    return _platform.platform()
+
+
+def platform_info():
+    """The platform a figure was measured on: ``{'os', 'python', 'packages': {name: version or
+    None when not installed}}``, read from package metadata (nothing is imported)."""
+    import importlib.metadata as metadata
+    versions = {}
+    for name in PLATFORM_PACKAGES:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = None
+    return {'os': os_release(), 'python': _platform.python_version(), 'packages': versions}
+
+
 def launch_defaults(root=ROOT, launch='sim.launch'):
     """``{arg: default}`` of a launch file's own arguments."""
     tree = ET.parse(os.path.join(root, 'launch', launch)).getroot()
@@ -201,7 +233,7 @@ def launch_models(launch_args=(), root=ROOT):
 def meta(options=None, *, real_time_factor=None, laser_model=None, odometry_model=None,
          quick=False, argv=None, root=ROOT):
     """The ``meta`` block of a benchmark's JSON: the code (commit), when (UTC), the command line,
-    the machine (cores, load average) and the conditions (real-time factor, laser and odometry
+    the machine (cores, load average), the platform (:func:`platform_info`) and the conditions (real-time factor, laser and odometry
     models, quick run); ``options`` (e.g. ``vars(args)``) are the benchmark's own options.
     A value that does not apply is given as a string saying why (e.g. ``'in process'``)."""
     argv = list(sys.argv if argv is None else argv)
@@ -215,6 +247,7 @@ def meta(options=None, *, real_time_factor=None, laser_model=None, odometry_mode
             'command': ' '.join(shlex.quote(a) for a in argv),
             'cores': os.cpu_count(),
             'loadavg': [round(x, 2) for x in os.getloadavg()],
+            'platform': platform_info(),
             'real_time_factor': real_time_factor,
             'laser_model': laser_model,
             'odometry_model': odometry_model,
@@ -287,11 +320,21 @@ def meta_lines(data):
         return ['meta: not recorded']
     load = m.get('loadavg')
     return ['meta: commit `%s`, %s, `%s`, %s cores, load average %s, real-time factor %s, laser '
-            'model %s, odometry model %s, quick %s'
+            'model %s, odometry model %s, quick %s, %s'
             % (m.get('commit'), m.get('date'), m.get('command'), m.get('cores'),
                ' / '.join('%.2f' % x for x in load) if load else '–',
                _f(m.get('real_time_factor')), _f(m.get('laser_model')),
-               _f(m.get('odometry_model')), _f(m.get('quick')))]
+               _f(m.get('odometry_model')), _f(m.get('quick')), platform_line(m.get('platform')))]
+
+
+def platform_line(p):
+    """One phrase for a meta block's ``platform``; JSONs written before it was recorded were
+    all measured on Debian 12 with Debian's ROS 1 (the machines the project is developed on)."""
+    if not p:
+        return 'platform not recorded (Debian 12)'
+    pkgs = p.get('packages') or {}
+    return '%s, Python %s, %s' % (p.get('os'), p.get('python'), ', '.join(
+        '%s %s' % (k, v) for k, v in sorted(pkgs.items(), key=lambda kv: kv[0].lower()) if v))
 
 
 def render_simulator(d):

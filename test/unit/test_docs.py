@@ -177,14 +177,28 @@ def test_meta_block():
     m = benchmarks.meta({'quick': True, 'n': 3}, real_time_factor=0.0, laser_model='tiago',
                         odometry_model='drift', quick=True,
                         argv=[os.path.join(ROOT, 'bench', 'bench_x.py'), '--quick'])
-    assert set(m) == {'commit', 'date', 'command', 'cores', 'loadavg', 'real_time_factor',
-                      'laser_model', 'odometry_model', 'quick', 'options'}
+    assert set(m) == {'commit', 'date', 'command', 'cores', 'loadavg', 'platform',
+                      'real_time_factor', 'laser_model', 'odometry_model', 'quick', 'options'}
     assert m['command'] == 'bench/bench_x.py --quick'
     assert re.match(r'^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ$', m['date'])
     assert m['cores'] == os.cpu_count() and len(m['loadavg']) == 3
     assert m['quick'] is True and m['options'] == {'quick': True, 'n': 3}
     if m['commit'] is not None:
         assert re.match(r'^[0-9a-f]{40}(-dirty)?$', m['commit'])
+
+
+def test_meta_block_names_the_platform():
+    import platform
+    import numpy
+    p = benchmarks.meta()['platform']
+    assert p['python'] == platform.python_version()
+    assert p['packages']['numpy'] == numpy.__version__
+    if os.path.exists('/etc/os-release'):
+        with open('/etc/os-release') as f:
+            assert 'PRETTY_NAME="%s"' % p['os'] in f.read()
+    line = benchmarks.platform_line(p)
+    assert line.startswith(p['os']) and 'numpy %s' % numpy.__version__ in line
+    assert benchmarks.platform_line(None) == 'platform not recorded (Debian 12)'
 
 
 def test_launch_models_follow_launch_arguments():
