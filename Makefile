@@ -35,7 +35,7 @@ ROS_HOSTNAME ?= localhost
 ROS_IP ?= 127.0.0.1
 export ROS_HOSTNAME ROS_IP
 
-.PHONY: setup apt venv ws demo test unit rostest bench obstacle-detector docs evaluate lint clean
+.PHONY: setup apt venv ws demo test unit rostest test-platforms bench obstacle-detector docs evaluate lint clean
 .DEFAULT_GOAL := setup
 
 setup: apt venv ws
@@ -72,8 +72,9 @@ $(WS)/.done: $(WS_INPUTS) $(VENV)/.done
 	  || { tail -40 $(WS)/build.log; echo "[setup] catkin_make failed, see $(WS)/build.log"; exit 1; }
 	@touch $@
 
+# DEMO_ARGS: scripts/run_demo.py's options, e.g. "--rtf 0 --png out/mission.png" (--help lists them)
 demo: setup
-	@$(ROS_ENV) && $(SYS_PY) $(ROOT)/scripts/run_demo.py
+	@$(ROS_ENV) && $(SYS_PY) $(ROOT)/scripts/run_demo.py $(DEMO_ARGS)
 
 test: setup
 	@$(ROS_ENV) && $(SYS_PY) $(ROOT)/test/run_all.py
@@ -83,6 +84,13 @@ unit: setup
 
 rostest: setup
 	@$(ROS_ENV) && $(SYS_PY) $(ROOT)/test/run_all.py --rostest-only
+
+# The other platform rows (docs/getting-started.md#platforms), each set up from the registries
+# in its own cached environment under .platforms/ (TIAGO_NAV_PLATFORMS) and tested there; needs
+# no `setup` on this machine. Rows: noetic-python, debian11, debian12, debian13.
+PLATFORMS ?= noetic-python debian11 debian13
+test-platforms:
+	@bash $(ROOT)/test/platforms/run $(PLATFORMS)
 
 # every JSON under bench/results/ that docs/benchmarks.md shows, then that page again
 # (with obstacle_detector's workspace on top when `make obstacle-detector` built it)

@@ -59,7 +59,8 @@ def main():
                                               out=lambda s: print(s, flush=True))
         final = h.pose()
         scan_xy = h.scan_points_map()
-        found = [(o.center.x, o.center.y) for o in result.obstacles] if result else []
+        obstacles = result.obstacles if result else []
+        found = [(o.center.x, o.center.y) for o in obstacles]
         truth = visible_truth(world, final) if final else []
         print()
         lines, s = truth_table(truth, found)
@@ -85,6 +86,8 @@ def main():
                    'use_corridor_law': args.corridor, 'real_time_factor': args.rtf,
                    'succeeded': code == 0, 'wall_time_s': wall, 'collisions': collisions,
                    'final_pose': list(final) if final else None,
+                   'obstacles': [{'center': [o.center.x, o.center.y], 'radius': o.radius,
+                                  'num_points': o.num_points} for o in obstacles],
                    'recall': s['recall'], 'false_positives': s['false_positives'],
                    'rms_error_m': s['rms_error'], 'max_error_m': s['max_error'],
                    'localisation_error': loc}
