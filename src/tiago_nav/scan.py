@@ -186,6 +186,14 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
     return r
 
 
+def same_ranges(a, b):
+    """True if two range arrays of one shape are equal element by element, NaN equal to NaN
+    (what ``np.array_equal(a, b, equal_nan=True)`` says, which needs numpy >= 1.19; Noetic's
+    is 1.17)."""
+    nan = np.isnan(a)
+    return bool(np.array_equal(nan, np.isnan(b)) and np.array_equal(a[~nan], b[~nan]))
+
+
 class FrozenScanCheck:
     """Tells a stuck laser driver from a live laser: a driver that hangs may go on sending its
     last ranges with new stamps. Real ranges are noisy (the TiM571's 20 mm, 1 mm steps), so two
@@ -208,7 +216,7 @@ class FrozenScanCheck:
     def __call__(self, ranges, laser_pose):
         r = np.asarray(ranges, dtype=float)
         if self.ranges is not None and r.shape == self.ranges.shape \
-                and np.array_equal(r, self.ranges, equal_nan=True) \
+                and same_ranges(r, self.ranges) \
                 and np.isfinite(r).sum() >= self.min_hits:
             dx, dy = laser_pose[0] - self.pose[0], laser_pose[1] - self.pose[1]
             turn = abs(wrap_angle(laser_pose[2] - self.pose[2]))

@@ -210,6 +210,16 @@ def test_a_repeated_scan_is_frozen_only_once_the_laser_moved():
     assert not stuck(r + 0.001, (0.1, 0.0, 0.0))         # a new scan: live again
 
 
+def test_same_ranges_takes_nan_for_nan_and_nothing_else():
+    from tiago_nav.scan import same_ranges
+    a = np.array([1.0, np.nan, np.inf, 2.0])
+    assert same_ranges(a, a.copy())
+    assert not same_ranges(a, np.array([1.0, 3.0, np.inf, 2.0]))       # a NaN is not a range
+    assert not same_ranges(a, np.array([1.0, np.nan, np.inf, np.nan]))  # nor a range a NaN
+    assert not same_ranges(a, np.array([1.0, np.nan, 25.0, 2.0]))
+    assert same_ranges(np.full(3, np.nan), np.full(3, np.nan))
+
+
 def test_the_corridor_law_blocks_on_a_frozen_laser():
     from tiago_nav.corridor import CorridorFollower, CorridorParams, Scan
     rng = np.random.default_rng(1)
