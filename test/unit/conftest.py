@@ -1,13 +1,25 @@
 """Makes the library importable from the source tree (no ROS master needed). The generated
 message modules (``tiago_nav.msg``, ``tiago_nav.srv``) live in the catkin workspace's devel space:
-when it has been built, they are joined to the package so the node modules import too."""
+when it has been built, they are joined to the package so the node modules import too.
+
+The ``ros`` marker: tests that need ROS 1's Python packages (rospy, actionlib, tf2_ros, message
+packages) or the built workspace. ``-m "not ros"`` runs the library tests alone, where ROS is
+absent (test/platforms/noetic_python.sh). A test file that needs ROS to be imported at all says
+so with a top-level ``pytestmark = pytest.mark.ros`` (or a list starting with it): such files
+are not even imported when ``ros`` is deselected, and the summary names them.
+"""
 import glob
 import os
+import re
 import sys
+
+import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
-for sp in sorted(glob.glob(os.path.join(ROOT, '.venv', 'lib', 'python3*', 'site-packages'))):
+# only the virtualenv of this Python: another version's compiled modules would not load here
+for sp in sorted(glob.glob(os.path.join(ROOT, '.venv', 'lib', 'python%d.%d' % sys.version_info[:2],
+                                        'site-packages'))):
     if sp not in sys.path:
         sys.path.append(sp)
 import tiago_nav  # noqa: E402
@@ -16,3 +28,53 @@ for d in glob.glob(os.path.join(ROOT, '.ws', 'devel', 'lib', 'python3*', 'dist-p
     if d not in tiago_nav.__path__:
         tiago_nav.__path__.append(d)
 WORLDS = os.path.join(ROOT, 'worlds')
+
+ROS_MODULE = re.compile(r'^pytestmark = \[?pytest\.mark\.ros\b', re.M)
+_not_collected = []
+
+
+def pytest_configure(config):
+    config.addinivalue_line('markers', 'ros: needs ROS 1 (rospy, actionlib, tf2_ros, message '
+                                       'packages) or the built workspace')
+
+
+class _Marks(dict):
+    def __missing__(self, name):
+        return name == 'ros'
+
+
+def ros_deselected(config):
+    """True if the ``-m`` expression leaves out tests marked ``ros`` (and only ``ros``)."""
+    expr = (config.getoption('markexpr', '') or '').strip()
+    if not expr:
+        return False
+    try:
+        return not eval(expr, {'__builtins__': {}}, _Marks())     # noqa: S307 (and/or/not of names)
+    except Exception:                                              # noqa: BLE001 (pytest reports it)
+        return False
+
+
+def _ignore(path, config):
+    if not (path.endswith('.py') and os.path.basename(path).startswith('test_')) \
+            or not ros_deselected(config):
+        return None
+    with open(path) as f:
+        if ROS_MODULE.search(f.read()):
+            _not_collected.append(os.path.basename(path))
+            return True
+    return None
+
+
+# the hook's path argument: a py.path before pytest 7 (Noetic's pytest is 4.6), a pathlib.Path since
+if int(pytest.__version__.split('.')[0]) >= 7:
+    def pytest_ignore_collect(collection_path, config):
+        return _ignore(str(collection_path), config)
+else:
+    def pytest_ignore_collect(path, config):
+        return _ignore(str(path), config)
+
+
+def pytest_terminal_summary(terminalreporter):
+    if _not_collected:
+        terminalreporter.write_line('not imported (need ROS, -m "%s"): %s' % (
+            terminalreporter.config.getoption('markexpr'), ', '.join(sorted(set(_not_collected)))))

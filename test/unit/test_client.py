@@ -60,6 +60,7 @@ def test_feedback_line():
     assert 'MOVING' in line and 'moving, 3.2 m to go' in line and '(1.00, 2.00, 0 deg)' in line
 
 
+@pytest.mark.ros                 # the node module imports rospy
 @pytest.mark.parametrize('argv', [['x', '0', '0'], ['1', '2'], ['1', '2', '-400']])
 def test_the_node_exits_2_without_a_master(argv):
     """Bad input is refused before rospy is even initialised: no master needed, nothing sent."""

@@ -14,6 +14,8 @@ from tiago_nav.sim.worlds import corridor_world
 from tiago_nav.testing.corridor import FakeCorridorRobot
 from tiago_nav.testing.fakes import FakeActionServer, FakeClock, FakePublisher
 
+# needs ROS: the node module imports rospy; its messages need the built workspace
+pytestmark = pytest.mark.ros
 msg = pytest.importorskip('tiago_nav.msg', reason='needs the built workspace (make setup)')
 
 OPEN_FLOOR = {'name': 'open', 'resolution': 0.05, 'bounds': [-5, -5, 5, 5],

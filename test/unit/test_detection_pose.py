@@ -13,6 +13,9 @@ from tiago_nav.nodes.obstacle_detection import Params
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.scene import Scene, noisy
 
+# needs ROS: the node's Params: tiago_nav.nodes.obstacle_detection imports rospy
+pytestmark = pytest.mark.ros
+
 # a closed room whose wall faces sit where the raster puts them on average (a quarter cell
 # inside the occupied band), so the registration's own bias is small (about 7 mm here)
 WALLS = [{'x': 3.5, 'y': 2.9875, 'length': 9.0, 'width': 0.15},

@@ -20,6 +20,9 @@ from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.scene import LaserConfig, Scene, noisy
 from tiago_nav.sim.world import load_world
 
+# needs ROS: the node's Params: tiago_nav.nodes.obstacle_detection imports rospy
+pytestmark = pytest.mark.ros
+
 L = LaserConfig()
 POSE = (0.3, -0.2, math.radians(10.0))        # base_footprint in map
 WORLD = load_world(os.path.join(ROOT, 'test', 'worlds', 'detection_row.yaml'))

@@ -21,6 +21,7 @@ def _read(rel):
         return f.read()
 
 
+@pytest.mark.ros                 # the node modules (their Params) import rospy
 def test_ros_api_page_is_what_the_code_generates():
     assert _read(docs.ROS_API) == docs.ros_api_page(ROOT), \
         'docs/ros_api.md is stale: run `make docs` and commit it'
@@ -31,10 +32,12 @@ def test_benchmarks_page_is_the_render_of_the_results():
         'docs/benchmarks.md is stale: run `make docs` and commit it'
 
 
+@pytest.mark.ros
 def test_docs_check_mode_agrees(capsys):
     assert docs.main(['--check', '--root', ROOT]) == 0
 
 
+@pytest.mark.ros
 @pytest.mark.parametrize('entry', [e for e in NODES if e['params']], ids=lambda e: e['node'])
 def test_every_interface_parameter_is_declared(entry):
     cls = docs.node_params(entry)
@@ -47,6 +50,7 @@ def test_every_interface_parameter_is_declared(entry):
         % (entry['node'], ', '.join(sorted(unknown)), entry['params'])
 
 
+@pytest.mark.ros
 def test_every_node_module_is_declared():
     """A node module with a Params dataclass is on the page (the client has none)."""
     modules = {os.path.splitext(os.path.basename(p))[0]

@@ -8,10 +8,10 @@ import pytest
 from conftest import ROOT
 from tiago_nav.evaluate import run, suite
 
-pytestmark = pytest.mark.skipif(
+pytestmark = [pytest.mark.ros, pytest.mark.skipif(
     shutil.which('roscore') is None or 'tiago_nav' not in os.environ.get('ROS_PACKAGE_PATH', '')
     and not os.environ.get('CMAKE_PREFIX_PATH', '').count('.ws'),
-    reason='needs the sourced workspace (source .ws/devel/setup.bash)')
+    reason='needs the sourced workspace (source .ws/devel/setup.bash)')]
 
 
 def test_one_real_run_twice(tmp_path):

@@ -2,6 +2,7 @@
 when its result has come, not when the status topic first names its end state."""
 import pytest
 
+pytestmark = pytest.mark.ros         # actionlib, tiago_nav.nodes.evaluate_run
 pytest.importorskip('actionlib')
 from actionlib import SimpleGoalState                       # noqa: E402
 from actionlib_msgs.msg import GoalStatus                   # noqa: E402

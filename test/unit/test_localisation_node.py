@@ -12,6 +12,9 @@ from tiago_nav.nodes.localisation import Params, covariance_6x6, reaches_past, s
 from tiago_nav.params import ParamError, read_params
 from tiago_nav.sim.world import WorldError
 
+# needs ROS: rospy, tiago_nav.nodes.localisation
+pytestmark = pytest.mark.ros
+
 WORLD = os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml')
 
 

@@ -15,6 +15,9 @@ from test_simulator_node import BOX, Log, fake_outputs, make_node, twist
 
 from tiago_nav.nodes.simulator import LOCKSTEP_START as S, Params, SimulatorNode
 
+# needs ROS: rospy, tiago_nav.nodes.simulator, tiago_nav.ros
+pytestmark = pytest.mark.ros
+
 
 class FakeHost:
     """The simulator's side of lockstep: records each hold's stamp and, at the holds where a

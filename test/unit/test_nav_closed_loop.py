@@ -17,6 +17,9 @@ from tiago_nav.params import read_params
 from tiago_nav.testing import navigation as simnav
 from tiago_nav.testing.navigation import ClosedLoop
 
+# needs ROS: the node's Params: tiago_nav.nodes.navigation imports rospy
+pytestmark = pytest.mark.ros
+
 
 def drive(world, goal, start=None, limit=60.0):
     loop = ClosedLoop(world, start=start)

@@ -17,6 +17,7 @@ from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
 from tiago_nav.sim.diffdrive import BaseLimits, DiffDrive
 from tiago_nav.testing.fakes import FakeActionServer, FakeClock, FakePublisher
 
+pytestmark = pytest.mark.ros         # tiago_nav.nodes.navigation (rospy, tf2_ros, move_base_msgs)
 navigation = pytest.importorskip('tiago_nav.nodes.navigation')
 
 N_BEAMS, A_MIN, A_INC, R_MIN, R_MAX = 221, -math.radians(110), math.radians(1), 0.05, 25.0

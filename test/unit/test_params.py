@@ -69,6 +69,7 @@ def test_config_yaml_lists_every_parameter_once():
     assert keys == ['radius', 'beams', 'frame', 'method', 'gui', 'start', 'laser_offset']
 
 
+@pytest.mark.ros                 # the node modules (their Params) import rospy
 @pytest.mark.parametrize('module', sorted(CONFIG_FILES))
 def test_shipped_config_equals_the_dataclass_defaults(module):
     """config/*.yaml are rendered from the dataclasses (python3 -m tiago_nav.nodes): a default
@@ -77,6 +78,7 @@ def test_shipped_config_equals_the_dataclass_defaults(module):
         assert f.read() == config_text(module), 'run: python3 -m tiago_nav.nodes ' + module
 
 
+@pytest.mark.ros                 # the node modules (their Params) import rospy
 @pytest.mark.parametrize('module', sorted(CONFIG_FILES))
 def test_shipped_config_reads_back_as_the_defaults(module):
     """rosparam reads YAML 1.1, where 1e-06 is a string: every value reads back as its default

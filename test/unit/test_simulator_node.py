@@ -23,6 +23,9 @@ from tiago_nav.testing.fakes import FakeClock, FakePublisher
 
 from tiago_nav.nodes.simulator import Outputs, Pacer, Params, SimulatorNode, read_config
 
+# needs ROS: rospy, message packages, tiago_nav.nodes.simulator
+pytestmark = pytest.mark.ros
+
 BOX = os.path.join(ROOT, 'test', 'worlds', 'sim_box.yaml')   # robot at (1, 1.5) facing the wall x = 2.5
 
 

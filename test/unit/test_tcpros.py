@@ -8,6 +8,7 @@ import time
 
 import pytest
 
+pytestmark = pytest.mark.ros         # rospy, rosgraph
 pytest.importorskip('rospy')
 from rosgraph.network import write_ros_handshake_header, encode_ros_handshake_header  # noqa: E402
 from rospy.impl.tcpros_base import TCPROSServer                                       # noqa: E402

@@ -10,6 +10,9 @@ import rospy
 from tiago_nav.ros import topics
 from tiago_nav.ros.topics import Subscription, orphaned
 
+# needs ROS: rospy, tiago_nav.ros.topics
+pytestmark = pytest.mark.ros
+
 
 class FakeSubscriber:
     made = []

@@ -84,6 +84,7 @@ def _write(tmp_path, **extra):
     return str(path)
 
 
+@pytest.mark.ros
 def test_simulator_publishes_map_to_world_frame_with_its_own_static_frames(tmp_path):
     pytest.importorskip('rospy')
     from tiago_nav.ros.conversions import pose_from_transform
@@ -100,6 +101,7 @@ def test_simulator_publishes_map_to_world_frame_with_its_own_static_frames(tmp_p
         node.close()
 
 
+@pytest.mark.ros
 def test_simulator_publishes_the_world_frame_alone_when_urdf_frames_come_from_elsewhere(tmp_path):
     pytest.importorskip('rospy')
     node = _node(_write(tmp_path, world_frame={'name': 'gazebo', 'offset': [0, 0, 0]}),
@@ -112,6 +114,7 @@ def test_simulator_publishes_the_world_frame_alone_when_urdf_frames_come_from_el
         node.close()
 
 
+@pytest.mark.ros
 def test_simulator_refuses_a_world_frame_named_like_its_own_frames(tmp_path):
     pytest.importorskip('rospy')
     with pytest.raises(WorldError, match=r"world_frame.name 'odom' is one of the simulator's own"):
@@ -168,6 +171,7 @@ def test_table_title_names_the_frame():
     assert lines[2].split()[1:3] == ['3.42', '0.37']
 
 
+@pytest.mark.ros
 def test_known_frames_names_children_and_parents():
     pytest.importorskip('tf2_ros')
     from tiago_nav.nodes.client import known_frames

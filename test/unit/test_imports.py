@@ -1,0 +1,97 @@
+"""Every module under src/tiago_nav imports. Where ROS 1 is absent (Noetic's Python emulated
+without ROS, test/platforms/noetic_python.sh) a module may fail only for want of a ROS package
+listed here: it is then skipped by name, with the package it needs. Where rospy imports, every
+module must, and so must the generated messages once the workspace is built.
+
+``python3 test/unit/test_imports.py`` prints the same as a table and exits 1 on a failure."""
+import importlib
+import importlib.util
+import os
+import sys
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+SRC = os.path.join(ROOT, 'src')
+
+# ROS 1's Python packages (Noetic's ros-noetic-*, Debian's python3-*) that the package imports, and
+# the ROS-side code generators and tools they bring; none of them is on PyPI as Noetic ships it.
+ROS_PACKAGES = frozenset((
+    'rospy', 'rosgraph', 'roslaunch', 'rosservice', 'rostopic', 'rosnode', 'rosbag', 'rostest',
+    'rosunit', 'roslib', 'rospkg', 'genpy', 'genmsg', 'catkin', 'catkin_pkg', 'actionlib',
+    'tf2_ros', 'tf2_py', 'tf2_msgs', 'actionlib_msgs', 'geometry_msgs', 'move_base_msgs',
+    'nav_msgs', 'rosgraph_msgs', 'sensor_msgs', 'std_msgs', 'std_srvs', 'visualization_msgs'))
+# generated from msg/, srv/, action/ by the catkin build (the workspace's devel space)
+GENERATED = ('tiago_nav.msg', 'tiago_nav.srv')
+
+
+def modules():
+    """Dotted names of every module under src/tiago_nav, sorted."""
+    names = []
+    for d, dirs, files in os.walk(os.path.join(SRC, 'tiago_nav')):
+        dirs[:] = sorted(x for x in dirs if x != '__pycache__')
+        for f in files:
+            if f.endswith('.py'):
+                rel = os.path.relpath(os.path.join(d, f), SRC)[:-3].split(os.sep)
+                names.append('.'.join(rel[:-1] if rel[-1] == '__init__' else rel))
+    return sorted(names)
+
+
+def ros_present():
+    return importlib.util.find_spec('rospy') is not None
+
+
+def missing_ros(e):
+    """The ROS package (or generated module) whose absence an ImportError reports, else None."""
+    name = getattr(e, 'name', None) or ''
+    if name.split('.')[0] in ROS_PACKAGES or name.startswith(GENERATED):
+        return name
+    return None
+
+
+def try_import(name):
+    """(``'ok'`` | ``'ros'`` | ``'error'``, detail) for one module."""
+    try:
+        importlib.import_module(name)
+    except ImportError as e:
+        need = missing_ros(e)
+        if need is None:
+            return 'error', '%s: %s' % (type(e).__name__, e)
+        if need.startswith(GENERATED) and ros_present():
+            return 'workspace', need
+        return ('error', 'ROS is here, yet: %s: %s' % (type(e).__name__, e)) if ros_present() \
+            else ('ros', need)
+    except Exception as e:      # noqa: BLE001 (anything else a module raises on import fails it)
+        return 'error', '%s: %s' % (type(e).__name__, e)
+    return 'ok', ''
+
+
+def test_the_module_list_is_complete():
+    assert 'tiago_nav' in modules() and 'tiago_nav.nodes.simulator' in modules()
+
+
+@pytest.mark.parametrize('name', modules())
+def test_module_imports(name):
+    status, detail = try_import(name)
+    if status == 'ros':
+        pytest.skip('%s is ROS-facing: needs %s (not installed here)' % (name, detail))
+    if status == 'workspace':
+        pytest.skip('%s needs the built workspace (make setup) for %s' % (name, detail))
+    assert status == 'ok', '%s: %s' % (name, detail)
+
+
+def main():
+    if SRC not in sys.path:
+        sys.path.insert(0, SRC)
+    counts = {}
+    for name in modules():
+        status, detail = try_import(name)
+        counts[status] = counts.get(status, 0) + 1
+        if status != 'ok':
+            print('%-9s %-40s %s' % (status, name, detail))
+    print('modules: ' + ', '.join('%d %s' % (n, s) for s, n in sorted(counts.items())))
+    return 1 if counts.get('error') else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
