@@ -142,6 +142,13 @@ def test_readme_is_short():
         'in docs/)' % (n, README_MAX_LINES)
 
 
+
+def test_the_noetic_pip_line_is_one_line_everywhere():
+    """test/platforms/noetic_python.sh runs README.md's line; getting-started.md shows the same."""
+    lines = [[x for x in _read(f).splitlines() if x.startswith('pip3 install --user ')]
+             for f in ('README.md', os.path.join('docs', 'getting-started.md'))]
+    assert len(lines[0]) == 1 and lines[0] == lines[1], lines
+
 # --- benchmarks ----------------------------------------------------------------------------
 def test_every_benchmark_script_is_run_by_make_bench():
     run = {cmd.split()[0] for _, _, runs in benchmarks.BENCHMARKS for cmd, _ in runs}
