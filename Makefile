@@ -19,7 +19,8 @@ APT_PACKAGES := ros-core-dev catkin python3-catkin-pkg python3-rospy python3-act
 	cmake g++ catkin-lint
 # PyPI-only packages, in the virtualenv (which sees the system's packages).
 # dask[distributed]: the batch evaluator's engine (tiago_nav.evaluate only; nothing else imports it).
-PIP_PACKAGES := pybullet==3.2.7 'dask[distributed]==2026.8.0' distributed==2026.8.0
+# vermin: `make lint`'s check that the code needs no Python newer than Noetic's 3.8.
+PIP_PACKAGES := pybullet==3.2.7 'dask[distributed]==2026.8.0' distributed==2026.8.0 vermin==1.9.2
 # What the workspace build depends on (file(GLOB) lists are re-read when these change).
 WS_INPUTS := CMakeLists.txt package.xml setup.py $(wildcard msg/* srv/* action/* nodes/* test/*.test env-hooks/*)
 ROS_ENV := source $(WS)/devel/setup.bash
@@ -113,8 +114,13 @@ evaluate: setup
 
 # catkin_test_changelog parses CHANGELOG.rst (REP 132) but skips sections it cannot read, so the
 # next line also checks that the topmost version section is package.xml's version.
+# vermin: no Python feature (syntax, stdlib module, function or argument) newer than Noetic's 3.8,
+# annotations included as if evaluated; nodes/ has no .py suffixes: named one by one.
 lint: setup
 	@$(ROS_ENV) && catkin_lint --strict -W2 $(WS)/src/tiago_nav
+	@$(VENV)/bin/vermin -q -t=3.8- --violations --no-tips --eval-annotations --pessimistic \
+	  setup.py src $(wildcard nodes/*) test bench scripts docs/make_graph.py \
+	  || { echo "vermin: the code above needs a Python newer than 3.8 (Noetic's)"; exit 1; }
 	@catkin_test_changelog $(ROOT)/CHANGELOG.rst 2>&1 >/dev/null \
 	  | { grep -v '^DEBUG:changelog:Ignored non-compliant title' || true; } >&2
 	@$(SYS_PY) -c 'import sys; from catkin_pkg.changelog import get_changelog_from_path as g; \
