@@ -1,0 +1,239 @@
+#!/usr/bin/env bash
+# Run the repository's own `make setup`, `make test` and `make demo` in a Debian chroot, to test a
+# platform row of DESIGN.md ("Platforms") on a machine of another Debian release.
+#
+#   test/platforms/debian_chroot.sh SUITE [STEP...]      SUITE: bullseye | bookworm | trixie
+#                                                        STEP:  setup | test | demo | shell
+#                                                        (default: setup test demo)
+#
+# - The chroot is built once with `debootstrap --variant=minbase` under
+#   ${TIAGO_NAV_PLATFORMS:-<repo>/.platforms}/SUITE/root, with only what `make` itself needs
+#   (make); everything else, the ROS packages included, is installed by the repository's
+#   `make setup`, so a run proves the Makefile's install steps. It is built anew when this script
+#   or the Makefile's apt package list changes (a stamp holds a hash of both).
+# - The repository's files (tracked and untracked-not-ignored, so uncommitted work is tested) are
+#   copied to /root/tiago_nav in the chroot; the previous copy's .venv/ and .ws/ are kept (the
+#   Makefile's stamps decide what to redo).
+# - `setup` runs with the network; `test` and `demo` run in a new network namespace with only
+#   loopback, so their ROS masters (fixed ports) cannot meet those of tests running on the host
+#   or in another chroot at the same time.
+# - The host's pip configuration, CA bundle, local apt settings and resolv.conf are copied in
+#   before every step; /proc, /sys, /dev and /dev/pts are bound in and unmounted on every exit.
+# Needs root (debootstrap, mount, chroot, unshare).
+set -euo pipefail
+
+usage() { sed -n '4,7p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2; }
+[ $# -ge 1 ] || usage
+SUITE=$1; shift
+case "$SUITE" in bullseye|bookworm|trixie) ;; *) usage ;; esac
+STEPS=("$@")
+[ ${#STEPS[@]} -gt 0 ] || STEPS=(setup test demo)
+for s in "${STEPS[@]}"; do case "$s" in setup|test|demo|shell) ;; *) usage ;; esac; done
+[ "$(id -u)" = 0 ] || { echo "$0: needs root (debootstrap, mount, chroot)" >&2; exit 2; }
+
+SCRIPT=$(readlink -f "$0")
+REPO=$(cd "$(dirname "$SCRIPT")/../.." && pwd)
+BASE=$(mkdir -p "${TIAGO_NAV_PLATFORMS:-$REPO/.platforms}/$SUITE" && cd "${TIAGO_NAV_PLATFORMS:-$REPO/.platforms}/$SUITE" && pwd)
+ROOTFS=$BASE/root
+COPY=/root/tiago_nav                      # the repository's copy, inside the chroot
+MIRROR=${TIAGO_NAV_MIRROR:-http://deb.debian.org/debian}
+# Debian 11's security suite: its index is still served but the packages it names are not (its
+# LTS ended in August 2026), so apt-get install fails on them; Debian 11 runs on its last point
+# release (11.11) and bullseye-updates. Set TIAGO_NAV_SECURITY_MIRROR to use a mirror that has them.
+if [ "$SUITE" = bullseye ]; then SECURITY_MIRROR=${TIAGO_NAV_SECURITY_MIRROR:-}
+else SECURITY_MIRROR=${TIAGO_NAV_SECURITY_MIRROR-http://deb.debian.org/debian-security}; fi
+LOG=$BASE/log
+mkdir -p "$LOG"
+# one run at a time per chroot (a run unmounts everything below it when it ends)
+exec 9>"$BASE/.lock"
+flock -n 9 || { echo "$0: another run is using $BASE" >&2; exit 1; }
+
+say() { printf '[%s %s] %s\n' "$SUITE" "$(date +%H:%M:%S)" "$*"; }
+
+# ---- mounts: every mount point under $ROOTFS, deepest first, is unmounted on any exit ----------
+mounts_under() {   # the mount points at or below $1 (from the kernel's table), deepest first
+  awk -v r="$1" '{ gsub(/\\040/, " ", $5); if ($5 == r || index($5, r "/") == 1) print $5 }' \
+    /proc/self/mountinfo | sort -r
+}
+unmount_all() {
+  local m
+  while read -r m; do
+    [ -n "$m" ] || continue
+    umount "$m" 2>/dev/null || umount -l "$m" 2>/dev/null || echo "warning: cannot unmount $m" >&2
+  done < <(mounts_under "$ROOTFS")
+}
+trap unmount_all EXIT
+trap 'exit 130' INT
+trap 'exit 143' TERM
+
+mount_all() {
+  unmount_all              # what a killed earlier run may have left
+  mount -t proc proc "$ROOTFS/proc"
+  mount --bind /sys "$ROOTFS/sys"
+  mount --bind /dev "$ROOTFS/dev"
+  mount --bind /dev/pts "$ROOTFS/dev/pts"
+  # pip's cache outside the chroot: a rebuilt chroot reuses the wheels pip built (pybullet)
+  mkdir -p "$BASE/cache/pip" "$ROOTFS/root/.cache/pip"
+  mount --bind "$BASE/cache/pip" "$ROOTFS/root/.cache/pip"
+}
+
+# rm -rf of the chroot only once nothing is mounted below it, and never across file systems
+remove_rootfs() {
+  unmount_all
+  if [ -n "$(mounts_under "$ROOTFS")" ]; then
+    echo "$0: still mounted below $ROOTFS, not removing it:" >&2; mounts_under "$ROOTFS" >&2; exit 1
+  fi
+  rm -rf --one-file-system "$ROOTFS"
+}
+
+# ---- what goes into the chroot before every step -------------------------------------------
+# the environment a step sees: a clean one, with the host's CA and pip settings passed through
+PASS_VARS=(PIP_CERT PIP_INDEX_URL PIP_EXTRA_INDEX_URL PIP_TRUSTED_HOST PIP_DEFAULT_TIMEOUT
+  PIP_DISABLE_PIP_VERSION_CHECK SSL_CERT_FILE SSL_CERT_DIR REQUESTS_CA_BUNDLE CURL_CA_BUNDLE
+  http_proxy https_proxy no_proxy HTTP_PROXY HTTPS_PROXY NO_PROXY)
+chroot_env() {
+  local v
+  ENV=(HOME=/root LANG=C.UTF-8 TERM="${TERM:-dumb}"
+       PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin)
+  for v in "${PASS_VARS[@]}"; do [ -z "${!v:-}" ] || ENV+=("$v=${!v}"); done
+}
+
+host_files() {
+  local f
+  cp -L /etc/resolv.conf "$ROOTFS/etc/resolv.conf"
+  # debootstrap writes no /etc/hosts; ROS nodes here resolve localhost (ROS_HOSTNAME), offline too
+  [ -s "$ROOTFS/etc/hosts" ] || printf '127.0.0.1\tlocalhost\n::1\tlocalhost ip6-localhost ip6-loopback\n' \
+    > "$ROOTFS/etc/hosts"
+  [ ! -f /etc/pip.conf ] || cp /etc/pip.conf "$ROOTFS/etc/pip.conf"
+  if [ -d /etc/xdg/pip ]; then mkdir -p "$ROOTFS/etc/xdg"; rm -rf "$ROOTFS/etc/xdg/pip"; cp -r /etc/xdg/pip "$ROOTFS/etc/xdg/"; fi
+  # the CA bundle the environment names (it may carry a CA that the registries need), at the
+  # same paths; and as a local CA of the chroot's ca-certificates, whose update-ca-certificates
+  # (when `make setup` installs it) would otherwise write a bundle without that CA
+  for f in "${PIP_CERT:-}" "${SSL_CERT_FILE:-}" "${REQUESTS_CA_BUNDLE:-}" "${CURL_CA_BUNDLE:-}" \
+           /etc/ssl/certs/ca-certificates.crt; do
+    if [ -n "$f" ] && [ -f "$f" ]; then mkdir -p "$ROOTFS$(dirname "$f")"; cp -L "$f" "$ROOTFS$f"; fi
+  done
+  if [ -f /etc/ssl/certs/ca-certificates.crt ]; then
+    mkdir -p "$ROOTFS/usr/local/share/ca-certificates"
+    cp -L /etc/ssl/certs/ca-certificates.crt "$ROOTFS/usr/local/share/ca-certificates/host-bundle.crt"
+  fi
+  # the host's local apt settings (proxy, mirror options): files no Debian package owns
+  for f in /etc/apt/apt.conf.d/*; do
+    [ -f "$f" ] && ! dpkg -S "$f" >/dev/null 2>&1 && cp "$f" "$ROOTFS/etc/apt/apt.conf.d/"
+  done
+  return 0
+}
+
+in_chroot() {   # in_chroot CMD...: CMD as root in the chroot, in the repository's copy if it exists
+  chroot_env
+  chroot "$ROOTFS" /usr/bin/env -i "${ENV[@]}" /bin/bash -c \
+    'cd '"$COPY"' 2>/dev/null || cd /root; exec "$@"' bash "$@"
+}
+
+in_chroot_offline() {   # as in_chroot, in a new network namespace that has only loopback
+  chroot_env
+  unshare --net -- /bin/bash -c 'ip link set lo up && exec chroot "$@"' bash \
+    "$ROOTFS" /usr/bin/env -i "${ENV[@]}" /bin/bash -c \
+    'cd '"$COPY"' 2>/dev/null || cd /root; exec "$@"' bash "$@"
+}
+
+sources() {
+  echo "deb $MIRROR $SUITE main"
+  echo "deb $MIRROR $SUITE-updates main"
+  [ -z "$SECURITY_MIRROR" ] || echo "deb $SECURITY_MIRROR $SUITE-security main"
+}
+
+# ---- the chroot itself ---------------------------------------------------------------------
+# the Makefile's apt package lists as written (every APT_* assignment with its continuation
+# lines; not as evaluated: the host is another release and the chroot may have no make yet)
+apt_list() { awk '/^APT_[A-Za-z0-9_]* *[:?+]?=/ { on = 1 } on { print } !/\\$/ { on = 0 }' "$REPO/Makefile"; }
+
+build_rootfs() {
+  command -v debootstrap >/dev/null || { say "apt-get install debootstrap (host)";
+    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq -o DPkg::Lock::Timeout=300 debootstrap >/dev/null; }
+  [ ! -e "$ROOTFS" ] || { say "removing the old chroot"; remove_rootfs; }
+  rm -f "$BASE/rootfs.stamp"
+  local t0=$SECONDS
+  say "debootstrap --variant=minbase $SUITE $ROOTFS ($MIRROR)"
+  debootstrap --variant=minbase "$SUITE" "$ROOTFS" "$MIRROR" > "$LOG/debootstrap.log" 2>&1 \
+    || { tail -30 "$LOG/debootstrap.log"; say "debootstrap failed, see $LOG/debootstrap.log"; exit 1; }
+  sources > "$ROOTFS/etc/apt/sources.list"
+  say "debootstrap: $((SECONDS - t0)) s"
+  t0=$SECONDS
+  mount_all
+  host_files
+  # what `make setup` needs to start: make (and sudo is not needed: it runs as root)
+  in_chroot bash -c 'apt-get update -qq && DEBIAN_FRONTEND=noninteractive \
+    apt-get install -y -qq --no-install-recommends make >/dev/null' > "$LOG/base.log" 2>&1 \
+    || { tail -30 "$LOG/base.log"; say "apt-get install make failed"; exit 1; }
+  unmount_all
+  echo "$want" > "$BASE/rootfs.stamp"
+  say "base packages: $((SECONDS - t0)) s"
+}
+
+# the stamp: what builds the chroot (these functions, the mirrors) and the Makefile's apt lists
+want=$( { declare -f build_rootfs sources; echo "$MIRROR $SECURITY_MIRROR"; apt_list; } | sha256sum | cut -c1-16)
+have=$(cat "$BASE/rootfs.stamp" 2>/dev/null || true)
+if [ "$have" != "$want" ] || [ ! -x "$ROOTFS/usr/bin/make" ]; then
+  build_rootfs
+else
+  say "chroot up to date ($ROOTFS)"
+fi
+
+# ---- the repository's copy -------------------------------------------------------------------
+copy_repo() {
+  local dst=$ROOTFS$COPY keep=$ROOTFS/root/.tiago_nav_keep
+  rm -rf "$keep"; mkdir -p "$keep"
+  if [ -d "$dst" ]; then
+    local d
+    for d in .venv .ws; do [ ! -d "$dst/$d" ] || mv "$dst/$d" "$keep/$d"; done
+    rm -rf --one-file-system "$dst"
+  fi
+  mkdir -p "$dst"
+  (cd "$REPO" && git ls-files -co --exclude-standard -z | while IFS= read -r -d '' f; do
+     if [ -e "$f" ] || [ -L "$f" ]; then printf '%s\0' "$f"; fi; done \
+   | tar --null -T - -cf -) | tar -C "$dst" -xf -
+  for d in .venv .ws; do [ ! -d "$keep/$d" ] || mv "$keep/$d" "$dst/$d"; done
+  rmdir "$keep"
+}
+copy_repo
+
+mount_all
+host_files
+
+# ---- the steps ------------------------------------------------------------------------------
+stamp_lines() {   # each line prefixed by the seconds since the step began
+  local t0=$SECONDS line
+  while IFS= read -r line; do printf '%4d s| %s\n' $((SECONDS - t0)) "$line"; done
+}
+
+declare -A RESULT
+rc=0
+for step in "${STEPS[@]}"; do
+  t0=$SECONDS
+  label="make $step"; [ "$step" != shell ] || label="bash (offline)"
+  say "$label"
+  case "$step" in
+    setup) in_chroot make setup 2>&1 | stamp_lines | tee "$LOG/setup.log" || { rc=1; RESULT[$step]="FAILED"; } ;;
+    test)  in_chroot_offline make test 2>&1 | stamp_lines | tee "$LOG/test.log" || { rc=1; RESULT[$step]="FAILED"; } ;;
+    demo)  in_chroot_offline make demo 2>&1 | stamp_lines | tee "$LOG/demo.log" || { rc=1; RESULT[$step]="FAILED"; } ;;
+    shell) in_chroot_offline bash -i || true ;;
+  esac
+  RESULT[$step]="${RESULT[$step]:-ok} in $((SECONDS - t0)) s"
+  say "$label: ${RESULT[$step]}"
+  if [ "$step" = setup ] && [ $rc != 0 ]; then break; fi
+done
+
+echo
+echo "== $SUITE ($ROOTFS)"
+for step in "${STEPS[@]}"; do
+  [ -n "${RESULT[$step]:-}" ] || continue
+  [ "$step" = shell ] || echo "make $step: ${RESULT[$step]}"
+  case "$step" in
+    test) sed 's/^ *[0-9]* s| //' "$LOG/test.log" | grep -E '^[0-9]+ passed, [0-9]+ failed' | tail -1 \
+            || echo "(no test summary line)" ;;
+    demo) sed 's/^ *[0-9]* s| //' "$LOG/demo.log" | grep -E '^(SUCCEEDED|ABORTED|PREEMPTED|REJECTED|demo:)' \
+            | tail -3 || true ;;
+  esac
+done
+exit $rc
