@@ -1,4 +1,4 @@
-# tiago_nav: one-command set-up, demo, tests and benchmarks on Debian 12 (see README.md).
+# tiago_nav: one-command set-up, demo, tests and benchmarks on Debian 11, 12 and 13 (see README.md).
 # Every target that needs it runs `setup` first; `setup` is idempotent and quick when done.
 SHELL := /bin/bash
 .SHELLFLAGS := -eo pipefail -c
@@ -17,10 +17,21 @@ APT_PACKAGES := ros-core-dev catkin python3-catkin-pkg python3-rospy python3-act
 	ros-robot-state-publisher \
 	python3-numpy python3-scipy python3-yaml python3-matplotlib python3-pytest python3-venv \
 	cmake g++ catkin-lint
+# By Debian release (11 bullseye, 12 bookworm, 13 trixie): Debian 13's Python 3.13 has no pybullet
+# wheel, so pip builds it, with Debian's numpy (see venv) and so with setuptools.
+DEBIAN_CODENAME := $(shell . /etc/os-release 2>/dev/null && echo "$$VERSION_CODENAME")
+APT_PACKAGES_trixie := python3-dev python3-setuptools
+APT_PACKAGES += $(APT_PACKAGES_$(DEBIAN_CODENAME))
 # PyPI-only packages, in the virtualenv (which sees the system's packages).
-# dask[distributed]: the batch evaluator's engine (tiago_nav.evaluate only; nothing else imports it).
+# pybullet 3.2.7 on Debian 11, 12 and 13: its cp39 and cp311 wheels import with Debian's numpy
+# (1.19, 1.24; it is the cp38 wheel that needs numpy >= 1.23's C API, see README's Noetic line),
+# and on 13 pip builds it (see venv).
+# dask[distributed]: the batch evaluator's engine (tiago_nav.evaluate only; nothing else imports it),
+# pinned by the system's Python (so evaluated after `apt`): 2026.8.0 needs Python >= 3.10, and
+# 2024.8.0 is the last release for Debian 11's 3.9.
 # vermin: `make lint`'s check that the code needs no Python newer than Noetic's 3.8.
-PIP_PACKAGES := pybullet==3.2.7 'dask[distributed]==2026.8.0' distributed==2026.8.0 vermin==1.9.2
+DASK_VERSION = $(shell $(SYS_PY) -c 'import sys; print("2026.8.0" if sys.version_info >= (3, 10) else "2024.8.0")')
+PIP_PACKAGES = pybullet==3.2.7 dask[distributed]==$(DASK_VERSION) distributed==$(DASK_VERSION) vermin==1.9.2
 # What the workspace build depends on (file(GLOB) lists are re-read when these change).
 WS_INPUTS := CMakeLists.txt package.xml setup.py $(wildcard msg/* srv/* action/* nodes/* test/*.test env-hooks/*)
 ROS_ENV := source $(WS)/devel/setup.bash
@@ -36,7 +47,8 @@ ROS_HOSTNAME ?= localhost
 ROS_IP ?= 127.0.0.1
 export ROS_HOSTNAME ROS_IP
 
-.PHONY: setup apt venv ws demo test unit rostest test-platforms bench obstacle-detector docs evaluate lint clean
+.PHONY: setup apt venv ws demo test unit rostest test-platforms bench obstacle-detector docs evaluate lint \
+	clean print-apt-packages print-pip-packages
 .DEFAULT_GOAL := setup
 
 setup: apt venv ws
@@ -50,13 +62,28 @@ apt:
 	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $$missing >/dev/null; \
 	fi
 
+# The package lists as this platform resolves them (PIP_PACKAGES asks the Python that `apt` installs).
+print-apt-packages:
+	@echo $(APT_PACKAGES)
+print-pip-packages:
+	@echo $(PIP_PACKAGES)
+
+# apt first (order-only: the system's Python, numpy and python3-venv), also under make -j
 venv: $(VENV)/.done
-$(VENV)/.done: Makefile
+$(VENV)/.done: Makefile | apt
 	@[ -x $(VENV)/bin/python ] || { echo "[setup] virtualenv $(VENV)"; $(SYS_PY) -m venv --system-site-packages $(VENV); }
 	@echo "[setup] pip install $(PIP_PACKAGES)"
 	@# without the shell's PYTHONPATH: a sourced workspace (another clone's) can put its own
-	@# virtualenv's pybullet there, and pip then installs nothing into this one
-	@PYTHONPATH= $(VENV)/bin/python -m pip install -q --disable-pip-version-check $(PIP_PACKAGES)
+	@# virtualenv's pybullet there, and pip then installs nothing into this one.
+	@# --no-build-isolation: where pip must build pybullet (no wheel, e.g. Python 3.13) it then
+	@# builds against the system's numpy, which its setup.py looks for; in pip's isolated build
+	@# environment it finds none and builds pybullet without numpy, whose batch ray test then reads
+	@# the simulator's ray arrays element by element.
+	@# CFLAGS: pybullet.c's numpy code passes a PyObject* as a PyArrayObject*, an error from GCC 14
+	@# on (Debian 13), a warning before (no effect where pip installs a wheel).
+	@PYTHONPATH= CFLAGS="$${CFLAGS:-} -Wno-error=incompatible-pointer-types" \
+	  $(VENV)/bin/python -m pip install -q --disable-pip-version-check --no-build-isolation \
+	  $(foreach p,$(PIP_PACKAGES),'$(p)')
 	@touch $@
 
 # .ws/src/tiago_nav is a folder of links to the repository's entries (not one link to the
