@@ -112,11 +112,12 @@ def node_section(entry):
 
 def client_usage(width=100):
     """The client's ``--help``, wrapped at a fixed width (argparse would follow the terminal's,
-    and the page must not depend on where it is generated)."""
+    and the page must not depend on where it is generated), with Python 3.10's title for the
+    options (3.9's argparse says "optional arguments:")."""
     from tiago_nav.mission import client
     parser = client._parser()
     parser.formatter_class = lambda prog: argparse.HelpFormatter(prog, width=width)
-    return parser.format_help().rstrip()
+    return parser.format_help().rstrip().replace('\noptional arguments:\n', '\noptions:\n')
 
 
 def launch_args(path):
