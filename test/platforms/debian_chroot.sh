@@ -2,9 +2,13 @@
 # Run the repository's own `make setup`, `make test` and `make demo` in a Debian chroot, to test a
 # platform row of DESIGN.md ("Platforms") on a machine of another Debian release.
 #
-#   test/platforms/debian_chroot.sh SUITE [STEP...]      SUITE: bullseye | bookworm | trixie
-#                                                        STEP:  setup | test | demo | shell
-#                                                        (default: setup test demo)
+#   test/platforms/debian_chroot.sh SUITE [STEP...]   SUITE: bullseye | bookworm | trixie
+#                                                     STEP: setup | test | demo | mission | shell
+#                                                     (default: setup test demo mission)
+#   setup: make setup; test: make test; demo: make demo (what a user runs); mission: the course
+#   mission in lockstep at full speed (make demo DEMO_ARGS="--rtf 0"), its result written to
+#   <repo>/test-results/platforms/ROW-mission.{json,png} (ROW: debian11, debian12, debian13) for
+#   test/platforms/compare_missions.py; shell: an interactive shell in the chroot, offline.
 #
 # - The chroot is built once with `debootstrap --variant=minbase` under
 #   ${TIAGO_NAV_PLATFORMS:-<repo>/.platforms}/SUITE/root, with only what `make` itself needs
@@ -14,7 +18,7 @@
 # - The repository's files (tracked and untracked-not-ignored, so uncommitted work is tested) are
 #   copied to /root/tiago_nav in the chroot; the previous copy's .venv/ and .ws/ are kept (the
 #   Makefile's stamps decide what to redo).
-# - `setup` runs with the network; `test` and `demo` run in a new network namespace with only
+# - `setup` runs with the network; the other steps run in a new network namespace with only
 #   loopback, so their ROS masters (fixed ports) cannot meet those of tests running on the host
 #   or in another chroot at the same time.
 # - The host's pip configuration, CA bundle, local apt settings and resolv.conf are copied in
@@ -22,13 +26,13 @@
 # Needs root (debootstrap, mount, chroot, unshare).
 set -euo pipefail
 
-usage() { sed -n '4,7p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2; }
+usage() { sed -n '4,11p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2; }
 [ $# -ge 1 ] || usage
 SUITE=$1; shift
-case "$SUITE" in bullseye|bookworm|trixie) ;; *) usage ;; esac
+case "$SUITE" in bullseye) ROW=debian11 ;; bookworm) ROW=debian12 ;; trixie) ROW=debian13 ;; *) usage ;; esac
 STEPS=("$@")
-[ ${#STEPS[@]} -gt 0 ] || STEPS=(setup test demo)
-for s in "${STEPS[@]}"; do case "$s" in setup|test|demo|shell) ;; *) usage ;; esac; done
+[ ${#STEPS[@]} -gt 0 ] || STEPS=(setup test demo mission)
+for s in "${STEPS[@]}"; do case "$s" in setup|test|demo|mission|shell) ;; *) usage ;; esac; done
 [ "$(id -u)" = 0 ] || { echo "$0: needs root (debootstrap, mount, chroot)" >&2; exit 2; }
 
 SCRIPT=$(readlink -f "$0")
@@ -101,9 +105,10 @@ chroot_env() {
 host_files() {
   local f
   cp -L /etc/resolv.conf "$ROOTFS/etc/resolv.conf"
-  # debootstrap writes no /etc/hosts; ROS nodes here resolve localhost (ROS_HOSTNAME), offline too
-  [ -s "$ROOTFS/etc/hosts" ] || printf '127.0.0.1\tlocalhost\n::1\tlocalhost ip6-localhost ip6-loopback\n' \
-    > "$ROOTFS/etc/hosts"
+  # debootstrap writes no /etc/hosts; the nodes resolve localhost (ROS_HOSTNAME) and dask this
+  # machine's name, offline too
+  printf '127.0.0.1\tlocalhost\n127.0.1.1\t%s\n::1\tlocalhost ip6-localhost ip6-loopback\n' \
+    "$(hostname)" > "$ROOTFS/etc/hosts"
   [ ! -f /etc/pip.conf ] || cp /etc/pip.conf "$ROOTFS/etc/pip.conf"
   if [ -d /etc/xdg/pip ]; then mkdir -p "$ROOTFS/etc/xdg"; rm -rf "$ROOTFS/etc/xdg/pip"; cp -r /etc/xdg/pip "$ROOTFS/etc/xdg/"; fi
   # the CA bundle the environment names (it may carry a CA that the registries need), at the
@@ -195,6 +200,11 @@ copy_repo() {
    | tar --null -T - -cf -) | tar -C "$dst" -xf -
   for d in .venv .ws; do [ ! -d "$keep/$d" ] || mv "$keep/$d" "$dst/$d"; done
   rmdir "$keep"
+  # the reference beside the repository (../shared/reference) that test_world compares with
+  rm -rf "$ROOTFS/root/shared"
+  if [ -d "$REPO/../shared/reference" ]; then
+    mkdir -p "$ROOTFS/root/shared" && cp -r "$REPO/../shared/reference" "$ROOTFS/root/shared/"
+  fi
 }
 copy_repo
 
@@ -217,6 +227,15 @@ for step in "${STEPS[@]}"; do
     setup) in_chroot make setup 2>&1 | stamp_lines | tee "$LOG/setup.log" || { rc=1; RESULT[$step]="FAILED"; } ;;
     test)  in_chroot_offline make test 2>&1 | stamp_lines | tee "$LOG/test.log" || { rc=1; RESULT[$step]="FAILED"; } ;;
     demo)  in_chroot_offline make demo 2>&1 | stamp_lines | tee "$LOG/demo.log" || { rc=1; RESULT[$step]="FAILED"; } ;;
+    mission)
+      out=$REPO/test-results/platforms
+      rm -f "$ROOTFS$COPY/test-results/mission."* "$out/$ROW-mission."*
+      in_chroot_offline make demo DEMO_ARGS="--rtf 0 --png $COPY/test-results/mission.png" 2>&1 \
+        | stamp_lines | tee "$LOG/mission.log" || { rc=1; RESULT[$step]="FAILED"; }
+      mkdir -p "$out"
+      for f in "$ROOTFS$COPY/test-results/mission."*; do
+        [ ! -f "$f" ] || cp "$f" "$out/$ROW-mission.${f##*.}"
+      done ;;
     shell) in_chroot_offline bash -i || true ;;
   esac
   RESULT[$step]="${RESULT[$step]:-ok} in $((SECONDS - t0)) s"
@@ -232,8 +251,8 @@ for step in "${STEPS[@]}"; do
   case "$step" in
     test) sed 's/^ *[0-9]* s| //' "$LOG/test.log" | grep -E '^[0-9]+ passed, [0-9]+ failed' | tail -1 \
             || echo "(no test summary line)" ;;
-    demo) sed 's/^ *[0-9]* s| //' "$LOG/demo.log" | grep -E '^(SUCCEEDED|ABORTED|PREEMPTED|REJECTED|demo:)' \
-            | tail -3 || true ;;
+    demo|mission) sed 's/^ *[0-9]* s| //' "$LOG/$step.log" | grep -v '^\[' \
+            | sed -n '/^== demo: /p;/^\(SUCCEEDED\|ABORTED\|PREEMPTED\|REJECTED\|final pose\|demo: \)/p;/^ground truth/,/^== demo /p' ;;
   esac
 done
 exit $rc
