@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Run the repository's own `make setup`, `make test` and `make demo` in a Debian chroot, to test a
-# platform row of DESIGN.md ("Platforms") on a machine of another Debian release.
+# Debian platform row (test/platforms/run: debian11, debian12, debian13) on a machine of another
+# Debian release.
 #
 #   test/platforms/debian_chroot.sh SUITE [STEP...]   SUITE: bullseye | bookworm | trixie
 #                                                     STEP: setup | test | demo | mission | shell
@@ -13,8 +14,8 @@
 # - The chroot is built once with `debootstrap --variant=minbase` under
 #   ${TIAGO_NAV_PLATFORMS:-<repo>/.platforms}/SUITE/root, with only what `make` itself needs
 #   (make); everything else, the ROS packages included, is installed by the repository's
-#   `make setup`, so a run proves the Makefile's install steps. It is built anew when this script
-#   or the Makefile's apt package list changes (a stamp holds a hash of both).
+#   `make setup`, so a run proves the Makefile's install steps. It is built anew when the script's
+#   build steps, the mirrors or the Makefile's apt package lists change (a stamp holds their hash).
 # - The repository's files (tracked and untracked-not-ignored, so uncommitted work is tested) are
 #   copied to /root/tiago_nav in the chroot; the previous copy's .venv/ and .ws/ are kept (the
 #   Makefile's stamps decide what to redo).
@@ -22,11 +23,13 @@
 #   loopback, so their ROS masters (fixed ports) cannot meet those of tests running on the host
 #   or in another chroot at the same time.
 # - The host's pip configuration, CA bundle, local apt settings and resolv.conf are copied in
-#   before every step; /proc, /sys, /dev and /dev/pts are bound in and unmounted on every exit.
+#   before every step; /proc, /sys, /dev and /dev/pts are bound in. On every exit (Ctrl-C and
+#   kill too) the processes still running in the chroot (a node a failed test left) are stopped
+#   and everything mounted below it is unmounted.
 # Needs root (debootstrap, mount, chroot, unshare).
 set -euo pipefail
 
-usage() { sed -n '4,11p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2; }
+usage() { sed -n '5,12p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2; }
 [ $# -ge 1 ] || usage
 SUITE=$1; shift
 case "$SUITE" in bullseye) ROW=debian11 ;; bookworm) ROW=debian12 ;; trixie) ROW=debian13 ;; *) usage ;; esac
@@ -37,7 +40,7 @@ for s in "${STEPS[@]}"; do case "$s" in setup|test|demo|mission|shell) ;; *) usa
 
 SCRIPT=$(readlink -f "$0")
 REPO=$(cd "$(dirname "$SCRIPT")/../.." && pwd)
-BASE=$(mkdir -p "${TIAGO_NAV_PLATFORMS:-$REPO/.platforms}/$SUITE" && cd "${TIAGO_NAV_PLATFORMS:-$REPO/.platforms}/$SUITE" && pwd)
+BASE=$(mkdir -p "${TIAGO_NAV_PLATFORMS:-$REPO/.platforms}/$SUITE" && cd "${TIAGO_NAV_PLATFORMS:-$REPO/.platforms}/$SUITE" && pwd -P)
 ROOTFS=$BASE/root
 COPY=/root/tiago_nav                      # the repository's copy, inside the chroot
 MIRROR=${TIAGO_NAV_MIRROR:-http://deb.debian.org/debian}
@@ -66,7 +69,26 @@ unmount_all() {
     umount "$m" 2>/dev/null || umount -l "$m" 2>/dev/null || echo "warning: cannot unmount $m" >&2
   done < <(mounts_under "$ROOTFS")
 }
-trap unmount_all EXIT
+chroot_pids() {   # the processes whose root is the chroot
+  local p
+  for p in /proc/[0-9]*; do
+    [ "$(readlink "$p/root" 2>/dev/null)" != "$ROOTFS" ] || echo "${p#/proc/}"
+  done
+}
+stop_chroot_processes() {   # TERM, up to 5 s, then KILL
+  local pids i
+  pids=$(chroot_pids)
+  [ -n "$pids" ] || return 0
+  echo "stopping what still runs in the chroot: $(echo $pids)" >&2
+  kill -TERM $pids 2>/dev/null || true
+  for i in 1 2 3 4 5 6 7 8 9 10; do
+    sleep 0.5; pids=$(chroot_pids); [ -n "$pids" ] || return 0
+  done
+  kill -KILL $pids 2>/dev/null || true
+  sleep 0.5
+}
+cleanup() { stop_chroot_processes; unmount_all; }
+trap cleanup EXIT
 trap 'exit 130' INT
 trap 'exit 143' TERM
 
@@ -217,27 +239,37 @@ stamp_lines() {   # each line prefixed by the seconds since the step began
   while IFS= read -r line; do printf '%4d s| %s\n' $((SECONDS - t0)) "$line"; done
 }
 
+run_step() {   # run_step STEP: the step's command, its output timestamped into $LOG/STEP.log
+  case "$1" in
+    setup)   in_chroot make setup ;;
+    test)    in_chroot_offline make test ;;
+    demo)    in_chroot_offline make demo ;;
+    mission) in_chroot_offline make demo DEMO_ARGS="--rtf 0 --png $COPY/test-results/mission.png" ;;
+  esac 2>&1 | stamp_lines | tee "$LOG/$1.log"
+}
+
 declare -A RESULT
 rc=0
+out=$REPO/test-results/platforms
 for step in "${STEPS[@]}"; do
   t0=$SECONDS
   label="make $step"; [ "$step" != shell ] || label="bash (offline)"
   say "$label"
-  case "$step" in
-    setup) in_chroot make setup 2>&1 | stamp_lines | tee "$LOG/setup.log" || { rc=1; RESULT[$step]="FAILED"; } ;;
-    test)  in_chroot_offline make test 2>&1 | stamp_lines | tee "$LOG/test.log" || { rc=1; RESULT[$step]="FAILED"; } ;;
-    demo)  in_chroot_offline make demo 2>&1 | stamp_lines | tee "$LOG/demo.log" || { rc=1; RESULT[$step]="FAILED"; } ;;
-    mission)
-      out=$REPO/test-results/platforms
-      rm -f "$ROOTFS$COPY/test-results/mission."* "$out/$ROW-mission."*
-      in_chroot_offline make demo DEMO_ARGS="--rtf 0 --png $COPY/test-results/mission.png" 2>&1 \
-        | stamp_lines | tee "$LOG/mission.log" || { rc=1; RESULT[$step]="FAILED"; }
+  if [ "$step" = shell ]; then
+    in_chroot_offline bash -i || true
+  else
+    [ "$step" != mission ] || rm -f "$ROOTFS$COPY/test-results/mission."* "$out/$ROW-mission."*
+    # in the background, waited for: a TERM or INT then ends the run at once (bash runs a trap
+    # only once the foreground command is done), and cleanup stops the step's processes
+    run_step "$step" &
+    wait $! || { rc=1; RESULT[$step]="FAILED"; }
+    if [ "$step" = mission ]; then
       mkdir -p "$out"
       for f in "$ROOTFS$COPY/test-results/mission."*; do
         [ ! -f "$f" ] || cp "$f" "$out/$ROW-mission.${f##*.}"
-      done ;;
-    shell) in_chroot_offline bash -i || true ;;
-  esac
+      done
+    fi
+  fi
   RESULT[$step]="${RESULT[$step]:-ok} in $((SECONDS - t0)) s"
   say "$label: ${RESULT[$step]}"
   if [ "$step" = setup ] && [ $rc != 0 ]; then break; fi
