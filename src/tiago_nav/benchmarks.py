@@ -233,9 +233,9 @@ def launch_models(launch_args=(), root=ROOT):
 def meta(options=None, *, real_time_factor=None, laser_model=None, odometry_model=None,
          quick=False, argv=None, root=ROOT):
     """The ``meta`` block of a benchmark's JSON: the code (commit), when (UTC), the command line,
-    the machine (cores, load average), the platform (:func:`platform_info`) and the conditions (real-time factor, laser and odometry
-    models, quick run); ``options`` (e.g. ``vars(args)``) are the benchmark's own options.
-    A value that does not apply is given as a string saying why (e.g. ``'in process'``)."""
+    the machine (cores, load average), the platform (:func:`platform_info`) and the conditions
+    (real-time factor, laser and odometry models, quick run); ``options`` (e.g. ``vars(args)``)
+    are the benchmark's own options. A value that does not apply is given as a string saying why (e.g. ``'in process'``)."""
     argv = list(sys.argv if argv is None else argv)
     if argv:
         script = os.path.abspath(argv[0])

@@ -1,13 +1,10 @@
 """Every module under src/tiago_nav imports. Where ROS 1 is absent (Noetic's Python emulated
 without ROS, test/platforms/noetic_python.sh) a module may fail only for want of a ROS package
 listed here: it is then skipped by name, with the package it needs. Where rospy imports, every
-module must, and so must the generated messages once the workspace is built.
-
-``python3 test/unit/test_imports.py`` prints the same as a table and exits 1 on a failure."""
+module must, and so must the generated messages once the workspace is built."""
 import importlib
 import importlib.util
 import os
-import sys
 
 import pytest
 
@@ -79,19 +76,3 @@ def test_module_imports(name):
         pytest.skip('%s needs the built workspace (make setup) for %s' % (name, detail))
     assert status == 'ok', '%s: %s' % (name, detail)
 
-
-def main():
-    if SRC not in sys.path:
-        sys.path.insert(0, SRC)
-    counts = {}
-    for name in modules():
-        status, detail = try_import(name)
-        counts[status] = counts.get(status, 0) + 1
-        if status != 'ok':
-            print('%-9s %-40s %s' % (status, name, detail))
-    print('modules: ' + ', '.join('%d %s' % (n, s) for s, n in sorted(counts.items())))
-    return 1 if counts.get('error') else 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())
