@@ -44,7 +44,11 @@ End of the corridor (:func:`wall_end`): along each wall line, slices where that 
 point within ``end_band`` of the line; the end is where, after the wall was seen, a side has no
 wall for ``end_gap`` metres (a wall turning away at an angle leaves the band within a few
 centimetres; a slight bend does not). The end point is kept in the odom frame; the robot stops
-``exit_margin`` past it, facing along the corridor.
+``exit_margin`` past it, facing along the corridor, or earlier where something beyond the end
+lies straight ahead (:func:`stop_distance`): at a bend the outer wall crosses the corridor's
+extension, so the stop point is ``end_clearance`` before the robot's disc would touch it. The
+law does not turn into the next leg: it stops before the bend (centred, with the outer wall
+``end_clearance`` ahead), and the mission drives the rest with move_base.
 
 Scans are read by REP 117 (:mod:`tiago_nav.scan`, :meth:`CorridorFollower.update_laser`): walls
 are fitted from hits only; a too-close beam (-inf) is an obstacle at ``range_min`` along it for
@@ -101,6 +105,8 @@ class CorridorParams:
     end_band: float = param(0.25, '[m] a slice "has a wall" with a point this close to the line', gt=0)
     end_gap: float = param(0.5, '[m] one side without wall for this long = end of the corridor', gt=0)
     exit_margin: float = param(0.35, '[m] stop the base centre this far past the end', ge=0)
+    end_clearance: float = param(0.25, '[m] past the end, stop this far before anything straight '
+                                       'ahead (the outer wall of a bend)', ge=0)
     stop_margin: float = param(0.08, '[m] front safety: stop this far before touching anything '
                                      'ahead', ge=0)
     max_jump: float = param(0.2, '[m] a wall fit this far from the tracked centre line is rejected',
@@ -345,6 +351,28 @@ def wall_end(points, walls, params, horizon=None):
     return min(ends) if ends else None
 
 
+def stop_distance(points, walls, end_u, params):
+    """Where [m along the corridor from the robot] the law stops once a wall end is seen at
+    ``end_u`` [m]: ``end_u + exit_margin``, or earlier so that the robot's disc, centred on the
+    centre line, stays ``end_clearance`` short of every robot-frame point beyond the end within
+    its width (e.g. the outer wall of a bend, which crosses the corridor's extension). Points
+    before the end are not considered: an obstacle inside the corridor is the front safety
+    check's (``blocked``)."""
+    p = params
+    stop = end_u + p.exit_margin
+    pts = np.asarray(points, float).reshape(-1, 2)
+    if pts.size == 0:
+        return stop
+    u, w = _frame(pts, walls.theta)
+    rel = w - 0.5 * (walls.d_left + walls.d_right)
+    r = p.robot_radius
+    m = (u >= end_u) & (np.abs(rel) < r)
+    if np.any(m):
+        touch = u[m] - np.sqrt(r * r - rel[m] ** 2)
+        stop = min(stop, float(touch.min()) - p.end_clearance)
+    return stop
+
+
 def front_free_distance(points, radius, horizon=25.0):
     """How far [m] the robot (a disc of ``radius``) can drive straight ahead before touching
     one of the robot-frame ``points``."""
@@ -442,6 +470,8 @@ class CorridorFollower:
         self.line = None            # (x, y, theta) of the centre line in odom: point + direction
         self.width = None
         self.end = None             # (x, y) odom point on the centre line where a wall ends
+        self.stop = None            # (x, y) odom point on the centre line where the law stops
+        self.stop_short = False     # ... short of end + exit_margin: something lies beyond the end
         self.points = np.zeros((0, 2))     # last scan's hits, odom frame
         self.too_close = np.zeros((0, 2))  # its too-close beams at range_min, odom frame
         self.unusable = ''                 # why the last scan said nothing, if it did not
@@ -516,9 +546,12 @@ class CorridorFollower:
         self.line = (x - c * math.sin(th), y + c * math.cos(th), th)
         end_u = wall_end(local, walls, p)
         if end_u is not None:
-            # the end's odom point on the centre line, ahead of the robot by end_u
+            # the end's odom point on the centre line, ahead of the robot by end_u, and the stop
             px, py = self._project(pose_odom)
             self.end = (px + end_u * math.cos(th), py + end_u * math.sin(th))
+            stop_u = stop_distance(local, walls, end_u, p)
+            self.stop_short = stop_u < end_u + p.exit_margin - 1e-9
+            self.stop = (px + stop_u * math.cos(th), py + stop_u * math.sin(th))
         return walls
 
     def _line_in_robot(self, pose):
@@ -543,11 +576,10 @@ class CorridorFollower:
 
     def remaining(self, pose):
         """Distance [m] along the corridor to the stop point, or ``None`` before the end is seen."""
-        if self.end is None:
+        if self.stop is None:
             return None
         lth = self.line[2]
-        along = (pose[0] - self.end[0]) * math.cos(lth) + (pose[1] - self.end[1]) * math.sin(lth)
-        return self.p.exit_margin - along
+        return (self.stop[0] - pose[0]) * math.cos(lth) + (self.stop[1] - pose[1]) * math.sin(lth)
 
     # --- control --------------------------------------------------------------------------
     def moved_to(self, pose_odom):
@@ -574,6 +606,9 @@ class CorridorFollower:
         rem = self.remaining(pose_odom)
         if rem is not None and rem <= 0.02:
             cmd.state, cmd.reason = 'done', 'reached the end of the corridor'
+            if self.stop_short:
+                cmd.reason += (' (stopped %.2f m before a wall ahead past its end: it bends or '
+                               'ends there)' % p.end_clearance)
             return cmd
         if self.max_distance is not None and self.travelled >= self.max_distance - 0.01:
             cmd.state = 'done'

@@ -4,12 +4,21 @@ import math
 
 
 def corridor_world(width, length=5.0, bend_deg=0.0, bend_at=None, start=(-1.0, 0.0, 0.0),
-                   wall=0.15, obstacle=None, name='corridor'):
+                   wall=0.15, obstacle=None, name='corridor', mitre=False):
     """A test and benchmark world (a dict for :meth:`tiago_nav.sim.world.World.from_dict`): a
     closed room (x < 0) whose doorway at x = 0 opens into a corridor of ``width`` [m] whose
     centre line runs from (0, 0) along +x for ``bend_at`` (default ``length``) metres, then
     turns by ``bend_deg`` [deg] for the rest of ``length``; open floor after it (the corridor is
-    the only way out of the room). ``start`` is ``(x, y, yaw_deg)``; ``obstacle`` an optional ``(x, y, radius)`` movable cylinder."""
+    the only way out of the room). ``start`` is ``(x, y, yaw_deg)``; ``obstacle`` an optional ``(x, y, radius)`` movable cylinder.
+
+    At a bend, by default each leg's walls run the leg's full length (plus 0.1 m), so the inner
+    walls of the two legs cross into each other's corridor: a protruding inner corner, harmless
+    for the slight bends of :func:`rooms_world` but a wall across the way at sharp ones. With
+    ``mitre=True`` the wall faces meet at the mitre points (the corners of a corridor of
+    constant ``width``, up to 90 deg): the inner faces end exactly there, the outer walls run
+    ``wall`` past it to close the outer corner."""
+    if mitre and bend_deg and bend_at is not None and length > bend_at:
+        return _mitred_corridor_world(width, length, bend_deg, bend_at, start, wall, obstacle, name)
     bend_at = length if bend_at is None else bend_at
     h = width / 2.0 + wall / 2.0
     walls = []
@@ -45,6 +54,39 @@ def corridor_world(width, length=5.0, bend_deg=0.0, bend_at=None, start=(-1.0, 0
          'corridor': {'entry': [0.0, 0.0], 'exit': [ex, ey], 'width': width}}
     if obstacle is not None:
         d['movable_obstacles'] = [{'x': obstacle[0], 'y': obstacle[1], 'radius': obstacle[2]}]
+    return d
+
+
+def _mitred_corridor_world(width, length, bend_deg, bend_at, start, wall, obstacle, name):
+    """:func:`corridor_world` with ``mitre=True`` and a bend (|bend_deg| <= 90)."""
+    if not 0.0 < abs(bend_deg) <= 90.0:
+        raise ValueError('mitre: the bend must be within +-90 deg, not %g' % bend_deg)
+    # the straight world gives the start room, the doorway and the dict's other keys
+    d = corridor_world(width, length=length, bend_deg=bend_deg, bend_at=bend_at, start=start,
+                       wall=wall, obstacle=obstacle, name=name)
+    b = math.radians(bend_deg)
+    d1, d2 = (1.0, 0.0), (math.cos(b), math.sin(b))
+    n1, n2 = (0.0, 1.0), (-math.sin(b), math.cos(b))
+    bx, by = bend_at, 0.0
+    ex, ey = bx + (length - bend_at) * d2[0], by + (length - bend_at) * d2[1]
+    walls = []
+    for side in (1, -1):
+        f = side * width / 2.0
+        # the mitre point of this side's face: B + f (n1 + n2) / (1 + cos b)
+        k = f / (1.0 + math.cos(b))
+        mx, my = bx + k * (n1[0] + n2[0]), by + k * (n1[1] + n2[1])
+        outer = side * b < 0            # the side away from the turn
+        ext = wall if outer else 0.0
+        faces = (((0.0, f), (mx + ext * d1[0], my + ext * d1[1]), n1),
+                 ((mx - ext * d2[0], my - ext * d2[1]), (ex + f * n2[0], ey + f * n2[1]), n2))
+        for (ax, ay), (cx, cy), n in faces:
+            ln = math.hypot(cx - ax, cy - ay)
+            walls.append({'x': (ax + cx) / 2.0 + side * n[0] * wall / 2.0,
+                          'y': (ay + cy) / 2.0 + side * n[1] * wall / 2.0,
+                          'length': ln, 'width': wall,
+                          'yaw_deg': math.degrees(math.atan2(cy - ay, cx - ax))})
+    # keep the start room's walls (the straight world's last five)
+    d['walls'] = walls + d['walls'][4:]
     return d
 
 
