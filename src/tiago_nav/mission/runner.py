@@ -146,6 +146,20 @@ def no_corridor_scan(topic, timeout):
             'pose B' % (topic, timeout))
 
 
+class _ServerAborted(StageError):
+    """The stage's action server ended the goal ABORTED (its own verdict, ``reason`` its status
+    text), as opposed to the mission giving up on it (no server, server gone, timeout)."""
+
+    def __init__(self, stage, what, status, reason):
+        super().__init__(stage, '%s %s: %s' % (what, status, reason))
+        self.server_reason = reason
+
+
+def handoff_sentence(reason):
+    """The NAVIGATING feedback when the corridor law gives up and move_base takes over."""
+    return 'the corridor law stopped (%s): move_base drives the rest of the way' % reason
+
+
 class _Preempted(Exception):
     def __init__(self, stage):
         super().__init__(stage)
@@ -166,7 +180,8 @@ class MissionRunner:
     answer; :class:`DetectionError` when it could not be asked), ``stop_robot()`` and
     ``publish_feedback(state, status, pose)``.
 
-    Every failure ends the goal ABORTED with ``'<stage> failed: <reason>'``; an unexpected
+    Every failure ends the goal ABORTED with ``'<stage> failed: <reason>'`` (but corridor_controller's
+    own abort hands over to move_base: :meth:`_corridor`); an unexpected
     exception too, with its type and text. Cancelling ends it PREEMPTED. The robot is told to
     stop in every case.
     """
@@ -265,6 +280,8 @@ class MissionRunner:
             p = self.b.poll(stage)
             if p.status == SUCCEEDED:
                 return p
+            if p.status == ABORTED:
+                raise _ServerAborted(stage, what, p.status, p.text or 'no reason given')
             if p.status != ACTIVE:
                 reason = p.text or 'no reason given'
                 raise StageError(stage, '%s %s: %s' % (what, p.status, reason))
@@ -290,7 +307,13 @@ class MissionRunner:
     def _corridor(self, goal):
         """The corridor stage: the law runs only where a corridor leads toward pose B; otherwise
         the stage ends at once with the CORRIDOR feedback :data:`NO_CORRIDOR` (the state stays
-        CORRIDOR: the stage decided, and NAVIGATING follows as always)."""
+        CORRIDOR: the stage decided, and NAVIGATING follows as always).
+
+        When corridor_controller itself aborts the goal (blocked ahead, walls lost...), the
+        mission does not end: the NAVIGATING feedback :func:`handoff_sentence` gives its reason
+        and move_base drives the rest of the way (it plans around what stopped the law, or
+        fails with its own reason). A corridor stage the mission could not run (no server, the
+        server gone, a timeout, no scan to judge the corridor) still aborts the mission."""
         self.feedback(CORRIDOR, 'looking for a corridor toward pose B')
         if self.b.preempt_requested():
             raise _Preempted('corridor')
@@ -306,9 +329,14 @@ class MissionRunner:
                     getattr(f, 'distance', None), getattr(f, 'lateral_offset', None),
                     getattr(f, 'left_distance', None), getattr(f, 'right_distance', None)),
                     force=False)
-        p = self._run_action('corridor', 'corridor_controller',
-                             (self.cfg.corridor_max_speed, self.cfg.corridor_max_distance),
-                             self.cfg.corridor_timeout, tick)
+        try:
+            p = self._run_action('corridor', 'corridor_controller',
+                                 (self.cfg.corridor_max_speed, self.cfg.corridor_max_distance),
+                                 self.cfg.corridor_timeout, tick)
+        except _ServerAborted as e:
+            self.log('corridor_controller aborted: %s; handing over to move_base' % e.server_reason)
+            self.feedback(NAVIGATING, handoff_sentence(e.server_reason))
+            return
         r = p.result
         dist = getattr(r, 'distance', None)
         self.log('corridor done%s%s' % (' after %.1f m' % dist if dist is not None else '',
