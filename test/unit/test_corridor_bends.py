@@ -149,3 +149,11 @@ def test_a_corridor_stage_that_cannot_run_still_aborts():
     out = MissionRunner(b, CFG).run(mission.Goal(5.0, 0.0, -45.0, True))
     assert out.status == ABORTED and out.stage == 'corridor'
     assert b.sent == ['corridor']
+
+
+def test_a_law_that_stopped_at_a_bend_says_why_before_navigating():
+    b = FakeBackend()                               # corridor result: 1.0 m, 'corridor end'
+    out = MissionRunner(b, CFG).run(mission.Goal(5.0, 0.0, -45.0, True))
+    assert out.status == SUCCEEDED, out.message
+    lines = [s for _, st_, s, _ in b.feedbacks if st_ == mission.CORRIDOR]
+    assert lines[-1] == 'corridor law done after 1.0 m: corridor end; navigating on to pose B'

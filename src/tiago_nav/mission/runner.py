@@ -13,8 +13,9 @@ from typing import Any, List, Optional, Tuple
 
 from tiago_nav.geometry import wrap_angle
 from tiago_nav.mission.goals import GoalError, validate_goal
-from tiago_nav.mission.sentences import (corridor_sentence, fmt_pose, goal_sentence,
-                                         motion_sentence, plural, remaining_path_length)
+from tiago_nav.mission.sentences import (corridor_done_sentence, corridor_sentence, fmt_pose,
+                                         goal_sentence, motion_sentence, plural,
+                                         remaining_path_length)
 from tiago_nav.motion import MotionMonitor, wait_until_still
 from tiago_nav.params import param, validate
 
@@ -341,6 +342,7 @@ class MissionRunner:
         dist = getattr(r, 'distance', None)
         self.log('corridor done%s%s' % (' after %.1f m' % dist if dist is not None else '',
                                          ': %s' % r.reason if getattr(r, 'reason', '') else ''))
+        self.feedback(CORRIDOR, corridor_done_sentence(dist, getattr(r, 'reason', '')))
 
     def _to_go(self, goal, pose):
         if pose is None:

@@ -28,6 +28,17 @@ def corridor_sentence(distance=None, lateral_offset=None, left=None, right=None)
     return s
 
 
+def corridor_done_sentence(distance=None, reason=''):
+    """The last CORRIDOR sentence when the law succeeded: how far it drove [m] and why it
+    stopped (corridor_controller's result), before move_base drives on to pose B."""
+    s = 'corridor law done'
+    if distance is not None and math.isfinite(distance):
+        s += ' after %.1f m' % distance
+    if reason:
+        s += ': %s' % reason
+    return s + '; navigating on to pose B'
+
+
 def motion_sentence(moving, to_go):
     """``'moving, 3.2 m to go'`` / ``'stopped, 0.4 m to go'`` (``to_go`` [m] or None)."""
     word = 'moving' if moving else 'stopped'
