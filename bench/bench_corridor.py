@@ -14,8 +14,17 @@ corridor's first metre, minimum wall clearance of the base's disc.
    at the pose where the law stopped (same start, same end), when nodes/navigation is a real
    node (not the placeholder).
 
+3. bends (``--bends``, or alone with ``--bends-only``, which keeps the rest of corridor.json):
+   the shipped worlds/corridor_bend_{30,45,60,90}.yaml (1.1 m wide). The law in process from
+   seeded starts around the world's start (where it stops, contact, clearance), and the whole
+   mission to each world's pose B with the law on through the batch evaluator (``rosrun
+   tiago_nav evaluate``; run this inside a private network namespace as docs/evaluation.md
+   says), profiles tiago and ideal, 2 seeds: success, collisions, minimum clearance of the
+   base's disc to any wall or cylinder from the ground-truth path (exact, segment geometry) and
+   the evaluator's own (its 5 cm distance grid), and the corridor stage's last sentence.
+
 Writes bench/results/corridor.json and corridor.png. Usage: bench/bench_corridor.py [--quick]
-[--no-ros]
+[--no-ros] [--bends | --bends-only]
 """
 import argparse
 import json
@@ -289,17 +298,165 @@ def plot(results, tracks, path):
     plt.close(fig)
 
 
+BEND_WORLDS = [os.path.join(ROOT, 'worlds', 'corridor_bend_%d.yaml' % b) for b in (30, 45, 60, 90)]
+BEND_PROFILES = {
+    'tiago': {'laser_model': 'tiago', 'odometry_model': 'drift', 'localisation': 'scan_matching',
+              'laser_noise': 0.01},
+    'ideal': {'laser_model': 'ideal', 'odometry_model': 'ideal', 'localisation': 'ground_truth',
+              'laser_noise': 0.01}}
+
+
+def pose_b_of(path):
+    """Pose B [x, y, yaw_deg] from a bend world's header comment (``Pose B: [x, y, yaw]``)."""
+    with open(path) as f:
+        for line in f:
+            if 'Pose B: [' in line:
+                return [float(v) for v in line.split('Pose B: [')[1].split(']')[0].split(',')]
+    raise ValueError('%s: no "Pose B: [x, y, yaw]" in its header' % path)
+
+
+def bends(n_lib, seeds, use_ros):
+    """Part 3 of the module docstring: ``{'worlds': {name: ...}, 'met': ...}``."""
+    from tiago_nav.testing.corridor import clearance
+    out = {'definitions': {
+        'law.stopped': 'the corridor goal\'s end: done (SUCCEEDED) or the reason it was not',
+        'law.stop_before_corner': 'the final base centre along the first leg minus the inner '
+                                  'corner\'s position along it [m] (negative: before the corner)',
+        'min_clearance': 'min distance from the base disc (r %g) to any wall or cylinder over the '
+                         'run, exact from the ground-truth path [m]' % ROBOT_R,
+        'min_clearance_grid': 'the evaluator\'s min_clearance_m (distance field on the world\'s '
+                              '5 cm raster: up to ~4 cm lower than the exact figure) [m]'},
+        'worlds': {}}
+    header = '%-18s %-8s %6s %10s %10s %12s' % ('bend world', 'run', 'ok', 'collisions',
+                                                 'clear min', 'grid min')
+    print(header)
+    for path in BEND_WORLDS:
+        world = load_world(path)
+        name = world.name
+        bend = math.radians(pose_b_of(path)[2])
+        # the inner corner along the first leg (scripts/make_bend_worlds.py: bend at x = 3 m)
+        corner = 3.0 - 0.5 * world.corridor.width * math.tan(abs(bend) / 2)
+        rows = []
+        for s in starts(world.start_pose, n_lib, 300):
+            sim = Simulator(world, SimConfig(laser_noise=0.01, seed=1),
+                            start_pose=(s[0], s[1], math.radians(s[2])))
+            track = []
+            try:
+                cmd, _ = run_in_simulator(sim, timeout=60.0,
+                                          on_step=lambda q, c: track.append(tuple(q.pose)))
+                tr = np.array(track)
+                c = clearance(world, tr[:, :2])
+                rows.append({'start': [round(v, 3) for v in s],
+                             'stopped': 'done' if cmd.state == 'done' else cmd.reason,
+                             'reason': cmd.reason, 'collisions': int(sim.collisions),
+                             'min_clearance': round(c, 3),
+                             'stop_before_corner': round(float(tr[-1, 0]) - corner, 3),
+                             'final_lateral': round(float(tr[-1, 1]), 3),
+                             'success': bool(cmd.state == 'done' and sim.collisions == 0
+                                             and c >= 0.05)})
+            finally:
+                sim.close()
+        res = {'bend_deg': round(math.degrees(bend), 1), 'width': world.corridor.width,
+               'pose_b': pose_b_of(path),
+               'law': {'trials': len(rows), 'success': sum(r['success'] for r in rows),
+                       'collisions': sum(r['collisions'] for r in rows),
+                       'min_clearance': min(r['min_clearance'] for r in rows),
+                       'stop_before_corner': [min(r['stop_before_corner'] for r in rows),
+                                              max(r['stop_before_corner'] for r in rows)],
+                       'trials_detail': rows}}
+        out['worlds'][name] = res
+        print('%-18s %-8s %6s %10d %10.3f %12s' % (name, 'law', '%d/%d' % (res['law']['success'], len(rows)),
+                                                   res['law']['collisions'], res['law']['min_clearance'],
+                                                   '-'), flush=True)
+    if use_ros:
+        for name, rows in mission_trials(seeds).items():
+            res = out['worlds'][name]
+            res['missions'] = {'runs': len(rows), 'success': sum(r['success'] for r in rows),
+                               'collisions': sum(r['collisions'] for r in rows),
+                               'min_clearance': min(r['min_clearance'] for r in rows),
+                               'min_clearance_grid': min(r['min_clearance_grid'] for r in rows),
+                               'runs_detail': rows}
+            m = res['missions']
+            print('%-18s %-8s %6s %10d %10.3f %12.3f' % (name, 'mission', '%d/%d' % (m['success'], m['runs']),
+                                                         m['collisions'], m['min_clearance'],
+                                                         m['min_clearance_grid']), flush=True)
+    ws = out['worlds'].values()
+    out['met'] = {
+        'law_stops_clear': all(w['law']['success'] == w['law']['trials'] for w in ws),
+        'missions_succeed': (all(w['missions']['success'] == w['missions']['runs'] for w in ws)
+                             if use_ros else None),
+        'no_collision': all(w['law']['collisions'] == 0 and w.get('missions', {}).get('collisions', 0) == 0
+                            for w in ws),
+        'min_clearance': min(min(w['law']['min_clearance'], w.get('missions', {}).get('min_clearance', 1.0))
+                             for w in ws) >= 0.05}
+    return out
+
+
+def mission_trials(seeds):
+    """The missions of part 3 through the batch evaluator: ``{world name: [run, ...]}``."""
+    import csv
+    from tiago_nav.testing.corridor import clearance
+    tmp = tempfile.mkdtemp(prefix='bench_corridor_bends_')
+    suite = {'name': 'corridor_bends',
+             'defaults': {'real_time_factor': 0, 'sim_time_limit': 180, 'wall_time_limit': 300,
+                          'detection_tolerance': 0.05},
+             'worlds': [{'file': p, 'poses': [pose_b_of(p)]} for p in BEND_WORLDS],
+             'profiles': BEND_PROFILES, 'corridor_law': [True],
+             'seeds': {'count': seeds, 'start': 1}}
+    suite_path = os.path.join(tmp, 'suite.yaml')
+    with open(suite_path, 'w') as f:
+        yaml.safe_dump(suite, f)
+    out_dir = os.path.join(tmp, 'out')
+    subprocess.run(['rosrun', 'tiago_nav', 'evaluate', suite_path, '--out', out_dir, '--workers', '1'],
+                   stdout=subprocess.DEVNULL, timeout=3600)
+    worlds = {p: load_world(p) for p in BEND_WORLDS}
+    by_world = {}
+    with open(os.path.join(out_dir, 'results.csv')) as f:
+        for r in csv.DictReader(f):
+            run = os.path.join(out_dir, 'runs', r['run_id'])
+            with open(os.path.join(run, 'raw.json')) as f2:
+                raw = json.load(f2)
+            with open(os.path.join(run, 'spec.json')) as f2:
+                spec = json.load(f2)
+            world = worlds[spec['world_path']]
+            path = np.array(raw.get('path') or [[np.nan, np.nan, 0.0]])[:, :2]
+            corridor = [fb[2] for fb in raw.get('feedback', []) if fb[1] == 1]
+            nav = [fb[2] for fb in raw.get('feedback', []) if fb[1] == 2]
+            by_world.setdefault(world.name, []).append({
+                'run_id': r['run_id'], 'profile': r['profile'], 'seed': int(r['seed']),
+                'outcome': r['outcome'], 'reason': r['reason'],
+                'success': r['outcome'] == 'succeeded', 'collisions': int(r['collisions'] or 0),
+                'min_clearance': round(clearance(world, path), 3),
+                'min_clearance_grid': round(float(r['min_clearance_m']), 3),
+                'corridor_last': corridor[-1] if corridor else None,
+                'navigating_first': nav[0] if nav else None})
+    return by_world
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--quick', action='store_true', help='fewer trials')
     ap.add_argument('--no-ros', action='store_true', help='in-process trials only')
     ap.add_argument('--rtf', type=float, default=4.0, help='simulator real_time_factor for ROS trials')
+    ap.add_argument('--bends', action='store_true', help='also part 3: the bent corridors')
+    ap.add_argument('--bends-only', action='store_true',
+                    help='part 3 only, kept in corridor.json beside the other parts\' last figures')
     ap.add_argument('--ros-trial', help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.ros_trial:
         ros_child(json.loads(args.ros_trial))
         return
     os.makedirs(RESULTS, exist_ok=True)
+    if args.bends_only:
+        path = os.path.join(RESULTS, 'corridor.json')
+        with open(path) as f:
+            out = json.load(f)
+        out['bends'] = run_bends(args)
+        with open(path, 'w') as f:
+            json.dump(out, f, indent=2)
+        print('targets met (bends): %s' % out['bends']['met'])
+        print('wrote bench/results/corridor.json (bends)')
+        return
     n_lib = 4 if args.quick else 12
     n_ros = 1 if args.quick else 2
     use_ros = not args.no_ros
@@ -395,6 +552,8 @@ def main():
                        real_time_factor='in process; ROS trials %g' % args.rtf if use_ros else 'in process',
                        laser_model='ideal in process' + ('; %s in ROS trials' % laser if use_ros else ''),
                        odometry_model='ideal in process' + ('; %s in ROS trials' % odometry if use_ros else ''))
+    if args.bends:
+        out['bends'] = run_bends(args)
     with open(os.path.join(RESULTS, 'corridor.json'), 'w') as f:
         json.dump(out, f, indent=2)
     if not use_ros:
@@ -402,6 +561,16 @@ def main():
                                                       'nodes/navigation is still a placeholder'))
     print('targets met: %s' % out['met'])
     print('wrote bench/results/corridor.json and corridor.png')
+
+
+def run_bends(args):
+    """Part 3 with its own meta (it may run apart from parts 1 and 2)."""
+    res = bends(2 if args.quick else 6, 1 if args.quick else 2, not args.no_ros)
+    res['meta'] = meta(vars(args), quick=args.quick,
+                       real_time_factor='in process; missions 0 (lockstep)',
+                       laser_model='ideal in process; missions: profiles %s' % ', '.join(BEND_PROFILES),
+                       odometry_model='ideal in process; missions: per profile')
+    return res
 
 
 def _world_args(world):
