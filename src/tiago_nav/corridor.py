@@ -47,8 +47,10 @@ centimetres; a slight bend does not). The end point is kept in the odom frame; t
 ``exit_margin`` past it, facing along the corridor, or earlier where something beyond the end
 lies straight ahead (:func:`stop_distance`): at a bend the outer wall crosses the corridor's
 extension, so the stop point is ``end_clearance`` before the robot's disc would touch it. The
-law does not turn into the next leg: it stops before the bend (centred, with the outer wall
-``end_clearance`` ahead), and the mission drives the rest with move_base.
+law does not drive into the next leg: it stops before the bend (centred, with the outer wall
+``end_clearance`` ahead), turns in place toward the longest free way (:func:`next_leg`, the
+next leg's direction; a disc turns without sweeping anything), and the mission drives the rest
+with move_base.
 
 Scans are read by REP 117 (:mod:`tiago_nav.scan`, :meth:`CorridorFollower.update_laser`): walls
 are fitted from hits only; a too-close beam (-inf) is an obstacle at ``range_min`` along it for
@@ -107,6 +109,11 @@ class CorridorParams:
     exit_margin: float = param(0.35, '[m] stop the base centre this far past the end', ge=0)
     end_clearance: float = param(0.25, '[m] past the end, stop this far before anything straight '
                                        'ahead (the outer wall of a bend)', ge=0)
+    bend_turn: bool = param(True, 'stopped short by a wall ahead (a bend): turn in place toward '
+                                  'the longest free way before the goal succeeds')
+    bend_search: float = param(math.radians(100.0), '[rad] ... searched within +- this of the '
+                                                    'corridor\'s direction', gt=0)
+    turn_tolerance: float = param(0.05, '[rad] ... until the heading is within this of it', gt=0)
     stop_margin: float = param(0.08, '[m] front safety: stop this far before touching anything '
                                      'ahead', ge=0)
     max_jump: float = param(0.2, '[m] a wall fit this far from the tracked centre line is rejected',
@@ -373,6 +380,25 @@ def stop_distance(points, walls, end_u, params):
     return stop
 
 
+def next_leg(points, params):
+    """The direction [rad, robot frame] of the longest free strip (robot width plus margin)
+    leaving the robot within ``+-bend_search``: the middle of the run of directions within 5 cm
+    of the longest. ``None`` without points."""
+    p = params
+    pts = np.asarray(points, float).reshape(-1, 2)
+    if pts.shape[0] == 0:
+        return None
+    angles, lengths = free_strip_directions(pts, p.robot_radius + p.min_width_margin, p.bend_search)
+    best = int(np.argmax(lengths))
+    good = lengths >= lengths[best] - 0.05
+    lo, hi = best, best
+    while lo > 0 and good[lo - 1]:
+        lo -= 1
+    while hi < len(good) - 1 and good[hi + 1]:
+        hi += 1
+    return float(0.5 * (angles[lo] + angles[hi]))
+
+
 def front_free_distance(points, radius, horizon=25.0):
     """How far [m] the robot (a disc of ``radius``) can drive straight ahead before touching
     one of the robot-frame ``points``."""
@@ -472,6 +498,7 @@ class CorridorFollower:
         self.end = None             # (x, y) odom point on the centre line where a wall ends
         self.stop = None            # (x, y) odom point on the centre line where the law stops
         self.stop_short = False     # ... short of end + exit_margin: something lies beyond the end
+        self.turn_to = None         # odom yaw [rad] to turn to there (bend_turn), once decided
         self.points = np.zeros((0, 2))     # last scan's hits, odom frame
         self.too_close = np.zeros((0, 2))  # its too-close beams at range_min, odom frame
         self.unusable = ''                 # why the last scan said nothing, if it did not
@@ -604,11 +631,25 @@ class CorridorFollower:
         cmd = Command(lateral_offset=e_y, heading_error=e_th, left_distance=half - e_y,
                       right_distance=half + e_y)
         rem = self.remaining(pose_odom)
-        if rem is not None and rem <= 0.02:
+        if self.turn_to is not None or (rem is not None and rem <= 0.02):
+            # at the stop point (and, once turning there, until the turn ends: the stop point
+            # moves with later scans, the robot does not)
+            if self.stop_short and p.bend_turn:
+                if self.turn_to is None:
+                    local_pts = transform_points(inverse(pose_odom), self.points)
+                    a = next_leg(local_pts, p)
+                    self.turn_to = wrap_angle(pose_odom[2] + a) if a is not None else pose_odom[2]
+                err = wrap_angle(self.turn_to - pose_odom[2])
+                if abs(err) > p.turn_tolerance:
+                    w = max(0.3, min(p.max_angular, 2.0 * abs(err)))
+                    cmd.v, cmd.omega, cmd.state = 0.0, math.copysign(w, err), 'driving'
+                    return cmd
             cmd.state, cmd.reason = 'done', 'reached the end of the corridor'
             if self.stop_short:
                 cmd.reason += (' (stopped %.2f m before a wall ahead past its end: it bends or '
-                               'ends there)' % p.end_clearance)
+                               'ends there%s)' % (p.end_clearance, '' if self.turn_to is None else
+                                                  '; turned %.0f deg toward the longest free way'
+                                                  % math.degrees(wrap_angle(self.turn_to - self.line[2]))))
             return cmd
         if self.max_distance is not None and self.travelled >= self.max_distance - 0.01:
             cmd.state = 'done'
