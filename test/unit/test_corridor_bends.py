@@ -164,3 +164,28 @@ def test_a_law_that_stopped_at_a_bend_says_why_before_navigating():
     assert out.status == SUCCEEDED, out.message
     lines = [s for _, st_, s, _ in b.feedbacks if st_ == mission.CORRIDOR]
     assert lines[-1] == 'corridor law done after 1.0 m: corridor end; navigating on to pose B'
+
+
+@pytest.mark.parametrize('bend', [30, 45, 60, 90])
+def test_shipped_bend_worlds_are_what_their_generator_writes(bend, tmp_path):
+    """worlds/corridor_bend_*.yaml: regenerated identically by scripts/make_bend_worlds.py;
+    pose B (header) clear of every wall by 0.5 m, beyond the bend, its cylinder in view."""
+    import os
+    import subprocess
+    import sys
+    from tiago_nav.sim.world import load_world
+    from tiago_nav.testing.evaluation import visible_truth
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    shipped = os.path.join(root, 'worlds', 'corridor_bend_%d.yaml' % bend)
+    subprocess.run([sys.executable, os.path.join(root, 'scripts', 'make_bend_worlds.py'),
+                    str(tmp_path)], check=True, stdout=subprocess.DEVNULL)
+    with open(shipped) as a, open(str(tmp_path / os.path.basename(shipped))) as b:
+        assert a.read() == b.read(), 'rerun scripts/make_bend_worlds.py'
+    with open(shipped) as f:
+        line = [ln for ln in f if 'Pose B: [' in ln][0]
+    x, y, yaw = [float(v) for v in line.split('Pose B: [')[1].split(']')[0].split(',')]
+    world = load_world(shipped)
+    assert clearance(world, [(x, y)], robot_radius=0.0) >= 0.5
+    b = math.radians(bend)
+    assert (x - 3.0) * math.cos(b) + y * math.sin(b) > 3.0          # past the second leg
+    assert len(visible_truth(world, (x, y, math.radians(yaw)))) == 1
