@@ -306,6 +306,21 @@ BEND_PROFILES = {
               'laser_noise': 0.01}}
 
 
+def inner_corner(world_path):
+    """The inner corner (x, y) [m] of a bend world (scripts/make_bend_worlds.py: the bend at
+    x = 3 m, to the left)."""
+    world = load_world(world_path)
+    b = math.radians(pose_b_of(world_path)[2])
+    h = 0.5 * world.corridor.width
+    return 3.0 - h * math.tan(abs(b) / 2), math.copysign(h, b)
+
+
+def corner_clearance(corner, xy):
+    """Least distance [m] from the base's disc at the points ``xy`` (N, 2) to ``corner``."""
+    xy = np.asarray(xy, float).reshape(-1, 2)
+    return float(np.hypot(xy[:, 0] - corner[0], xy[:, 1] - corner[1]).min()) - ROBOT_R
+
+
 def pose_b_of(path):
     """Pose B [x, y, yaw_deg] from a bend world's header comment (``Pose B: [x, y, yaw]``)."""
     with open(path) as f:
@@ -324,6 +339,8 @@ def bends(n_lib, seeds, use_ros):
                                   'corner\'s position along it [m] (negative: before the corner)',
         'min_clearance': 'min distance from the base disc (r %g) to any wall or cylinder over the '
                          'run, exact from the ground-truth path [m]' % ROBOT_R,
+        'inner_corner_clearance': 'min distance from the base disc to the bend\'s inner corner '
+                                  '(where the inner walls of the two legs meet) [m]',
         'min_clearance_grid': 'the evaluator\'s min_clearance_m (distance field on the world\'s '
                               '5 cm raster: up to ~4 cm lower than the exact figure) [m]'},
         'worlds': {}}
@@ -350,6 +367,8 @@ def bends(n_lib, seeds, use_ros):
                              'stopped': 'done' if cmd.state == 'done' else cmd.reason,
                              'reason': cmd.reason, 'collisions': int(sim.collisions),
                              'min_clearance': round(c, 3),
+                             'inner_corner_clearance': round(corner_clearance(inner_corner(path),
+                                                                              tr[:, :2]), 3),
                              'stop_before_corner': round(float(tr[-1, 0]) - corner, 3),
                              'final_lateral': round(float(tr[-1, 1]), 3),
                              'success': bool(cmd.state == 'done' and sim.collisions == 0
@@ -361,6 +380,7 @@ def bends(n_lib, seeds, use_ros):
                'law': {'trials': len(rows), 'success': sum(r['success'] for r in rows),
                        'collisions': sum(r['collisions'] for r in rows),
                        'min_clearance': min(r['min_clearance'] for r in rows),
+                       'inner_corner_clearance': min(r['inner_corner_clearance'] for r in rows),
                        'stop_before_corner': [min(r['stop_before_corner'] for r in rows),
                                               max(r['stop_before_corner'] for r in rows)],
                        'trials_detail': rows}}
@@ -375,6 +395,7 @@ def bends(n_lib, seeds, use_ros):
                                'collisions': sum(r['collisions'] for r in rows),
                                'min_clearance': min(r['min_clearance'] for r in rows),
                                'min_clearance_grid': min(r['min_clearance_grid'] for r in rows),
+                               'inner_corner_clearance': min(r['inner_corner_clearance'] for r in rows),
                                'runs_detail': rows}
             m = res['missions']
             print('%-18s %-8s %6s %10d %10.3f %12.3f' % (name, 'mission', '%d/%d' % (m['success'], m['runs']),
@@ -427,6 +448,8 @@ def mission_trials(seeds):
                 'outcome': r['outcome'], 'reason': r['reason'],
                 'success': r['outcome'] == 'succeeded', 'collisions': int(r['collisions'] or 0),
                 'min_clearance': round(clearance(world, path), 3),
+                'inner_corner_clearance': round(corner_clearance(inner_corner(spec['world_path']),
+                                                                 path), 3),
                 'min_clearance_grid': round(float(r['min_clearance_m']), 3),
                 'corridor_last': corridor[-1] if corridor else None,
                 'navigating_first': nav[0] if nav else None})
