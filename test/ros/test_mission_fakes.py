@@ -182,7 +182,8 @@ class Fakes:
             robot = tuple(self.pose)
         # the node's own conversion: centres in the robot frame (rotated by its yaw), nearest
         # the robot first; the laser frame is the robot's here
-        found = found_obstacles([Detection((x, y), r, 20) for x, y, r in FOUND], robot,
+        found = found_obstacles([Detection((x, y), r, 20, None, np.diag([4e-5, 4e-5, 1e-4]))
+                                 for x, y, r in FOUND], robot,
                                 (0.0, 0.0, 0.0))
         return DetectObstaclesResponse(success=True, obstacles=[obstacle_msg(f) for f in found],
                                        message='')

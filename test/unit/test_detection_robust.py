@@ -167,3 +167,75 @@ def test_equal_cylinders_share_their_radius():
     on, off = errs[True], errs[False]
     assert np.sqrt(np.mean(on ** 2)) < 0.006 and on.max() < 0.015
     assert np.sqrt(np.mean(off ** 2)) > 0.006 and off.max() > 0.015   # the free fits alone
+
+
+# The course suite's rooms_110 at pose B: a cylinder (0.22 m, 6.8 m away) half hidden behind a
+# nearer one (0.214 m, 5.3 m): 6 beams from its left silhouette edge to just past its nearest
+# point. Its free fit's radius is not measurable (std error 4-10 cm): 0.29-0.30 m came out, the
+# centre 8-9 cm off. The one well-measured cylinder of the scan is now a soft prior.
+ROOMS_110 = dict(movable=[(6.498, 1.166, 0.214), (8.04, 1.192, 0.22)],
+                 pose=(1.2828739, 2.1296778, -0.0425537))
+
+
+def rooms_110_world():
+    walls = [{'x': 3.5, 'y': 3.09, 'length': 13.0, 'width': 0.15},
+             {'x': 3.5, 'y': -3.09, 'length': 13.0, 'width': 0.15},
+             {'x': 9.38, 'y': 0.0, 'length': 6.33, 'width': 0.15, 'yaw_deg': 90},
+             {'x': -0.075, 'y': 0.0, 'length': 6.33, 'width': 0.15, 'yaw_deg': 90}]
+    return World.from_dict({
+        'name': 'rooms_110_b', 'resolution': 0.05, 'bounds': [-1, -3.3, 9.6, 3.3],
+        'robot_start': [1, 2, 0], 'walls': walls,
+        'movable_obstacles': [{'x': x, 'y': y, 'radius': r} for x, y, r in ROOMS_110['movable']]})
+
+
+def test_half_hidden_cylinder_borrows_the_one_well_measured_radius():
+    from tiago_nav.geometry import compose, inverse
+    from tiago_nav.scan import median_ranges
+    from tiago_nav.sim.laser import LaserModel
+    w = rooms_110_world()
+    pose = ROOMS_110['pose']
+    lm = LaserModel()                                   # the tiago laser, as the suite's profile
+    with Scene(w) as s:
+        clean, ids = s.cast(pose)
+        laser = s.laser_pose(pose)
+        hits = [int(np.sum(ids == b)) for b in s.movable_ids]
+    lib = compose(inverse(pose), laser)
+    assert hits[1] <= 8 < hits[0]                      # the far one: a short arc
+    grid = rasterise_world(w)
+    new = ObstacleDetector(grid, DetectionParams(correct_pose=False))
+    old = ObstacleDetector(grid, DetectionParams(correct_pose=False, single_radius_std=0))
+    rng = np.random.default_rng(2)
+    worst = {'new': 0.0, 'old': 0.0}
+    for _ in range(30):
+        # the service's median of 5 scans at rest
+        r = median_ranges([lm.apply(clean, L, 0.01, rng).ranges for _ in range(5)],
+                          L.range_min, L.range_max)
+        for name, det in (('new', new), ('old', old)):
+            found = det.detect(r, L.angle_min, L.angle_increment, L.range_min, L.range_max,
+                               laser, laser_in_base=lib)
+            assert len(found) == 2
+            e = max(min(math.hypot(d.center[0] - x, d.center[1] - y) for d in found)
+                    for x, y, _ in ROOMS_110['movable'])
+            worst[name] = max(worst[name], e)
+    assert worst['new'] < 0.04 < 0.05 < worst['old'], worst
+
+
+def test_the_veil_filters_drop_at_a_silhouette_edge_does_not_hide_the_passing_beams():
+    from tiago_nav.detection.pipeline import _passing_rays
+    inc = math.radians(1.0)
+    raw = np.array([8.0, 8.0, 8.0, 3.0, 3.0, 3.0, 8.0, 8.0, 8.0, 8.0])
+    usable = raw.copy()
+    usable[6] = np.nan            # the filter's drop: the step 3 -> 8 m lies along the beam
+    beams, rng = np.array([3, 4, 5]), np.array([3.0, 3.0, 3.0])
+    right = _passing_rays(usable, beams, rng, 0.0, inc, 0.0, 25.0, raw)
+    assert len(right) == 3 + 2     # beams 2, 1, 0 and, past the dropped 6, beams 7 and 8
+    ang = np.degrees(np.arctan2(right[:, 1], right[:, 0]))
+    assert sorted(np.round(ang).astype(int)) == [0, 1, 2, 7, 8]
+    # a dropout (no raw return either) still ends the walk: it may lie on the obstacle
+    raw2 = raw.copy()
+    raw2[6] = np.nan
+    assert len(_passing_rays(usable, beams, rng, 0.0, inc, 0.0, 25.0, raw2)) == 3
+    # and so does a drop in front of the cluster (something nearer)
+    raw3 = raw.copy()
+    raw3[6] = 2.0
+    assert len(_passing_rays(usable, beams, rng, 0.0, inc, 0.0, 25.0, raw3)) == 3

@@ -23,7 +23,8 @@ TOL = 1e-8             # relative tolerances of the fit (least_squares' defaults
 PASSING_WEIGHT = 3.0   # a passing beam counts as a point three times as precise
 
 
-def circle_fit(points, radius=0.0, sensor=None, passing=None, margin=0.0):
+def circle_fit(points, radius=0.0, sensor=None, passing=None, margin=0.0, radius_prior=None,
+               noise=0.01):
     """Geometric least-squares circle ``(cx, cy, r, rms)`` through ``(N, 2)`` points (N ≥ 3).
 
     ``radius`` > 0 fixes the radius and fits the centre only. ``sensor`` (the laser's position in
@@ -36,6 +37,9 @@ def circle_fit(points, radius=0.0, sensor=None, passing=None, margin=0.0):
     scipy.optimize.leastsq: the same solver as ``least_squares(method='lm')`` at half the cost
     per call, most of which is call overhead on a few dozen points) with the analytic Jacobian,
     started from the algebraic fit.
+    ``radius_prior`` ``(r0, std)`` [m] (free radius only): what else is known of the radius,
+    one more residual ``(r - r0) * noise / std`` (``noise`` [m]: the points' assumed std), so
+    the radius is the compromise of the arc's and the prior's, each by its precision.
     ``rms`` is the root-mean-square of the radial residuals [m].
     """
     p = np.asarray(points, dtype=float)
@@ -49,27 +53,32 @@ def circle_fit(points, radius=0.0, sensor=None, passing=None, margin=0.0):
         k = len(rays)
     fixed = radius > 0
     w = PASSING_WEIGHT
+    q = 0 if fixed or radius_prior is None else 1
+    if q:
+        r_prior, w_prior = float(radius_prior[0]), noise / max(float(radius_prior[1]), 1e-9)
 
     # fun and jac are written out in scalar-per-array numpy (no stacking helpers): with a few
     # dozen points, the call overhead of each numpy operation is most of a fit's cost
     def fun(x):
         r = radius if fixed else x[2]
         dx, dy = px - x[0], py - x[1]
-        out = np.empty(m + k)
+        out = np.empty(m + k + q)
         out[:m] = np.sqrt(dx * dx + dy * dy) - r
+        if q:
+            out[m + k] = w_prior * (r - r_prior)
         if k:
             # how far the circle reaches into each passing ray beyond margin (0 where the ray
             # passes outside it, or the circle lies behind the sensor)
             ex, ey = x[0] - sx, x[1] - sy
             reach = r - np.abs(ux * ey - uy * ex) - margin
-            out[m:] = w * np.where((ux * ex + uy * ey > 0) & (reach > 0), reach, 0.0)
+            out[m:m + k] = w * np.where((ux * ex + uy * ey > 0) & (reach > 0), reach, 0.0)
         return out
 
     def jac(x):
         r = radius if fixed else x[2]
         dx, dy = px - x[0], py - x[1]
         n = np.maximum(np.sqrt(dx * dx + dy * dy), 1e-12)
-        J = np.empty((m + k, 2 if fixed else 3))
+        J = np.zeros((m + k + q, 2 if fixed else 3))
         J[:m, 0] = -dx / n
         J[:m, 1] = -dy / n
         if not fixed:
@@ -80,10 +89,12 @@ def circle_fit(points, radius=0.0, sensor=None, passing=None, margin=0.0):
             active = (ux * ex + uy * ey > 0) & (r - np.abs(cross) - margin > 0)
             sg = np.sign(cross) * active * w
             # d(r - |cross|)/dc = -sign(cross) * (-u_y, u_x); d/dr = 1
-            J[m:, 0] = sg * uy
-            J[m:, 1] = -sg * ux
+            J[m:m + k, 0] = sg * uy
+            J[m:m + k, 1] = -sg * ux
             if not fixed:
-                J[m:, 2] = active * w
+                J[m:m + k, 2] = active * w
+        if q:
+            J[m + k, 2] = w_prior
         return J
 
     cx, cy, r0 = algebraic_circle(p)
@@ -125,6 +136,53 @@ def radius_std(points, cx, cy, r, noise_floor=0.005):
     if schur <= 1e-12:
         return math.inf
     return sigma / math.sqrt(schur)
+
+
+MIN_SIGMA = 0.001     # [m] least point noise assumed by circle_covariance (1 mm, the range
+                      # resolution): a noise-free arc still has finite precision
+
+
+def circle_covariance(points, cx, cy, r, fixed=False, radius_prior=None):
+    """Covariance ``(3, 3)`` of the circle ``(cx, cy, r)`` [m², map frame] fitted to ``(N, 2)``
+    points, from the fit's Jacobian and its residuals: ``s² (JᵀJ)⁻¹``, one row of ``J`` per
+    point (``[-u, -1]``, ``u`` the unit vector from the centre to the point), ``s²`` the points'
+    residual variance ``Σ res² / (N - p)`` (``p`` fitted parameters; at least
+    :data:`MIN_SIGMA`²). ``radius_prior`` ``(r0, std)`` [m]: the radius was also pulled toward
+    ``r0`` with that std (:func:`circle_fit`), which adds ``1/std²`` to its information.
+    ``fixed``: the radius was given exactly (its row and column are 0).
+
+    The passing beams of :func:`circle_fit` are bounds, not measurements: they add nothing
+    here, so a circle they hold in place is reported as no surer than its points make it.
+    A short arc leaves the radius and the centre's range trading off: their variances are then
+    large; ``inf`` where the problem is singular (no more points than parameters, a
+    degenerate arc)."""
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    d = p - (cx, cy)
+    n = np.hypot(d[:, 0], d[:, 1])
+    npar = 2 if fixed else 3
+    inf = np.full((3, 3), np.inf)
+    if len(p) <= npar or np.any(n < 1e-9):
+        return inf
+    u = d / n[:, None]
+    J = np.column_stack((-u, -np.ones(len(p))))
+    dof = len(p) - npar
+    s2 = max(float(np.sum((n - r) ** 2)) / dof, MIN_SIGMA ** 2)
+    info = J.T @ J / s2
+    if fixed:
+        info = info[:2, :2]
+    elif radius_prior is not None:
+        info[2, 2] += 1.0 / max(float(radius_prior[1]), 1e-9) ** 2
+    try:
+        if np.linalg.cond(info) > 1e12:
+            return inf
+        cov = np.linalg.inv(info)
+    except np.linalg.LinAlgError:
+        return inf
+    if fixed:
+        out = np.zeros((3, 3))
+        out[:2, :2] = cov
+        return out
+    return cov
 
 
 def centroid(points):

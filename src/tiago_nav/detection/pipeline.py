@@ -9,6 +9,18 @@ radius: ``obstacle_radius`` if set, else the median radius of the scan's well-me
 obstacles when those agree within ``radius_spread``; otherwise the free fit stands.
 ``shared_radius``: that median is also used for the well-measured obstacles whose own radius
 agrees with it (within two standard errors).
+With just one well-measured obstacle, its radius is a soft prior (std ``single_radius_std``)
+for the short arcs it does not contradict (a chi-square test on their residuals).
+The beams beside a cluster that the veil filter dropped (the first beam behind every silhouette
+edge seen against a farther background) are looked past: the beams after them still count as
+passing.
+
+How sure each obstacle is (:class:`Detection`'s ``covariance``, ``center_std``,
+``radius_std``): :func:`tiago_nav.detection.centres.circle_covariance` of the fit that placed it
+(its points' Jacobian and residuals; a radius prior adds its information, a configured radius
+has none to estimate). ``centroid``: the points' spread over their number plus the centroid's
+offset from the fitted centre (its bias), squared. ``discontinuity``: the assumed depth as the
+std of everything (no fit). The laser pose's own error is not in it.
 ``discontinuity``: the classic pipeline on the raw scan, without the map: range-jump segmentation,
 each segment that stands out in front of its neighbours is an obstacle whose closest point is
 pushed back by a fixed depth along its beam.
@@ -28,7 +40,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from tiago_nav.detection.centres import centroid, circle_fit, radius_std
+from tiago_nav.detection.centres import centroid, circle_covariance, circle_fit, radius_std
 from tiago_nav.detection.clustering import centroid_clusters
 from tiago_nav.detection.subtraction import MapDistance, subtract
 from tiago_nav.geometry import transform_points, wrap_angle
@@ -64,6 +76,10 @@ class DetectionParams:
         True, 'when the scan\'s well-measured radii agree (radius_spread), fit every obstacle '
         'whose own radius is within 2 std errors of their median with that radius too: a fixed '
         'radius pinned by several obstacles reduces the centre\'s error along the beam')
+    single_radius_std: float = param(
+        0.06, '[m] when just one obstacle of the scan is well measured, its radius is a prior of '
+        'this std for the short arcs that do not contradict it (the fit is the compromise of '
+        'both; 0: not used)', ge=0)
     range_noise: float = param(0.01, '[m] the laser\'s range noise std (least residual assumed '
                                'when judging a fitted radius\'s precision)', ge=0)
     max_range: float = param(10.0, '[m] beams longer than this are ignored', ge=0)
@@ -90,11 +106,38 @@ class DetectionParams:
 
 @dataclass
 class Detection:
-    """One obstacle: centre ``(x, y)`` [m] in the map frame, radius [m], supporting points."""
+    """One obstacle: centre ``(x, y)`` [m] in the map frame, radius [m], supporting points,
+    and ``covariance``: ``(3, 3)`` of ``(x, y, radius)`` [m²] (None: not known), see
+    :func:`tiago_nav.detection.centres.circle_covariance` and the module's doc."""
     center: tuple
     radius: float
     num_points: int
     points: np.ndarray = field(repr=False, default=None)
+    covariance: np.ndarray = field(repr=False, default=None)
+
+    @property
+    def center_covariance(self):
+        """The centre's ``(2, 2)`` covariance [m², map frame] (``inf`` when not known)."""
+        if self.covariance is None:
+            return np.full((2, 2), np.inf)
+        return np.asarray(self.covariance, dtype=float)[:2, :2]
+
+    @property
+    def center_std(self):
+        """[m] the centre's standard deviation along its least certain direction: the square
+        root of the largest eigenvalue of :attr:`center_covariance` (``inf``: not known)."""
+        c = self.center_covariance
+        if not np.all(np.isfinite(c)):
+            return math.inf
+        return float(math.sqrt(max(np.linalg.eigvalsh(c).max(), 0.0)))
+
+    @property
+    def radius_std(self):
+        """[m] the radius's standard deviation (0: the radius was given; ``inf``: not known)."""
+        if self.covariance is None:
+            return math.inf
+        v = float(np.asarray(self.covariance, dtype=float)[2, 2])
+        return math.sqrt(v) if v >= 0 else math.inf
 
 
 @dataclass(frozen=True)
@@ -202,7 +245,7 @@ class ObstacleDetector:
         else:
             found, correction = self._clusters(r, angle_min, angle_increment, range_min,
                                                range_max, min(range_max, p.max_range),
-                                               tuple(laser_pose), method, p)
+                                               tuple(laser_pose), method, p, raw)
         lx, ly = correction.laser_pose[0], correction.laser_pose[1]
         return Result(sorted(found, key=lambda d: math.hypot(d.center[0] - lx, d.center[1] - ly)),
                       correction)
@@ -245,7 +288,12 @@ class ObstacleDetector:
                                   reason=reason)
         return PoseCorrection(True, pose, delta, n, inliers)
 
-    def _clusters(self, r, angle_min, inc, rmin, laser_max, rmax, laser_pose, method, p):
+    def _clusters(self, r, angle_min, inc, rmin, laser_max, rmax, laser_pose, method, p,
+                  raw=None):
+        """The detections of the circle_fit and centroid methods (see :meth:`locate`): ``r``
+        the usable ranges [m], ``raw`` the scan's own (None: ``r``), for the beams beside a
+        cluster that the veil filter dropped."""
+        raw = r if raw is None else raw
         local, beam = scan_to_points(r, angle_min, inc, rmin, rmax)
         # invalid beams (NaN, inf, out of limits) just before each valid one: a hole in the scan
         # must not split an obstacle
@@ -266,36 +314,79 @@ class ObstacleDetector:
             if len(c) < p.min_points:
                 continue
             passing = _passing_rays(r, beam[idx], rng[idx], angle_min, inc, laser_pose[2],
-                                    laser_max)
+                                    laser_max, raw)
             margin = PASSING_MARGIN * inc * float(rng[idx].max())
             cx, cy, rad, rms = circle_fit(c, sensor=sensor, passing=passing, margin=margin)
             if _is_obstacle(c, (cx, cy), rad, rms, sensor, p):
-                cands.append((c, cx, cy, rad, radius_std(c, cx, cy, rad, p.range_noise),
+                cands.append((c, cx, cy, rad, rms, radius_std(c, cx, cy, rad, p.range_noise),
                               passing, margin))
         # The radius to assume where an arc is too short to measure it: the configured one, or,
         # when at least two obstacles of this scan are well measured and agree (all within
-        # radius_spread), their median. Otherwise the free fit stands. With shared_radius, an
-        # obstacle whose own radius agrees with that median (within 2 of its std errors) is fitted
-        # with it too: the radius and the centre's range trade off in a free fit, so a radius
-        # pinned by several obstacles places each centre better along its beams (the course
-        # scene, four cylinders of 0.183 m: centre RMS 6-11 mm per obstacle -> 4-6.5 mm).
-        prior = p.obstacle_radius
+        # radius_spread), their median. With shared_radius, an obstacle whose own radius agrees
+        # with that median (within 2 of its std errors) is fitted with it too: the radius and the
+        # centre's range trade off in a free fit, so a radius pinned by several obstacles places
+        # each centre better along its beams (the course scene, four cylinders of 0.183 m: centre
+        # RMS 6-11 mm per obstacle -> 4-6.5 mm). When just one is well measured, its radius is a
+        # soft prior (std single_radius_std) for the short arcs it does not contradict (the
+        # prior's fit raises the points' squared residuals by less than a chi-square test with
+        # one degree of freedom allows): the fit is then the compromise of the arc's radius and
+        # that one, each by its precision (a cylinder half hidden behind a nearer one, seen by 6
+        # beams at 6.5 m, has a radius std error of 4-10 cm on its own: its free fit put the
+        # centre 8 cm off, 0.29 m for 0.22 m).
+        # Otherwise the free fit stands, and its covariance says how little it knows.
+        prior, prior_std, soft = p.obstacle_radius, 0.0, None
         if prior <= 0:
-            good = [k[3] for k in cands if k[4] <= p.max_radius_std]
-            if len(good) >= 2 and max(good) - min(good) <= p.radius_spread:
-                prior = float(np.median(good))
+            good = [(k[3], k[5]) for k in cands if k[5] <= p.max_radius_std]
+            radii = [g[0] for g in good]
+            if len(good) >= 2 and max(radii) - min(radii) <= p.radius_spread:
+                prior = float(np.median(radii))
+                # what the median knows of the radius (for the covariance only)
+                prior_std = max(float(np.median([g[1] for g in good])) / math.sqrt(len(good)),
+                                (max(radii) - min(radii)) / 2.0)
+            elif len(good) == 1 and p.single_radius_std > 0:
+                soft = (radii[0], p.single_radius_std)
         out = []
-        for c, cx, cy, rad, std, passing, margin in cands:
+        for c, cx, cy, rad, rms, std, passing, margin in cands:
+            cov = None
             if method == 'centroid':
-                cx, cy = centroid(c)
+                # the centroid lies between the centre and the sensor: its error is of the order
+                # of its offset from the fitted centre, plus the points' spread over their number
+                gx, gy = centroid(c)
+                bias2 = (gx - cx) ** 2 + (gy - cy) ** 2
+                cov = np.zeros((3, 3))
+                cov[:2, :2] = np.cov(np.asarray(c, dtype=float).T) / len(c) + bias2 * np.eye(2)
+                cov[2, 2] = circle_covariance(c, cx, cy, rad)[2, 2]
+                cx, cy = gx, gy
             elif p.obstacle_radius > 0 or (prior > 0 and (
                     std > p.max_radius_std
                     or (p.shared_radius and abs(rad - prior) <= min(p.radius_spread, 2 * std)))):
                 fx, fy, frad, frms = circle_fit(c, prior, sensor, passing, margin)
                 if frms <= p.max_fit_rms:
                     cx, cy, rad = fx, fy, frad
-            out.append(Detection((cx, cy), rad, len(c), c))
+                    cov = circle_covariance(
+                        c, cx, cy, rad, fixed=p.obstacle_radius > 0,
+                        radius_prior=None if p.obstacle_radius > 0 else (prior, prior_std))
+            elif soft is not None and std > p.max_radius_std:
+                fx, fy, frad, frms = circle_fit(c, 0.0, sensor, passing, margin,
+                                                radius_prior=soft, noise=p.range_noise)
+                # the prior must not contradict the arc: its points' squared residuals may grow
+                # by no more than a chi-square test with one degree of freedom allows (95 %,
+                # 3.84 noise variances; the noise: the free fit's residuals, at least
+                # range_noise)
+                n_c = len(c)
+                s2 = max(n_c * rms * rms / max(n_c - 3, 1), p.range_noise ** 2)
+                if frms <= p.max_fit_rms and n_c * (frms * frms - rms * rms) <= CHI2_1 * s2:
+                    cx, cy, rad = fx, fy, frad
+                    cov = circle_covariance(c, cx, cy, rad, radius_prior=soft)
+            if cov is None:
+                cov = circle_covariance(c, cx, cy, rad)
+            out.append(Detection((cx, cy), rad, len(c), c, cov))
         return out, correction
+
+
+def _sqrt(v):
+    """``sqrt(v)`` of a variance, ``inf`` for an unknown one."""
+    return math.sqrt(v) if math.isfinite(v) and v >= 0 else math.inf
 
 
 def _gap(ranges, inc, gap, holes=0):
@@ -305,23 +396,37 @@ def _gap(ranges, inc, gap, holes=0):
     return np.maximum(gap, (3.0 + np.asarray(holes)) * np.asarray(ranges, dtype=float) * inc)
 
 
+CHI2_1 = 3.84        # the chi-square distribution's 95 % quantile with one degree of freedom
 PASSING_BEAMS = 3     # beams each side of a cluster checked for going past it
 PASSING_MARGIN = 0.25  # a passing beam may graze the fitted circle by this many beam spacings
 
 
-def _passing_rays(r, beams, ranges, angle_min, inc, yaw, laser_max):
+def _passing_rays(r, beams, ranges, angle_min, inc, yaw, laser_max, raw=None):
     """Unit directions (map frame) of the beams beside a cluster (beam indices ``beams``,
     ranges ``ranges`` [m]) that went past it: walking out from each end of the cluster, up to
     ``PASSING_BEAMS`` beams with no return (+inf, REP 117) or a valid return (<= ``laser_max``)
     well behind the cluster's farthest point. The walk stops at the first beam that says nothing
-    (NaN, out of limits: it may be a dropout on the obstacle itself) or hits something nearer."""
+    (NaN, out of limits: it may be a dropout on the obstacle itself) or hits something nearer.
+
+    ``r`` are the usable ranges (:func:`tiago_nav.scan.usable_ranges`), ``raw`` the scan's own
+    (None: ``r``). The veil filter drops the first beam behind every silhouette edge seen
+    against a farther background (the step from the edge to it lies along the beam, as a mixed
+    pixel's does), so a beam it dropped whose raw return lies well behind the cluster is not
+    taken as passing (a mixed pixel's beam may still graze the obstacle) but does not end the
+    walk either: it has a return, and it is behind, so the obstacle's edge is at most there.
+    Without this every silhouette edge against a wall would have no passing beam, and a short
+    arc's circle would grow unchecked on that side."""
     lo, hi, n = int(beams.min()), int(beams.max()), len(r)
+    raw = r if raw is None else raw
     behind = float(ranges.max()) + 0.1
     keep = []
     for start, step in ((lo - 1, -1), (hi + 1, 1)):
         j = start
         while 0 <= j < n and abs(j - start) < PASSING_BEAMS:
             v = float(r[j])
+            if v != v and j == start and behind < float(raw[j]) <= laser_max:
+                j += step            # the veil filter's drop at the edge: look past it
+                continue
             if not (v == math.inf or (behind < v <= laser_max)):
                 break
             keep.append(j)
@@ -373,5 +478,7 @@ def _discontinuity(r, ang, inc, rmin, rmax, laser_pose, p):
         local = np.array([[d * math.cos(ang[k]), d * math.sin(ang[k])]])
         cx, cy = transform_points(laser_pose, local)[0]
         pts = transform_points(laser_pose, points[s:e])     # a segment is all hits
-        out.append(Detection((float(cx), float(cy)), p.depth, e - s, pts))
+        # no fit: the centre and the radius are the assumed depth's guess, off by about as much
+        out.append(Detection((float(cx), float(cy)), p.depth, e - s, pts,
+                             np.eye(3) * p.depth ** 2))
     return out

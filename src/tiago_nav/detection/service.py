@@ -66,6 +66,9 @@ class Found:
     center_robot: tuple     # (x, y) [m] in the robot frame at the scan's time
     radius: float           # [m]
     num_points: int         # scan points that support it
+    center_std: float = math.inf           # [m] along the centre's least certain direction
+    radius_std: float = math.inf           # [m] (0: the radius was configured)
+    center_covariance: tuple = (math.inf, 0.0, 0.0, math.inf)   # [m²] map frame, row-major
 
 
 @dataclass(frozen=True)
@@ -128,8 +131,10 @@ def found_obstacles(detections, laser_in_map, laser_in_robot):
     out = []
     for d in detections:
         rx, ry, _ = compose(to_robot, (d.center[0], d.center[1], 0.0))
+        cov = d.center_covariance
         out.append(Found((float(d.center[0]), float(d.center[1])), (rx, ry), float(d.radius),
-                         int(d.num_points)))
+                         int(d.num_points), d.center_std, d.radius_std,
+                         tuple(float(v) for v in cov.ravel())))
     out.sort(key=lambda o: math.hypot(*o.center_robot))
     return tuple(out)
 

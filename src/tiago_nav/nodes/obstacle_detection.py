@@ -82,7 +82,9 @@ def obstacle_msg(found):
     """:class:`tiago_nav.detection.service.Found` → tiago_nav/Obstacle."""
     return Obstacle(center=Point(found.center[0], found.center[1], 0.0),
                     center_robot=Point(found.center_robot[0], found.center_robot[1], 0.0),
-                    radius=found.radius, num_points=found.num_points)
+                    radius=found.radius, num_points=found.num_points,
+                    center_std=found.center_std, radius_std=found.radius_std,
+                    center_covariance=list(found.center_covariance))
 
 
 class RosSensors:
