@@ -149,9 +149,9 @@ def feedback_line(t, state, status, pose=None):
 
 
 def obstacle_rows(obstacles):
-    """tiago_nav/Obstacle messages → rows of :func:`obstacle_table`."""
-    return [(o.center.x, o.center.y, o.center_robot.x, o.center_robot.y, o.radius, o.num_points)
-            for o in obstacles]
+    """tiago_nav/Obstacle messages → rows of :func:`obstacle_table` (with the fit's stds)."""
+    return [(o.center.x, o.center.y, o.center_robot.x, o.center_robot.y, o.radius, o.num_points,
+             o.center_std, o.radius_std) for o in obstacles]
 
 
 def centres_in_frame(rows, frame_pose):
@@ -175,17 +175,28 @@ def table_title(frame=MAP_FRAME):
     return 'obstacles (%s frame, and robot frame base_footprint at scan time):' % frame
 
 
+def _std(v):
+    """A standard deviation [m] for the table: ``±0.004``, ``?`` when not known (inf, NaN)."""
+    return '±%.3f' % v if v is not None and math.isfinite(v) else '?'
+
+
 def obstacle_table(rows):
     """Format obstacles as a text table.
 
-    ``rows``: sequence of ``(x, y, x_robot, y_robot, radius, num_points)`` [m, m, m, m, m, -]
-    (map frame, or the frame of :func:`centres_in_frame`; then base_footprint at scan time).
+    ``rows``: sequence of ``(x, y, x_robot, y_robot, radius, num_points[, center_std,
+    radius_std])`` [m, m, m, m, m, -, m, m] (map frame, or the frame of
+    :func:`centres_in_frame`; then base_footprint at scan time). ``center_std``: the centre's
+    standard deviation along its least certain direction, ``radius_std`` the radius's (the
+    fit's, tiago_nav/Obstacle); rows without them show ``?``.
     Returns the lines (header first).
     """
-    lines = [' #   x [m]   y [m]  x_robot  y_robot  radius [m]  points',
-             '--  ------  ------  -------  -------  ----------  ------']
-    for i, (x, y, xr, yr, r, n) in enumerate(rows, 1):
-        lines.append('%2d  %6.2f  %6.2f  %7.2f  %7.2f  %10.3f  %6d' % (i, x, y, xr, yr, r, n))
+    lines = [' #   x [m]   y [m]  x_robot  y_robot  radius [m]  points  centre std  radius std',
+             '--  ------  ------  -------  -------  ----------  ------  ----------  ----------']
+    for i, row in enumerate(rows, 1):
+        x, y, xr, yr, r, n = row[:6]
+        cs, rs = (tuple(row[6:8]) + (None, None))[:2]
+        lines.append('%2d  %6.2f  %6.2f  %7.2f  %7.2f  %10.3f  %6d  %10s  %10s'
+                     % (i, x, y, xr, yr, r, n, _std(cs), _std(rs)))
     if not rows:
         lines.append('    (no obstacles)')
     return lines
