@@ -5,9 +5,11 @@ and map subtraction by distance transform against the brute-force comparison.
 Over seeded random robot poses (reachable, clear of every body) in the shipped worlds
 (ias_lab_room_full: cylinders of r = 0.183 m; open_hall: r = 0.10-0.30 m), each scan is the
 pybullet ray cast plus seeded 0.01 m Gaussian range noise, exactly what the simulator publishes.
-Ground truth: the world file's movable obstacles; "in view" is Scene.visible_obstacles (hit by
->= 5 beams of the noise-free cast); "in clear view" also asks the obstacle to be within the
-detector's max_range and unoccluded (hit by >= 80 % of the beams its silhouette spans).
+Ground truth: the world file's movable obstacles; "in view" is the one definition the
+evaluator and the tests use (tiago_nav.sim.inview, Scene.visible_obstacles: >= 7 usable beams
+of the noise-free cast, an outline edge seen); a found centre on a glimpsed obstacle (reached by
+a beam, not in view) is no false positive. "In clear view" also asks the obstacle to be within
+the detector's max_range and unoccluded (hit by >= 80 % of the beams its silhouette spans).
 The scans are placed with their exact poses, so the pose correction is off unless
 --correct-pose (bench_detection_sensing.py measures it under the localisation's error).
 Latency is one library call (scan ranges -> obstacles in the map frame); the service round trip
@@ -85,8 +87,9 @@ def sample_poses(world, grid, n, rng, max_tries):
     return poses, tried
 
 
-def clear_view(world, scene, pose, ids, max_range):
-    """Indices of the movable obstacles in clear view from ``pose`` (see the module doc)."""
+def clear_view(world, scene, pose, ids, max_range, visible):
+    """Indices of the movable obstacles in clear view from ``pose`` (see the module doc): of
+    those in view (``visible``), the ones within ``max_range`` [m] and unoccluded."""
     lx, ly, lyaw = scene.laser_pose(pose)
     cfg = scene.laser
     ang = cfg.angles()
@@ -94,7 +97,7 @@ def clear_view(world, scene, pose, ids, max_range):
     for i, (c, body) in enumerate(zip(world.movable_obstacles, scene.movable_ids)):
         hits = int(np.sum(ids == body))
         d = math.hypot(c.x - lx, c.y - ly)
-        if hits < 5 or d > max_range or d <= c.radius:
+        if i not in visible or d > max_range or d <= c.radius:
             continue
         bearing = wrap_angle(math.atan2(c.y - ly, c.x - lx) - lyaw)
         half = math.asin(c.radius / d)
@@ -152,7 +155,7 @@ def evaluate_world(path, n_poses, seed, repeats, laser_model=LaserModel(laser_mo
             laser = scene.laser_pose(pose)
             laser_in_base = compose(inverse(pose), laser)
             visible = scene.visible_obstacles(pose)
-            clear = clear_view(world, scene, pose, ids, params.max_range)
+            clear = clear_view(world, scene, pose, ids, params.max_range, visible)
             for m in METHODS:
                 best = math.inf
                 for _ in range(repeats):
@@ -408,8 +411,8 @@ def live_comparison(laser_model, scans):
     and take obstacle_detector's obstacle_extractor's circles for the same scan (it reads /scan
     with the beams :func:`tiago_nav.scan.usable_ranges` drops set to NaN: the robot's own body and
     the veils, filtered for it as for this package; its circles come out in map through tf at
-    the scan's stamp). All are judged against the world file: the movable obstacles hit by at
-    least 10 beams from the true pose must be found; a found centre matching none (within
+    the scan's stamp). All are judged against the world file: the movable obstacles in view
+    from the true pose (:mod:`tiago_nav.sim.inview`) must be found; a found centre matching none (within
     0.3 m) is a false positive, counted apart when it lies on the static map (a wall or a
     mapped cylinder, which the map subtraction of this package removes by design)."""
     import rospy
@@ -470,8 +473,7 @@ def live_comparison(laser_model, scans):
                         raise RuntimeError('%s failed: %s' % (k, resp[k].message))
                 _wait(lambda: stamp in circles, 'obstacle_detector did not answer the scan at '
                       '%.3f' % stamp.to_sec())
-                _, ids = scene.cast(h.pose())
-                must = [i for i, b in enumerate(scene.movable_ids) if np.sum(ids == b) >= 10]
+                must = scene.visible_obstacles(h.pose())
                 rows.append({'truth': [(world.movable_obstacles[i].x,
                                         world.movable_obstacles[i].y) for i in must],
                              'rest_message': resp['tiago_nav'].message,

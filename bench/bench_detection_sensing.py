@@ -23,9 +23,10 @@ Scenes:
 * ``missions``: random reachable poses B with obstacles in view (bench_detection.sample_poses)
   in the shipped worlds, test/worlds and the soak's generated corridor worlds.
 
-Judged per scene against the world file: an obstacle hit by >= 10 beams of the exact cast
-(less the beams the robot's own body stops: the tiago laser's self-hits) must be found; every found centre of those within 3 cm; a false positive is a found centre that
-matches no obstacle a beam reaches. Latency: one library call (ObstacleDetector.locate), wall
+Judged per scene against the world file: an obstacle in view (tiago_nav.sim.inview, the one
+definition the evaluator and the tests use: >= 7 usable beams of the exact cast, an outline
+edge seen) must be found; every found centre of those within 3 cm; a false positive is a found
+centre that matches no obstacle a beam reaches (a glimpsed one may be found). Latency: one library call (ObstacleDetector.locate), wall
 time and this process's CPU time (the machine is shared: wall time grows with its load, CPU time
 hardly does).
 Writes bench/results/detection_sensing.json.
@@ -54,7 +55,8 @@ from tiago_nav.geometry import compose, inverse  # noqa: E402
 from tiago_nav.localisation import Localiser, LocaliserConfig, register  # noqa: E402
 from tiago_nav.nodes.obstacle_detection import Params  # noqa: E402
 from tiago_nav.scan import median_ranges  # noqa: E402
-from tiago_nav.sim.laser import SELF_HIT, LaserModel  # noqa: E402
+from tiago_nav.sim.inview import MIN_BEAMS, judge_view  # noqa: E402
+from tiago_nav.sim.laser import LaserModel  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.scene import LaserConfig, Scene  # noqa: E402
 from tiago_nav.sim.world import load_world  # noqa: E402
@@ -66,7 +68,6 @@ REST_SCANS = 5                                # LocaliserConfig.rest_updates
 INJECTED = (0.01, 0.01, math.radians(0.3))    # [m, m, rad] course_injected: pose error std
 DETECTION_REST_SCANS = Params().rest_scans    # the service's median of scans at rest
 REST_SEED = 1
-MIN_BEAMS = 10                                # an obstacle this many beams hit must be found
 TOL = 0.03                                    # [m] ... within this
 GATE = 0.30                                   # [m] evaluation.MATCH_GATE
 COURSE = ('ias_lab_room_full.yaml', (11.0, 0.0, math.radians(-45.0)))
@@ -101,10 +102,9 @@ class Sensing:
         clean, ids = self.scene.cast(pose)
         laser = self.scene.laser_pose(pose)
         lib = compose(inverse(pose), laser)
-        # beams on each obstacle: of the exact cast, less those the laser's own body stops
-        # (the tiago model's self-hits: geometry, the same in every scan)
-        body = laser_model.apply(clean, cfg, NOISE, np.random.default_rng(0)).effect == SELF_HIT
-        beams = {i: int(np.sum((ids == b) & ~body)) for i, b in enumerate(self.scene.movable_ids)}
+        # in view and glimpsed: the shared definition, on the exact cast
+        view = judge_view(clean, ids, cfg.angles(), self.scene.movable_ids)
+        beams = view.usable_beams
         est = compose(pose, tuple(rng.normal(0.0, DRIFT)))
         lc = LocaliserConfig()
         if injected is not None:
@@ -116,7 +116,7 @@ class Sensing:
             est, _, _ = register(self.loc.field, pts, est, lc, lib[:2])
         loc_err = compose(inverse(pose), est)
         r = laser_model.apply(clean, cfg, NOISE, rng).ranges
-        out = {'pose': [round(v, 4) for v in pose], 'beams': beams,
+        out = {'pose': [round(v, 4) for v in pose], 'beams': beams, 'in_view': view.in_view,
                'localisation_error_m': math.hypot(loc_err[0], loc_err[1]),
                'localisation_error_deg': math.degrees(loc_err[2])}
         earlier = [laser_model.apply(clean, cfg, NOISE, self.rest_rng).ranges
@@ -129,7 +129,7 @@ class Sensing:
             res = det.locate(ranges, cfg.angle_min, cfg.angle_increment, cfg.range_min,
                              cfg.range_max, compose(est, lib), 'circle_fit', laser_in_base=lib)
             ms, cpu = (time.perf_counter() - t) * 1e3, (time.process_time() - c) * 1e3
-            out[name] = judge(self.world, beams, res.detections)
+            out[name] = judge(self.world, view, res.detections)
             out[name]['ms'] = ms
             out[name]['cpu_ms'] = cpu
             out[name]['corrected'] = res.correction.applied
@@ -137,15 +137,15 @@ class Sensing:
         return out
 
 
-def judge(world, beams, found):
-    """Scores of one detection: errors of the obstacles with >= MIN_BEAMS beams, misses, FPs."""
-    # every obstacle a beam reaches may be found (not a false positive); >= 5 beams: in view
-    seen = [i for i, n in beams.items() if n >= 1]
+def judge(world, view, found):
+    """Scores of one detection against the :class:`tiago_nav.sim.inview.View` ``view``: errors
+    of the obstacles in view, misses, FPs."""
+    # every obstacle a beam reaches may be found (not a false positive); in view: must be
+    seen = sorted(view.in_view + view.glimpsed)
     truth = [(world.movable_obstacles[i].x, world.movable_obstacles[i].y) for i in seen]
     pairs, missed, fps = match_obstacles(truth, [d.center for d in found], GATE)
-    view = seen
-    err = {view[i]: e for i, _, e in pairs}
-    must = [i for i in view if beams[i] >= MIN_BEAMS]
+    err = {seen[i]: e for i, _, e in pairs}
+    must = view.in_view
     return {'errors_m': {str(i): round(err[i], 4) for i in must if i in err},
             'errors_all_m': [round(e, 4) for e in err.values()],
             'missed': [i for i in must if i not in err], 'false_positives': len(fps),
@@ -164,7 +164,7 @@ def summarise(rows, key):
             'rms_error_m': round(float(np.sqrt(np.mean(errs ** 2))), 4) if errs.size else None,
             'max_error_m': round(float(errs.max()), 4) if errs.size else None,
             'beyond_tolerance': len(far), 'beyond_tolerance_cases': far[:10],
-            'missed_cases': [(r['world'], r['pose'], i, r['beams'][i]) for r in rows
+            'missed_cases': [(r['world'], r['pose'], i, r['beams'].get(i)) for r in rows
                              for i in r[key]['missed']][:10],
             'false_positive_cases': [(r['world'], r['pose']) for r in rows
                                      if r[key]['false_positives']][:10],
@@ -185,6 +185,7 @@ def main():
     cfg, lm = LaserConfig(), LaserModel()
     out = {'laser_model': 'tiago', 'noise_std_m': NOISE, 'drift_std': [DRIFT[0], DRIFT[1],
            math.degrees(DRIFT[2])], 'rest_scans': REST_SCANS, 'min_beams': MIN_BEAMS,
+           'in_view_rule': 'tiago_nav.sim.inview',
            'tolerance_m': TOL, 'seed': args.seed}
     rng = np.random.default_rng(args.seed)
     # the course scene at pose B
@@ -250,7 +251,7 @@ def main():
         print('%s: localisation error (emulated) rms %.2f cm' % (part, 100 * o['localisation_error_m_rms']))
         for k in ('before', 'correction_off', 'correction_on', 'rest'):
             m = o[k]
-            print('  %-15s %3d scenes, %3d/%3d found (>= %d beams), %d FP, RMS %.2f cm, max %.2f cm, '
+            print('  %-15s %3d scenes, %3d/%3d found (in view: >= %d usable beams), %d FP, RMS %.2f cm, max %.2f cm, '
                   '%d beyond %.0f cm, corrected %.0f %%, call %.2f ms median, p95 %.2f ms '
                   '(CPU %.2f / %.2f ms)'
                   % (k, m['scenes'], m['must_find'] - m['missed'], m['must_find'], MIN_BEAMS,

@@ -55,7 +55,6 @@ def run_world(name, n, seed, rtf, limit):
     import numpy as np
     from tiago_nav.sim.world import load_world
     from tiago_nav.testing.evaluation import sample_goals
-    from tiago_nav.sim.laser import LaserModel
     from tiago_nav.testing.harness import Harness, mission_record
 
     tmp = tempfile.mkdtemp(prefix='soak_')
@@ -68,9 +67,8 @@ def run_world(name, n, seed, rtf, limit):
         h.connect(timeout=120.0)
         for k, goal in enumerate(goals):
             corridor = k % 2 == 0          # the first mission (from the start) with the law
-            # demo.launch's default laser is tiago: obstacles behind the robot's own body
-            # are out of view
-            rec = mission_record(h, world, goal, corridor, limit=limit, laser_model=LaserModel())
+            # in view: tiago_nav.sim.inview (obstacles behind the robot's own body are not)
+            rec = mission_record(h, world, goal, corridor, limit=limit)
             rec['world'] = name
             rec['dead_nodes'] = [d for d in h.dead_nodes() if d not in dead]
             dead += rec['dead_nodes']

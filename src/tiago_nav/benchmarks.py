@@ -76,7 +76,8 @@ ABOUT = {
         'exact ray cast plus 0.01 m Gaussian noise (`--laser-model tiago`: the tiago model), '
         'placed with its exact pose. A found centre matches a movable obstacle of the world file '
         'within that obstacle\'s radius + 5 cm (nearest first, one each); one that matches none '
-        'is a false positive. *In view*: hit by at least 5 beams of the noise-free cast; *clear '
+        'is a false positive. *In view*: the one definition of `tiago_nav.sim.inview` (at least 7 '
+        'usable beams of the noise-free cast, an outline edge seen; docs/detection.md); *clear '
         'view*: also within `max_range` and hit by at least 80 % of the beams its silhouette '
         'spans. Latency is one library call; the service round trip is measured with the node '
         'on its own master (`--no-service` skips it). Targets for `circle_fit`: recall 100 % in '
@@ -89,16 +90,15 @@ ABOUT = {
         'with the pose correction on, off, with neither it nor the shared radius, and as the '
         'service runs at a stop (the pose correction on, the median of 5 scans at rest); at the '
         'course\'s pose B and at random poses B in the shipped, test and soak worlds. An '
-        'obstacle hit by at least 10 beams (the laser\'s hits on the robot\'s own body not '
-        'counted) must be found, its centre within 3 cm; a found centre that no obstacle a beam '
-        'reaches takes (one-to-one, within 0.3 m) is a false positive. The comparison with '
+        'obstacle in view (`tiago_nav.sim.inview`) must be found, its centre within 3 cm; a '
+        'found centre that no obstacle a beam reaches takes (one-to-one, within 0.3 m) is a false positive. The comparison with '
         'tysik/obstacle_detector (`make obstacle-detector` builds it; skipped when it is not '
         'installed): `bench_detection.py` runs the course mission (demo.launch at real-time '
         'factor 2, the default sensing), then gives each of the next 20 scans at pose B to this '
         'package\'s service and to obstacle_detector\'s obstacle_extractor (its default '
         'parameters, reading the scan with the robot\'s own body and the veils set invalid, its '
         'circles placed in map through tf at the scan\'s stamp); both are judged against the '
-        'world file as above (obstacles hit by at least 10 beams from the true pose; false '
+        'world file as above (obstacles in view from the true pose; false '
         'positives on the static map counted apart: this package subtracts the map by design).'),
     'navigation': (
         'The move_base node\'s own goal runner and navigator, in process, drive the simulator '
@@ -133,9 +133,9 @@ ABOUT = {
         '(pose B (11, 0, −45°), corridor law on), then `--n` (3; 1 with `--quick`) seeded random '
         'poses B per world with the corridor law off, reachable, at least 0.65 m from anything '
         'and facing a movable obstacle. Each is judged against the world file: the obstacles in '
-        'laser view from the true final pose (hit by at least 5 beams of the exact cast) are '
-        'matched one-to-one to the reported centres (least total distance, within 0.3 m; an '
-        'unmatched reported centre is a false positive); recall, false positives and centre RMS '
+        'view from the true final pose (`tiago_nav.sim.inview`) are matched one-to-one to the '
+        'reported centres (least total distance, within 0.3 m; an unmatched reported centre that '
+        'matches no glimpsed obstacle either is a false positive); recall, false positives and centre RMS '
         'over the missions that succeeded; collisions from `/sim/collisions`. It runs at each '
         'real-time factor of `--rtf` (default 5, the demo\'s, then 0). Target: every mission '
         'succeeds within 20 s of wall time.'),
@@ -442,8 +442,8 @@ def render_detection_sensing(d):
                              m.get('max_error_m'), m.get('beyond_tolerance'),
                              _pct(m.get('corrected_fraction')), m.get('latency_ms_median'),
                              m.get('cpu_ms_median')))
-    out = ['%s laser, %s m range noise; an obstacle hit by at least %s beams must be found, its '
-           'centre within %s m.' % (d.get('laser_model'), _f(d.get('noise_std_m')),
+    out = ['%s laser, %s m range noise; an obstacle in view (at least %s usable beams, an outline '
+           'edge seen) must be found, its centre within %s m.' % (d.get('laser_model'), _f(d.get('noise_std_m')),
                                     _f(d.get('min_beams')), _f(tol)), '']
     return out + _table(('scene set', 'detector', 'scenes', 'localisation error RMS [m]',
                          'to find', 'missed', 'false positives', 'RMS error [m]',

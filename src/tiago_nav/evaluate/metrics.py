@@ -116,13 +116,33 @@ def shortest_path_length(world, start_xy, goal_xy, robot_radius=ROBOT_RADIUS):
     return path_length(pts)
 
 
-def detection(truth_xy, found_xy, tolerance):
-    """Judge a detection against the ground truth (obstacles in view): ``(ok, figures)`` with
-    ``ok`` false when one in view is missed, one found is not there (a false positive) or a
+def detection_score(truth_xy, found_xy, glimpsed_xy=()):
+    """:func:`tiago_nav.testing.evaluation.score` of the found centres against the obstacles in
+    view ``truth_xy``, with the glimpsed ones ``glimpsed_xy`` (:mod:`tiago_nav.sim.inview`:
+    reached by a beam but not in view) allowed: a centre matched to one of them is neither a
+    false positive nor counted (the matching is one-to-one over both, Hungarian)."""
+    from tiago_nav.testing.evaluation import match_obstacles
+    t = [tuple(p[:2]) for p in truth_xy]
+    g = [tuple(p[:2]) for p in glimpsed_xy]
+    f = [tuple(p[:2]) for p in found_xy]
+    pairs, missed, fps = match_obstacles(t + g, f)
+    pairs = [(i, j, e) for i, j, e in pairs if i < len(t)]
+    errs = [e for _, _, e in pairs]
+    return {'true': len(t), 'found': len(f), 'matched': len(pairs),
+            'recall': len(pairs) / len(t) if t else 1.0, 'false_positives': len(fps),
+            'missed': [i for i in missed if i < len(t)], 'false_positive_indices': fps,
+            'glimpsed': len(g),
+            'rms_error': math.sqrt(sum(e * e for e in errs) / len(errs)) if errs else None,
+            'max_error': max(errs) if errs else None, 'pairs': pairs}
+
+
+def detection(truth_xy, found_xy, tolerance, glimpsed_xy=()):
+    """Judge a detection against the ground truth (obstacles in view, :mod:`tiago_nav.sim.inview`):
+    ``(ok, figures)`` with ``ok`` false when one in view is missed, one found is not there (a
+    false positive: matching neither one in view nor a glimpsed one, ``glimpsed_xy``) or a
     matched centre is farther than ``tolerance`` [m]; ``figures``: recall, false_positives,
     rms_error, max_error, in_view, found, and ``problem`` (a sentence, '' when ok)."""
-    from tiago_nav.testing.evaluation import score
-    s = score(truth_xy, found_xy)
+    s = detection_score(truth_xy, found_xy, glimpsed_xy)
     problems = []
     if s['matched'] < s['true']:
         problems.append('missed %d of %d obstacles in view' % (s['true'] - s['matched'], s['true']))

@@ -277,11 +277,12 @@ def judge(spec, raw):
     m['loc_samples'] = len(loc)
     det_ok, det = True, {}
     if raw.get('state') == 3 and final:         # SUCCEEDED: judge what it reported
-        from tiago_nav.testing.evaluation import visible_truth
-        truth = visible_truth(world, tuple(final))
+        from tiago_nav.sim.inview import truth as view_truth
+        truth, glimpsed = view_truth(world, tuple(final))
         found = [(o[0], o[1]) for o in raw.get('obstacles', [])]
         det_ok, det = M.detection([(t[1], t[2]) for t in truth], found,
-                                  spec['limits']['detection_tolerance'])
+                                  spec['limits']['detection_tolerance'],
+                                  [(g[1], g[2]) for g in glimpsed])
         det['truth'] = [[t[1], t[2], t[3]] for t in truth]
     m.update({'detection_' + k if k in ('problem', 'truth') else k: v for k, v in det.items()})
     m['found'] = raw.get('obstacles', [])

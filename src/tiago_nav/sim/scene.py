@@ -190,16 +190,12 @@ class Scene:
         ranges = np.where(ids >= 0, frac * length, np.inf)
         return ranges, ids
 
-    def visible_obstacles(self, base_pose=None, min_beams=5):
-        """Ground truth of "in view": indices into ``world.movable_obstacles`` hit by at least
-        ``min_beams`` beams of a noise-free cast from ``base_pose`` (default: current pose)."""
-        _, ids = self.cast(base_pose)
-        counts = {}
-        for b in ids[ids >= 0]:
-            i = self._body_to_movable.get(int(b))
-            if i is not None:
-                counts[i] = counts.get(i, 0) + 1
-        return sorted(i for i, n in counts.items() if n >= min_beams)
+    def visible_obstacles(self, base_pose=None):
+        """Ground truth of "in view": sorted indices into ``world.movable_obstacles`` in view
+        from ``base_pose`` (default: current pose), by the one definition of
+        :mod:`tiago_nav.sim.inview` (enough usable beams, an outline edge seen)."""
+        from tiago_nav.sim.inview import view_from
+        return view_from(self, base_pose).in_view
 
     # --- life cycle -----------------------------------------------------------------------
     def close(self):

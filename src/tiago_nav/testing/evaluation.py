@@ -12,35 +12,12 @@ from scipy.optimize import linear_sum_assignment
 MATCH_GATE = 0.30      # [m] a found centre farther than this from every true one is a false positive
 
 
-def visible_truth(world, base_pose, min_beams=5, laser_model=None):
-    """``(index, x, y, radius)`` of the world's movable obstacles in laser view from
-    ``base_pose`` ``(x, y, yaw)`` (the shared ground truth, Scene.visible_obstacles).
-
-    ``laser_model``: the :class:`tiago_nav.sim.laser.LaserModel` the run used (None: the exact
-    cast alone). With the ``tiago`` model, the beams its self-hits give to the robot's own
-    shell do not count: an obstacle behind the body at the fan's ends is out of the laser's
-    view (the soak counted four such as missed).
-    """
-    from tiago_nav.sim.scene import Scene
-    with Scene(world) as scene:
-        if laser_model is None or laser_model.is_ideal:
-            idx = scene.visible_obstacles(base_pose, min_beams=min_beams)
-        else:
-            idx = _unhidden(scene, base_pose, min_beams, laser_model)
-    return [(i, world.movable_obstacles[i].x, world.movable_obstacles[i].y,
-             world.movable_obstacles[i].radius) for i in idx]
-
-
-def _unhidden(scene, base_pose, min_beams, laser_model):
-    """Indices of the movable obstacles hit by at least ``min_beams`` beams of the exact cast
-    that the laser model's self-hits leave alone."""
-    from tiago_nav.sim.laser import body_ranges
-    ranges, ids = scene.cast(base_pose)
-    cfg = scene.laser
-    body = body_ranges(cfg.angles(), cfg.offset, laser_model.self_hit_radius,
-                       math.radians(laser_model.self_hit_angle))
-    ids = np.where(body < ranges, -1, ids)
-    return [i for i, b in enumerate(scene.movable_ids) if int(np.sum(ids == b)) >= min_beams]
+def visible_truth(world, base_pose):
+    """``(index, x, y, radius)`` of the world's movable obstacles in view from ``base_pose``
+    ``(x, y, yaw)``: the one definition of "in view", :mod:`tiago_nav.sim.inview` (the same
+    for every laser model: beams beyond the real laser's self-hit angle never count)."""
+    from tiago_nav.sim.inview import truth
+    return truth(world, base_pose)[0]
 
 
 def match_obstacles(true_xy, found_xy, gate=MATCH_GATE):

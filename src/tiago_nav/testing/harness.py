@@ -317,7 +317,7 @@ class Harness:
         self.log.close()
 
 
-def mission_record(h, world, goal, use_corridor_law, limit=None, laser_model=None):
+def mission_record(h, world, goal, use_corridor_law, limit=None):
     """Run one mission through the :class:`Harness` ``h`` (connected) and judge it against
     ``world`` (:class:`tiago_nav.sim.world.World`, ground truth from the simulator's tf).
 
@@ -327,8 +327,10 @@ def mission_record(h, world, goal, use_corridor_law, limit=None, laser_model=Non
         goal: pose B ``(x, y, yaw_deg)`` [m, m, deg] in map.
         use_corridor_law: the goal's flag.
         limit: [s wall] a mission without a terminal state by then is a hang (None: no bound).
-        laser_model: the run's :class:`tiago_nav.sim.laser.LaserModel`, for the ground truth
-            (:func:`tiago_nav.testing.evaluation.visible_truth`; None: the exact cast alone).
+
+    Ground truth: the obstacles in view from the final pose (:mod:`tiago_nav.sim.inview`, the
+    same rule for every laser model); a found centre on a glimpsed obstacle is no false
+    positive.
 
     Returns a dict: goal, ``succeeded``, ``hang``, ``message`` (the client's last line on
     failure, else the result's message), wall and simulated seconds, ``collisions`` during the
@@ -337,7 +339,8 @@ def mission_record(h, world, goal, use_corridor_law, limit=None, laser_model=Non
     ``lines`` (everything the client printed).
     """
     import rospy
-    from tiago_nav.testing.evaluation import score, visible_truth
+    from tiago_nav.evaluate.metrics import detection_score
+    from tiago_nav.sim.inview import truth as view_truth
     x, y, yaw = goal
     c0 = h.collisions or 0
     t_sim = rospy.get_time()
@@ -346,9 +349,10 @@ def mission_record(h, world, goal, use_corridor_law, limit=None, laser_model=Non
                                           limit=limit)
     sim = rospy.get_time() - t_sim
     final = h.pose()
-    truth = visible_truth(world, final, laser_model=laser_model) if final else []
+    truth, glimpsed = view_truth(world, final) if final else ([], [])
     found = [(o.center.x, o.center.y) for o in result.obstacles] if result else []
-    s = score([(tx, ty) for _, tx, ty, _ in truth], found)
+    s = detection_score([(tx, ty) for _, tx, ty, _ in truth], found,
+                        [(gx, gy) for _, gx, gy, _ in glimpsed])
     message = (result.message if result else '') if code == 0 else (lines[-1] if lines else '')
     return {'world': world.name, 'goal': [x, y, yaw], 'use_corridor_law': use_corridor_law,
             'succeeded': code == 0, 'hang': code is None, 'message': message,
