@@ -412,8 +412,8 @@ def live_comparison(laser_model, scans):
     with the beams :func:`tiago_nav.scan.usable_ranges` drops set to NaN: the robot's own body and
     the veils, filtered for it as for this package; its circles come out in map through tf at
     the scan's stamp). All are judged against the world file: the movable obstacles in view
-    from the true pose (:mod:`tiago_nav.sim.inview`) must be found; a found centre matching none (within
-    0.3 m) is a false positive, counted apart when it lies on the static map (a wall or a
+    from the true pose (:mod:`tiago_nav.sim.inview`) must be found; a found centre matching
+    none (within 0.3 m) is a false positive, counted apart when it lies on the static map (a wall or a
     mapped cylinder, which the map subtraction of this package removes by design)."""
     import rospy
     from obstacle_detector.msg import Obstacles

@@ -384,11 +384,6 @@ class ObstacleDetector:
         return out, correction
 
 
-def _sqrt(v):
-    """``sqrt(v)`` of a variance, ``inf`` for an unknown one."""
-    return math.sqrt(v) if math.isfinite(v) and v >= 0 else math.inf
-
-
 def _gap(ranges, inc, gap, holes=0):
     """Per point, the neighbour distance [m] below which points belong together: ``gap``, or
     three beam spacings at the point's range [m] when larger (beams spread with range, and more
