@@ -44,6 +44,12 @@ class DetectionNodeTest(SimTestCase):
             self.assertGreater(o.radius, 0.0)
             self.assertGreaterEqual(o.num_points, 1)
             self.assertLess(math.hypot(rx, ry), reach)
+            # how sure it is: filled, a symmetric covariance whose worst direction is center_std
+            xx, xy, yx, yy = o.center_covariance
+            self.assertAlmostEqual(xy, yx, places=12)
+            worst = math.sqrt((xx + yy) / 2 + math.hypot((xx - yy) / 2, xy))
+            self.assertAlmostEqual(o.center_std, worst, delta=1e-6 + 1e-4 * worst)
+            self.assertGreaterEqual(o.radius_std, 0.0)
         d = [math.hypot(o.center_robot.x, o.center_robot.y) for o in resp.obstacles]
         self.assertEqual(d, sorted(d))
 
@@ -80,6 +86,8 @@ class DetectionNodeTest(SimTestCase):
         for c in truth:
             o = min(resp.obstacles, key=lambda o: math.hypot(o.center.x - c.x, o.center.y - c.y))
             self.assertAlmostEqual(o.radius, c.radius, delta=0.04)
+            # a cylinder in view within 3 cm reports a centre std of millimetres to centimetres
+            self.assertTrue(0.0 < o.center_std < 0.03, o.center_std)
 
     def test_classic_methods(self):
         """The classic estimates, kept for comparison: the centroid finds every obstacle
