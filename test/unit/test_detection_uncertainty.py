@@ -157,3 +157,19 @@ def test_every_method_fills_the_uncertainty(method):
     # the centroid is biased toward the laser by about r (1 - 2/pi): its std says so
     if method == 'centroid':
         assert found[0].center_std > 0.05
+
+
+def test_a_borrowed_radius_that_does_not_fit_is_reported_as_less_sure():
+    """A short arc placed with the scan's shared radius (three alike cylinders in clear view)
+    although its own cylinder is smaller: its centre is off by about the radii's difference, and
+    its std says so instead of claiming millimetres."""
+    alike = [(2.5, -1.3, 0.2), (4.0, 1.6, 0.2), (2.0, 0.0, 0.2)]
+    errs, stds = [], []
+    for seed in range(6):
+        found = _detect(_world(alike + [(3.2, 0.36, 0.15)]), seed)
+        d = min(found, key=lambda d: math.hypot(d.center[0] - 3.2, d.center[1] - 0.36))
+        errs.append(math.hypot(d.center[0] - 3.2, d.center[1] - 0.36))
+        stds.append(d.center_std)
+    worst = int(np.argmax(errs))
+    assert errs[worst] > 0.02, errs                           # the shared radius misplaced it
+    assert stds[worst] > 0.5 * errs[worst], (errs, stds)

@@ -362,10 +362,14 @@ class ObstacleDetector:
                     or (p.shared_radius and abs(rad - prior) <= min(p.radius_spread, 2 * std)))):
                 fx, fy, frad, frms = circle_fit(c, prior, sensor, passing, margin)
                 if frms <= p.max_fit_rms:
+                    # the shared radius is known no better than its spread, nor than this arc's
+                    # own radius disagrees with it (the covariance only: a cylinder of another
+                    # size among alike ones is then reported as less sure)
+                    known = max(prior_std, abs(rad - prior))
                     cx, cy, rad = fx, fy, frad
                     cov = circle_covariance(
                         c, cx, cy, rad, fixed=p.obstacle_radius > 0,
-                        radius_prior=None if p.obstacle_radius > 0 else (prior, prior_std))
+                        radius_prior=None if p.obstacle_radius > 0 else (prior, known))
             elif soft is not None and std > p.max_radius_std:
                 fx, fy, frad, frms = circle_fit(c, 0.0, sensor, passing, margin,
                                                 radius_prior=soft, noise=p.range_noise)
