@@ -12,6 +12,8 @@ REP 117 values of a ``sensor_msgs/LaserScan`` range ``r`` with limits ``[range_m
 
 Angles are in the laser's frame (``base_laser_link``), radians; ranges and points in metres.
 """
+import math
+
 import numpy as np
 
 from tiago_nav.geometry import wrap_angle
@@ -113,11 +115,13 @@ def body_returns(ranges, angles, laser_pose=(LASER_OFFSET, 0.0, 0.0), radius=ROB
 
 SHADOW_ANGLE = np.radians(10.0)  # [rad] laser_filters ScanShadowsFilter's usual min_angle
 SHADOW_MIN_JUMP = 0.05           # [m] a veil's depth step: 3.5 sigma of two 0.01 m noisy ranges
+SHADOW_RANGE_STD = 0.01          # [m] range noise (1 sigma) the straightness test of a chain allows
 
 
 def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
                   laser_pose=(LASER_OFFSET, 0.0, 0.0), radius=ROBOT_RADIUS, margin=BODY_MARGIN,
-                  shadow_angle=SHADOW_ANGLE, shadow_min_jump=SHADOW_MIN_JUMP):
+                  shadow_angle=SHADOW_ANGLE, shadow_min_jump=SHADOW_MIN_JUMP,
+                  range_std=SHADOW_RANGE_STD):
     """The ranges a consumer may use: a copy of the scan's ranges [m] with the beams it must
     not use set to NaN (REP 117 *invalid*: they mark nothing and clear nothing, and are never
     read as free space). Every consumer of a scan (costmap, detection, corridor law,
@@ -141,6 +145,10 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
       the mixed pixel beyond it is dropped, and so is a cylinder's last point before its
       tangent. A mixed pixel within ``shadow_min_jump`` of the near surface is kept (it is
       close to a real surface); the far surface's first point behind it is dropped instead.
+      A point inside a chain (a grazing step going away on each side) is kept only if it lies
+      on the straight line through its two neighbours, within 3 ``range_std`` of range noise
+      (a wall is straight; a mixed pixel that follows a grazing step on a cylinder's flank,
+      between the cylinder and the wall behind it, is not).
 
     No return (+inf) and too close (-inf) are kept: they still mean what REP 117 says.
 
@@ -152,6 +160,7 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
         radius, margin: [m] the body, as :func:`body_returns` takes them.
         shadow_angle: [rad] a neighbour's segment closer than this to the beam is a veil.
         shadow_min_jump: [m] and only if their ranges differ by more than this.
+        range_std: [m] range noise (1 sigma) of the straightness test inside a chain.
 
     Returns:
         ``(n,)`` float array.
@@ -182,6 +191,17 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
         k = np.arange(n)
         drop |= out[k] & ~out[np.maximum(k - 1, 0)]
         drop |= back[k + 1] & ~back[np.minimum(k + 2, n)]
+        # inside a chain, a wall's points lie on a line: for beams delta apart, the inverse
+        # ranges of three consecutive points of a line satisfy 1/r0 + 1/r2 = 2 cos(delta) / r1
+        m = np.arange(1, n - 1)
+        inv = np.where(hit, 1.0 / np.where(hit, r, 1.0), 0.0)
+        cd = math.cos(angle_increment)
+        resid = inv[m - 1] + inv[m + 1] - 2.0 * cd * inv[m]
+        sigma = range_std * np.sqrt(inv[m - 1] ** 4 + inv[m + 1] ** 4 + 4.0 * cd * cd * inv[m] ** 4)
+        straight = np.ones(n, dtype=bool)
+        straight[m] = np.abs(resid) <= 3.0 * sigma
+        inside = (out[k] & out[k + 1]) | (back[k] & back[k + 1])
+        drop |= inside & ~straight
     r[drop] = np.nan
     return r
 
