@@ -160,3 +160,71 @@ def rooms_world(seed, movable=(2, 5), static=(0, 2), partition_probability=0.5, 
     world['movable_obstacles'] = [c for c in (place(float(rng.uniform(0.15, 0.25)))
                                               for _ in range(n_movable)) if c]
     return world
+
+
+def cluttered_room(radius=0.15, gaps=(0.3, 0.4, 0.5), wall_gaps=(0.15, 0.2, 0.3), door=1.0,
+                   room=(6.0, 5.0), wall=0.15, name='clutter_room'):
+    """A cluttered room (a dict for :meth:`tiago_nav.sim.world.World.from_dict`): the robot
+    starts in a closed 3 m x 3 m room facing +x, whose only way out is a ``door`` [m] wide
+    opening in the wall at x = 0 (centred on y = 0), into a walled room of ``room`` (x, y) [m]
+    holding unmapped cylinders of ``radius`` [m] in three groups, each close to a wall:
+
+    * a row of four along the far wall (x = room x), centred on y = 0, the gaps between
+      neighbours' surfaces ``gaps`` in turn, each ``wall_gaps[k]`` from that wall in turn;
+    * a pair along the north wall near the far corner: surfaces ``gaps[-1]`` apart,
+      ``wall_gaps[0]`` from the north wall;
+    * a pair in the south-east corner: surfaces ``gaps[0]`` apart, the first ``wall_gaps[-1]``
+      from the south wall and ``wall_gaps[1]`` from the east (far) wall.
+
+    Gaps are between surfaces [m] (the robot, 0.54 m across, fits through none of them); the
+    world's ``pose_b`` key is not part of the format, so it is returned apart by
+    :func:`cluttered_room_pose_b`, from where all eight are in the laser's view."""
+    if radius <= 0 or door <= 2 * 0.27 or min(gaps) <= 0 or min(wall_gaps) <= 0:
+        raise ValueError('need radius > 0, door > 0.54 m (the robot), gaps and wall_gaps > 0; '
+                         'got radius=%r door=%r gaps=%r wall_gaps=%r' % (radius, door, gaps, wall_gaps))
+    lx, ly = room
+    hy = ly / 2.0
+    back, half_start = -3.0, 1.5
+    h = wall / 2.0
+    walls = [
+        # the start room: west, north, south; the door wall at x = 0 in two pieces
+        {'x': back - h, 'y': 0.0, 'length': 2 * half_start + 2 * wall, 'width': wall, 'yaw_deg': 90.0},
+        {'x': back / 2.0, 'y': half_start + h, 'length': -back, 'width': wall, 'yaw_deg': 0.0},
+        {'x': back / 2.0, 'y': -half_start - h, 'length': -back, 'width': wall, 'yaw_deg': 0.0},
+    ]
+    for side in (1, -1):
+        a, b = door / 2.0, hy
+        walls.append({'x': -h, 'y': side * (a + b + wall) / 2.0, 'length': b - a + wall, 'width': wall,
+                      'yaw_deg': 90.0})
+    # the cluttered room: north, south, east (far) walls; inner faces at y = +-hy, x = lx
+    walls += [
+        {'x': lx / 2.0, 'y': hy + h, 'length': lx + 2 * wall, 'width': wall, 'yaw_deg': 0.0},
+        {'x': lx / 2.0, 'y': -hy - h, 'length': lx + 2 * wall, 'width': wall, 'yaw_deg': 0.0},
+        {'x': lx + h, 'y': 0.0, 'length': ly + 2 * wall, 'width': wall, 'yaw_deg': 90.0},
+    ]
+    r = radius
+    cyl = []
+    xs = [lx - wall_gaps[k % len(wall_gaps)] - r for k in range(4)]
+    ys = [0.0]
+    for k in range(3):
+        # neighbours' centres 2 r + gap apart, whatever their offsets from the wall
+        d, dx = 2 * r + gaps[k % len(gaps)], xs[k + 1] - xs[k]
+        ys.append(ys[-1] + math.sqrt(d * d - dx * dx))
+    off = (ys[0] + ys[-1]) / 2.0
+    cyl += [(x, y - off) for x, y in zip(xs, ys)]
+    yn = hy - wall_gaps[0] - r
+    cyl += [(lx - 1.2, yn), (lx - 1.2 - 2 * r - gaps[-1], yn)]
+    cx, cy = lx - wall_gaps[1 % len(wall_gaps)] - r, -hy + wall_gaps[-1] + r
+    cyl += [(cx - 2 * r - gaps[0], cy), (cx, cy)]
+    return {'name': name, 'resolution': 0.05,
+            'bounds': [back - wall - 0.5, -hy - wall - 0.5, lx + wall + 0.5, hy + wall + 0.5],
+            'robot_start': [back / 2.0, 0.0, 0.0], 'walls': walls,
+            'movable_obstacles': [{'x': round(x, 3), 'y': round(y, 3), 'radius': r} for x, y in cyl]}
+
+
+def cluttered_room_pose_b(world):
+    """The pose B ``(x [m], y [m], yaw [deg])`` of a :func:`cluttered_room` world: on the
+    room's centre line 2.2 m short of the far wall, facing it (the row along it ahead, the
+    north and south-east pairs to the sides, within the laser's fan)."""
+    east = max(w['x'] for w in world['walls'])
+    return (round(east - 0.075 - 2.2, 3), 0.0, 0.0)
