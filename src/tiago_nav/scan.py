@@ -12,8 +12,6 @@ REP 117 values of a ``sensor_msgs/LaserScan`` range ``r`` with limits ``[range_m
 
 Angles are in the laser's frame (``base_laser_link``), radians; ranges and points in metres.
 """
-import math
-
 import numpy as np
 
 from tiago_nav.geometry import wrap_angle
@@ -148,7 +146,9 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
       A point inside a chain (a grazing step going away on each side) is kept only if it lies
       on the straight line through its two neighbours, within 3 ``range_std`` of range noise
       (a wall is straight; a mixed pixel that follows a grazing step on a cylinder's flank,
-      between the cylinder and the wall behind it, is not).
+      between the cylinder and the wall behind it, is not). An invalid beam (NaN: a dropout,
+      common at a cylinder's tangent) says nothing: the beams either side of it (up to
+      ``MAX_SKIP`` beams apart) are neighbours.
 
     No return (+inf) and too close (-inf) are kept: they still mean what REP 117 says.
 
@@ -175,35 +175,54 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
     # an obstacle however close, and must stop the robot
     behind = np.cos(angles + laser_pose[2]) <= 0.0
     drop = body_returns(r, angles, laser_pose, radius, margin) & hit & behind
-    if n > 1:
-        c, s = np.cos(angles), np.sin(angles)
-        i, j = np.arange(n - 1), np.arange(1, n)
-        rh = np.where(hit, r, 0.0)
-        dx, dy = rh[j] * c[j] - rh[i] * c[i], rh[j] * s[j] - rh[i] * s[i]
-        along = np.abs(dx * c[i] + dy * s[i])
-        across = np.abs(dx * s[i] - dy * c[i])
-        step = (hit[i] & hit[j] & (across < np.tan(shadow_angle) * along)
-                & (np.abs(rh[j] - rh[i]) > shadow_min_jump))
-        out = np.concatenate(([False], step & (rh[j] > rh[i]), [False]))  # step k -> k+1 goes away
-        back = np.concatenate(([False], step & (rh[i] > rh[j]), [False]))  # step k+1 -> k goes away
-        # beam k: reached going away from k-1 (out[k]) not continuing out[k-1], or from k+1
-        # (back[k+1]) not continuing back[k+2]
-        k = np.arange(n)
-        drop |= out[k] & ~out[np.maximum(k - 1, 0)]
-        drop |= back[k + 1] & ~back[np.minimum(k + 2, n)]
-        # inside a chain, a wall's points lie on a line: for beams delta apart, the inverse
-        # ranges of three consecutive points of a line satisfy 1/r0 + 1/r2 = 2 cos(delta) / r1
-        m = np.arange(1, n - 1)
-        inv = np.where(hit, 1.0 / np.where(hit, r, 1.0), 0.0)
-        cd = math.cos(angle_increment)
-        resid = inv[m - 1] + inv[m + 1] - 2.0 * cd * inv[m]
-        sigma = range_std * np.sqrt(inv[m - 1] ** 4 + inv[m + 1] ** 4 + 4.0 * cd * cd * inv[m] ** 4)
-        straight = np.ones(n, dtype=bool)
-        straight[m] = np.abs(resid) <= 3.0 * sigma
-        inside = (out[k] & out[k + 1]) | (back[k] & back[k + 1])
-        drop |= inside & ~straight
+    # a beam with no valid measurement (NaN, e.g. a dropout at a cylinder's tangent) says
+    # nothing: the beams either side of it (up to MAX_SKIP beams apart) are neighbours
+    idx = np.flatnonzero(~np.isnan(r))
+    if idx.size > 1:
+        drop[idx] |= _veils(r[idx], angles[idx], hit[idx], np.diff(idx) <= MAX_SKIP,
+                            shadow_angle, shadow_min_jump, range_std)
     r[drop] = np.nan
     return r
+
+
+MAX_SKIP = 3    # [beams] neighbours across up to two invalid beams
+
+
+def _veils(r, angles, hit, adjacent, shadow_angle, shadow_min_jump, range_std):
+    """The veil rule of :func:`usable_ranges` over a sequence of beams (ranges ``r`` [m],
+    directions ``angles`` [rad], ``hit`` mask, ``adjacent[k]``: beams k and k+1 count as
+    neighbours); returns the mask of the points to drop."""
+    n = r.size
+    c, s = np.cos(angles), np.sin(angles)
+    i, j = np.arange(n - 1), np.arange(1, n)
+    rh = np.where(hit, r, 0.0)
+    dx, dy = rh[j] * c[j] - rh[i] * c[i], rh[j] * s[j] - rh[i] * s[i]
+    along = np.abs(dx * c[i] + dy * s[i])
+    across = np.abs(dx * s[i] - dy * c[i])
+    step = (adjacent & hit[i] & hit[j] & (across < np.tan(shadow_angle) * along)
+            & (np.abs(rh[j] - rh[i]) > shadow_min_jump))
+    out = np.concatenate(([False], step & (rh[j] > rh[i]), [False]))  # step k -> k+1 goes away
+    back = np.concatenate(([False], step & (rh[i] > rh[j]), [False]))  # step k+1 -> k goes away
+    # beam k: reached going away from k-1 (out[k]) not continuing out[k-1], or from k+1
+    # (back[k+1]) not continuing back[k+2]
+    k = np.arange(n)
+    drop = out[k] & ~out[np.maximum(k - 1, 0)]
+    drop |= back[k + 1] & ~back[np.minimum(k + 2, n)]
+    # inside a chain, a wall's points lie on a line: three points at angles a0, a1, a2 of a line
+    # satisfy sin(a2 - a1) / r0 + sin(a1 - a0) / r2 = sin(a2 - a0) / r1
+    if n > 2:
+        m = np.arange(1, n - 1)
+        inv = np.where(hit, 1.0 / np.where(hit, r, 1.0), 0.0)
+        s21, s10 = np.sin(angles[m + 1] - angles[m]), np.sin(angles[m] - angles[m - 1])
+        s20 = np.sin(angles[m + 1] - angles[m - 1])
+        resid = inv[m - 1] * s21 + inv[m + 1] * s10 - inv[m] * s20
+        sigma = range_std * np.sqrt((inv[m - 1] ** 2 * s21) ** 2 + (inv[m + 1] ** 2 * s10) ** 2
+                                    + (inv[m] ** 2 * s20) ** 2)
+        straight = np.ones(n, dtype=bool)
+        straight[m] = np.abs(resid) <= 3.0 * np.abs(sigma)
+        inside = (out[k] & out[k + 1]) | (back[k] & back[k + 1])
+        drop |= inside & ~straight
+    return drop
 
 
 def same_ranges(a, b):
