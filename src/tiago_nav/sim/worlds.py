@@ -173,13 +173,15 @@ def cluttered_room(radius=0.15, gaps=(0.3, 0.4, 0.5), wall_gaps=(0.15, 0.2, 0.3)
       neighbours' surfaces ``gaps`` in turn, each ``wall_gaps[k]`` from that wall in turn;
     * a pair along the north wall near the far corner: surfaces ``gaps[-1]`` apart,
       ``wall_gaps[0]`` from the north wall;
-    * a pair in the south-east corner: surfaces ``gaps[0]`` apart, the first ``wall_gaps[-1]``
-      from the south wall and ``wall_gaps[1]`` from the east (far) wall.
+    * a pair in the south-east corner: surfaces ``gaps[0]`` apart, both ``wall_gaps[-1]`` from
+      the south wall, the eastern one ``wall_gaps[1]`` from the east (far) wall.
 
-    Gaps are between surfaces [m] (the robot, 0.54 m across, fits through none of them); the
-    world's ``pose_b`` key is not part of the format, so it is returned apart by
-    :func:`cluttered_room_pose_b`, from where all eight are in the laser's view."""
-    if radius <= 0 or door <= 2 * 0.27 or min(gaps) <= 0 or min(wall_gaps) <= 0:
+    Gaps are between surfaces [m] (the robot, 0.54 m across, fits through none of them);
+    ``gaps`` and ``wall_gaps`` are used in turn when shorter than the row. A pose B is not part
+    of the world format: :func:`cluttered_room_pose_b` gives the one from where all eight are
+    in the laser's view."""
+    from tiago_nav.robot import ROBOT_RADIUS
+    if radius <= 0 or door <= 2 * ROBOT_RADIUS or min(gaps) <= 0 or min(wall_gaps) <= 0:
         raise ValueError('need radius > 0, door > 0.54 m (the robot), gaps and wall_gaps > 0; '
                          'got radius=%r door=%r gaps=%r wall_gaps=%r' % (radius, door, gaps, wall_gaps))
     lx, ly = room
