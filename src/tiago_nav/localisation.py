@@ -87,6 +87,16 @@ class LocaliserConfig:
         True, 'after each registration, move the pose to the middle of what the map\'s cells '
               'allow: an axis-aligned wall lies somewhere within its raster cell, unknown, and '
               'the registration alone is pulled by each wall\'s offset in it (refine_on_raster)')
+    degenerate_ratio: float = param(
+        0.02, 'a direction of the pose (x, y and the heading times the points\' RMS distance) '
+              'along which the scan\'s information is below this fraction of its strongest '
+              'direction\'s is unobservable from the scan (a corridor\'s axis): the correction '
+              'keeps the prediction along it (observable_directions)', ge=0, lt=1)
+    odometry_sigma_distance: float = param(
+        0.02, '[m/m] std of the odometry\'s position error per metre driven: the covariance '
+              'along unobservable directions grows by it', ge=0)
+    odometry_sigma_yaw: float = param(
+        0.03, '[rad/rad] std of the odometry\'s heading error per radian turned', ge=0)
     rest_updates: int = param(
         5, 'scans registered anyway once the robot has come to rest (odometry unchanged since '
            'the scan before), until it moves again: at rest they refine the estimate that places '
@@ -106,7 +116,10 @@ class Update:
     ``covariance``: 3 × 3 of ``(x, y, yaw)`` [m², m·rad, rad²]; ``predicted``: the prediction
     before correction; ``corrected``: whether the registration was accepted; ``inliers``: number
     of points within ``inlier_distance`` after registration; ``points``: points used;
-    ``reason``: why a correction was rejected ('' when accepted).
+    ``reason``: why a correction was rejected ('' when accepted); ``weak``: the directions
+    the scan did not observe, kept at the prediction (:func:`weak_description`, e.g.
+    ``'position along 0 deg'``; '' when the scan constrains every direction or was not
+    registered).
     """
     pose: tuple
     map_to_odom: tuple
@@ -116,6 +129,7 @@ class Update:
     inliers: int
     points: int
     reason: str = ''
+    weak: str = ''
 
 
 class DistanceField:
@@ -205,29 +219,108 @@ def score(field, poses, points, beams, scale):
     return rho.sum(axis=1)
 
 
-def register(field, points, guess, config, sensor=(0.0, 0.0)):
-    """Scan-to-map registration: the base pose in map that puts ``points`` on the map.
+def observable_directions(info, points, weights, ratio):
+    """Which directions of a pose correction a scan constrains, from its information matrix.
+
+    The correction ``(dx, dy, dyaw)`` mixes metres and radians; the heading is scaled by the
+    points' weighted RMS distance from base_footprint, ``length`` (a turn by ``dyaw`` moves a
+    typical point by ``length · dyaw``), so that the three eigenvalues of the scaled information
+    compare what one point contributes along each. A direction whose eigenvalue is below
+    ``ratio`` times the largest is unobservable: between two parallel walls (a corridor) the
+    position along them, in a round room the heading.
+
+    Args:
+        info: ``(3, 3)`` information of the scan alone about ``(x, y, yaw)`` [1/m², 1/(m·rad),
+            1/rad²] (Gauss-Newton ``Jᵀ W J``, without any prior).
+        points: ``(N, 2)`` scan points [m] in base_footprint.
+        weights: ``(N,)`` the points' weights in ``info``.
+        ratio: the threshold, relative to the strongest direction (0: every direction is
+            observable).
+
+    Returns:
+        ``(strong, weak, eigenvalues, length)``: ``strong`` ``(3, k)`` and ``weak``
+        ``(3, 3 - k)`` orthonormal bases of the observable and unobservable directions in the
+        scaled space ``(x, y, length · yaw)`` [m], the scaled eigenvalues (ascending) and
+        ``length`` [m]. A correction ``d`` in ``(x, y, yaw)`` becomes ``S d`` in the scaled space,
+        ``S = diag(1, 1, length)``.
+    """
+    w = np.asarray(weights, dtype=float)
+    pts = np.asarray(points, dtype=float)
+    length = math.sqrt(float(np.sum(w * np.sum(pts ** 2, axis=1))) / max(float(np.sum(w)), 1e-9))
+    length = max(length, 0.1)
+    s_inv = np.array([1.0, 1.0, 1.0 / length])
+    scaled = info * s_inv[:, None] * s_inv[None, :]
+    vals, vecs = np.linalg.eigh(0.5 * (scaled + scaled.T))
+    top = max(float(vals[-1]), 0.0)
+    weak = vals < ratio * top if top > 0 else np.ones(3, dtype=bool)
+    return vecs[:, ~weak], vecs[:, weak], vals, length
+
+
+def weak_description(weak, pose, length):
+    """A short text naming the unobservable directions ``weak`` (from
+    :func:`observable_directions`) at ``pose`` (map): e.g. ``'position along 0 deg'`` (a
+    corridor along x) or ``'heading'``; '' when there are none."""
+    parts = []
+    for v in np.asarray(weak).T:
+        if abs(v[2]) > math.hypot(v[0], v[1]):
+            parts.append('heading')
+        else:
+            ang = math.degrees(math.atan2(v[1], v[0])) % 180.0
+            parts.append('position along %.0f deg' % ang)
+    return ', '.join(parts)
+
+
+def _keep_weak(pose, anchor, strong, length):
+    """``pose`` with its components along the unobservable directions (those not in the scaled
+    basis ``strong``) set back to ``anchor``'s."""
+    d = np.asarray(pose, dtype=float) - anchor
+    d[2] = wrap_angle(d[2])
+    scale = np.array([1.0, 1.0, length])
+    u = strong @ (strong.T @ (d * scale))
+    out = anchor + u / scale
+    out[2] = wrap_angle(out[2])
+    return out
+
+
+def register(field, points, guess, config, sensor=(0.0, 0.0), anchor=None):
+    """:func:`register_with_information` without the :class:`Information`: ``(pose,
+    covariance, residuals)``."""
+    return register_with_information(field, points, guess, config, sensor, anchor)[:3]
+
+
+def register_with_information(field, points, guess, config, sensor=(0.0, 0.0), anchor=None):
+    """Scan-to-map registration: the base pose in map that puts ``points`` on the map, corrected
+    only along the directions the scan observes.
 
     Gauss-Newton, iteratively reweighted with Cauchy weights whose scale anneals from
     ``config.initial_scale`` to ``config.robust_scale``, plus a weak prior towards ``guess``.
+    At each iteration the scan's information (``Jᵀ W J`` of the distance-field residuals in
+    ``(x, y, yaw)``) is split by :func:`observable_directions` (``config.degenerate_ratio``);
+    the step is solved in the observable subspace only, and along the unobservable directions
+    the pose stays ``anchor``'s (a corridor's axis keeps the prediction).
 
     Args:
         field: the map's :class:`DistanceField`.
         points: ``(N, 2)`` scan points [m] in base_footprint.
         guess: initial pose ``(x, y, yaw)`` of base_footprint in map (the prediction).
-        config: :class:`LocaliserConfig` (loss scales, iterations, prior).
+        config: :class:`LocaliserConfig` (loss scales, iterations, prior, degenerate_ratio).
         sensor: ``(x, y)`` [m] of the laser in base_footprint: a point whose field gradient
             points along its beam (away from the laser) would be seen from behind a mapped
             surface (the back face of a thin wall is the classic false minimum) and gets no
             weight.
+        anchor: the pose whose components the unobservable directions keep (default
+            ``guess``; :func:`search` starts from nearby poses but anchors at the given one).
 
     Returns:
-        ``(pose, covariance, residuals)``: the registered pose, its 3 × 3 covariance (the
-        inverse of the Gauss-Newton normal matrix, the points weighted by the inverse of their
-        weighted residual variance, plus the prior's information) and the final
-        per-point signed distances [m] to the map.
+        ``(pose, covariance, residuals, info)``: the registered pose, its 3 × 3 covariance in
+        the observable directions (the inverse of the Gauss-Newton normal matrix restricted to
+        them, the points weighted by the inverse of their weighted residual variance, plus the
+        prior's information; zero along the unobservable ones, where the caller knows the
+        prediction's), the final per-point signed distances [m] to the map, and a
+        :class:`Information` (the split).
     """
     prior = np.array(guess, dtype=float)
+    anchor = prior.copy() if anchor is None else np.array(anchor, dtype=float)
     pose = prior.copy()
     beams = beam_directions(points, sensor)
     info_prior = np.diag([1.0 / config.prior_sigma_xy ** 2] * 2
@@ -243,24 +336,59 @@ def register(field, points, guess, config, sensor=(0.0, 0.0)):
         j = np.column_stack((gx, gy, gx * dqx + gy * dqy))
         w = 1.0 / (1.0 + (r / scale) ** 2)     # Cauchy weights
         w[back] = 0.0
-        dp = prior - pose
-        dp[2] = wrap_angle(dp[2])
         # the loss scale stands for the points' range std: their information is 1 / scale²
         jtw = (j * w[:, None]).T
-        h = jtw @ j / scale ** 2 + info_prior
-        step = np.linalg.solve(h, -jtw @ r / scale ** 2 + info_prior @ dp)
+        jtwj = jtw @ j
+        strong, weak, vals, length = observable_directions(jtwj, points, w,
+                                                           config.degenerate_ratio)
+        pose = _keep_weak(pose, anchor, strong, length)
+        dp = prior - pose
+        dp[2] = wrap_angle(dp[2])
+        h = jtwj / scale ** 2 + info_prior
+        # the step within the observable subspace: pose = pose + B a, B = S⁻¹ strong
+        b = strong / np.array([1.0, 1.0, length])[:, None]
+        if b.shape[1]:
+            a = np.linalg.solve(b.T @ h @ b, b.T @ (-jtw @ r / scale ** 2 + info_prior @ dp))
+            step = b @ a
+        else:
+            step = np.zeros(3)
         pose += step
         pose[2] = wrap_angle(pose[2])
         if abs(step[0]) + abs(step[1]) < 1e-4 and abs(step[2]) < 1e-4 and scale == scales[-1]:
             break
     if config.raster_band:
         pose[:2] = refine_on_raster(field, points, pose)[0][:2]
+        pose = _keep_weak(pose, anchor, strong, length)
     r = field(transform_points(tuple(pose), points))[0]
     w = 1.0 / (1.0 + (r / config.robust_scale) ** 2)
     dof = max(float(np.sum(w)) - 3.0, 1.0)
     sigma2 = max(float(np.sum(w * r ** 2)) / dof, (0.25 * field.grid.resolution) ** 2)
-    cov = np.linalg.inv(h - jtw @ j / scale ** 2 + jtw @ j / sigma2)
-    return (float(pose[0]), float(pose[1]), float(pose[2])), cov, r
+    normal = h - jtwj / scale ** 2 + jtwj / sigma2
+    cov = b @ np.linalg.inv(b.T @ normal @ b) @ b.T if b.shape[1] else np.zeros((3, 3))
+    return ((float(pose[0]), float(pose[1]), float(pose[2])), cov, r,
+            Information(strong, weak, vals, length))
+
+
+@dataclass(frozen=True)
+class Information:
+    """How a registration's scan constrains the pose (:func:`observable_directions`):
+    orthonormal bases ``strong`` ``(3, k)`` and ``weak`` ``(3, 3 - k)`` in the scaled space
+    ``(x, y, length · yaw)`` [m], the scaled eigenvalues (ascending) and ``length`` [m]."""
+    strong: np.ndarray
+    weak: np.ndarray
+    eigenvalues: np.ndarray
+    length: float
+
+    @property
+    def degenerate(self):
+        """Whether some direction is unobservable from the scan."""
+        return self.weak.shape[1] > 0
+
+    def weak_projector(self):
+        """``(3, 3)`` matrix ``W`` taking a correction ``(dx, dy, dyaw)`` to its part along the
+        unobservable directions (``W = S⁻¹ V Vᵀ S``, ``V`` = ``weak``)."""
+        scale = np.array([1.0, 1.0, self.length])
+        return (self.weak / scale[:, None]) @ (self.weak.T * scale[None, :])
 
 
 AXIS_COS = 0.995       # a field gradient this close to an axis: the point faces a raster edge
@@ -334,7 +462,9 @@ def search(field, points, guess, config, sensor=(0.0, 0.0), keep=4):
     """Registration from an uncertain pose (after a (re)set): score a grid of start poses within
     ``config.search_radius`` and ``config.search_yaw_deg`` of ``guess`` (steps of 0.1 m and
     5 deg), register from the ``keep`` best and keep the result whose final :func:`score` is
-    lowest.
+    lowest. Every registration is anchored at ``guess``: along a direction the scan does not
+    observe (a corridor's axis, where every start pose along it scores the same) the result
+    keeps the given pose instead of whichever start pose happened to score first.
 
     Args:
         field, points, config, sensor: as for :func:`register`.
@@ -342,7 +472,8 @@ def search(field, points, guess, config, sensor=(0.0, 0.0), keep=4):
         keep: how many of the best-scored start poses are registered.
 
     Returns:
-        the :func:`register` result ``(pose, covariance, residuals)`` of the best.
+        the :func:`register_with_information` result ``(pose, covariance, residuals,
+        information)`` of the best.
     """
     nxy = 2 * int(math.ceil(config.search_radius / 0.1)) + 1
     nyaw = 2 * int(math.ceil(config.search_yaw_deg / 5.0)) + 1
@@ -351,11 +482,21 @@ def search(field, points, guess, config, sensor=(0.0, 0.0), keep=4):
     ox, oy, oyaw = np.meshgrid(d, d, dyaw, indexing='ij')
     cand = np.column_stack((guess[0] + ox.ravel(), guess[1] + oy.ravel(), guess[2] + oyaw.ravel()))
     beams = beam_directions(points, sensor)
-    order = np.argsort(score(field, cand, points, beams, config.inlier_distance))[:keep]
-    results = [register(field, points, tuple(cand[k]), config, sensor) for k in order]
-    finals = score(field, np.array([p for p, _, _ in results]), points, beams,
+    # stable: among equal scores the start poses nearest the given one (the grid's centre) first
+    near = np.hypot(ox.ravel(), oy.ravel()) + np.abs(oyaw.ravel())
+    misfit = score(field, cand, points, beams, config.inlier_distance)
+    order = np.lexsort((near, misfit))[:keep]
+    results = [register_with_information(field, points, tuple(cand[k]), config, sensor,
+                                         anchor=guess) for k in order]
+    finals = score(field, np.array([res[0] for res in results]), points, beams,
                    config.inlier_distance)
     return results[int(np.argmin(finals))]
+
+
+def _sqrtm(a):
+    """The symmetric positive semi-definite square root of a symmetric ``a``."""
+    vals, vecs = np.linalg.eigh(0.5 * (a + a.T))
+    return (vecs * np.sqrt(np.maximum(vals, 0.0))) @ vecs.T
 
 
 class Localiser:
@@ -400,6 +541,7 @@ class Localiser:
             if covariance is None else np.asarray(covariance, dtype=float).reshape(3, 3)
         self._odom = None       # odom → base_footprint at the last update
         self._searching = True
+        self.information = None  # the last registration's Information
         self._seen = None       # odom → base_footprint of the scan before (due)
         self._rest = 0          # scans due at rest since the robot stopped
 
@@ -412,6 +554,28 @@ class Localiser:
         if self._odom is None:
             return self.pose
         return compose(self.pose, compose(inverse(self._odom), odom_pose))
+
+    def predicted_covariance(self, odom_pose):
+        """The covariance of :meth:`predict` ``(odom_pose)``: the last one, ``P``, carried
+        through the odometry delta ``d`` (first-order, ``pose ∘ d``: ``J P Jᵀ``), plus the
+        odometry's own error over it, ``Q``: ``odometry_sigma_distance`` per metre driven (along
+        and across) and ``odometry_sigma_yaw`` per radian turned, in base_footprint then rotated
+        into map. Wheel odometry's error is mostly a scale error, the same at every step, so the
+        standard deviations add rather than the variances: ``(√(J P Jᵀ) + √Q)²`` (symmetric
+        square roots), which grows the standard deviation along a corridor linearly with the
+        distance driven, as the error does."""
+        if self._odom is None:
+            return self.covariance.copy()
+        dx, dy, dyaw = compose(inverse(self._odom), odom_pose)
+        th = self.pose[2]
+        c, s = math.cos(th), math.sin(th)
+        jp = np.array([[1.0, 0.0, -s * dx - c * dy], [0.0, 1.0, c * dx - s * dy], [0.0, 0.0, 1.0]])
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        dist = math.hypot(dx, dy)
+        q = np.diag([(self.config.odometry_sigma_distance * dist) ** 2] * 2
+                    + [(self.config.odometry_sigma_yaw * abs(dyaw)) ** 2])
+        root = _sqrtm(jp @ self.covariance @ jp.T) + _sqrtm(rot @ q @ rot.T)
+        return root @ root.T
 
     def scan_points(self, ranges, angle_min, angle_increment, range_min, range_max,
                     laser_pose=None):
@@ -476,16 +640,26 @@ class Localiser:
         """
         c = self.config
         predicted = self.predict(odom_pose)
+        predicted_cov = self.predicted_covariance(odom_pose)
         self._odom = tuple(odom_pose)
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
         reason = ''
         inliers = 0
+        info = None
         if len(pts) < c.min_inliers:
             reason = 'only %d scan points (need %d)' % (len(pts), c.min_inliers)
         else:
-            solve = search if self._searching else register
-            pose, cov, r = solve(self.field, pts, predicted, c, sensor or (LASER_OFFSET, 0.0))
+            solve = search if self._searching else register_with_information
+            pose, cov, r, info = solve(self.field, pts, predicted, c,
+                                       sensor or (LASER_OFFSET, 0.0))
             extra = (c.search_radius, c.search_yaw_deg) if self._searching else (0.0, 0.0)
+            # a direction unobservable for a while (a corridor's axis) has drifted as far as the
+            # odometry has: the gate allows 3 standard deviations of the prediction beyond the
+            # usual limits, so the first scan that sees it again can correct it
+            spread = 3.0 * math.sqrt(max(float(np.linalg.eigvalsh(predicted_cov[:2, :2])[-1]),
+                                         0.0))
+            extra = (extra[0] + spread,
+                     extra[1] + 3.0 * math.degrees(math.sqrt(max(predicted_cov[2, 2], 0.0))))
             inliers = int(np.sum(np.abs(r) < c.inlier_distance))
             jump = math.hypot(pose[0] - predicted[0], pose[1] - predicted[1])
             turn = abs(wrap_angle(pose[2] - predicted[2]))
@@ -498,7 +672,14 @@ class Localiser:
             self.pose = predicted
             self.covariance = self.covariance + UNCORRECTED_GROWTH
         else:
-            self.pose, self.covariance = pose, cov
+            # along the unobservable directions the pose is the prediction, and so is its
+            # uncertainty: the prediction's covariance projected on them
+            weak = info.weak_projector()
+            self.pose = pose
+            self.covariance = cov + weak @ predicted_cov @ weak.T
             self._searching = False
+        self.information = info
+        weak = weak_description(info.weak, self.pose, info.length) \
+            if info is not None and not reason else ''
         return Update(self.pose, self.map_to_odom, self.covariance.copy(), predicted,
-                      not reason, inliers, len(pts), reason)
+                      not reason, inliers, len(pts), reason, weak)

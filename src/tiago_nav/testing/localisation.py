@@ -59,13 +59,23 @@ class RouteResult:
     """Per scan: position error [m] and yaw error [rad] of the localised pose and of dead
     reckoning (drifting odometry from the true start); per registered scan (the localiser's
     ``due`` ones; the others follow odometry) the update time [s] (CPU time of the updating
-    thread, so that other processes on the machine do not count)."""
+    thread, so that other processes on the machine do not count).
+
+    Also per scan: ``truth`` ``(N, 3)`` the true pose, ``loc_err`` and ``odo_err`` ``(N, 3)``
+    the localised and dead-reckoned pose minus the truth ``(dx, dy, dyaw)`` [m, m, rad] in
+    map, ``sigma`` ``(N, 3)`` the standard deviations of the localiser's covariance, and
+    ``weak`` ``(N,)`` whether the last registration found a direction unobservable."""
     loc_xy: np.ndarray
     loc_yaw: np.ndarray
     odo_xy: np.ndarray
     odo_yaw: np.ndarray
     seconds: list
     rejected: int
+    truth: np.ndarray = None
+    loc_err: np.ndarray = None
+    odo_err: np.ndarray = None
+    sigma: np.ndarray = None
+    weak: np.ndarray = None
 
     def p95(self, what):
         return float(np.percentile(getattr(self, what), 95))
@@ -100,6 +110,7 @@ def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=L
         start = tuple(a + b for a, b in zip(sim.pose, initial_error))
         loc = Localiser(grid, start, config)
         errs = {k: [] for k in ('lx', 'ly', 'ox', 'oy')}
+        rows = {k: [] for k in ('truth', 'loc', 'odo', 'sigma', 'weak')}
         secs, rejected, i = [], 0, 0
         while i < len(route) and sim.time < max_time:
             pose = sim.pose
@@ -129,8 +140,17 @@ def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=L
             for key, est in (('l', estimate), ('o', dead)):
                 errs[key + 'x'].append(math.hypot(est[0] - truth[0], est[1] - truth[1]))
                 errs[key + 'y'].append(abs(wrap_angle(est[2] - truth[2])))
+                rows['loc' if key == 'l' else 'odo'].append(
+                    (est[0] - truth[0], est[1] - truth[1], wrap_angle(est[2] - truth[2])))
+            rows['truth'].append(tuple(truth))
+            rows['sigma'].append(tuple(np.sqrt(np.maximum(np.diag(loc.covariance), 0.0))))
+            rows['weak'].append(loc.information is not None and loc.information.degenerate)
         return RouteResult(np.array(errs['lx']), np.array(errs['ly']), np.array(errs['ox']),
-                           np.array(errs['oy']), secs, rejected)
+                           np.array(errs['oy']), secs, rejected,
+                           np.array(rows['truth']).reshape(-1, 3),
+                           np.array(rows['loc']).reshape(-1, 3),
+                           np.array(rows['odo']).reshape(-1, 3),
+                           np.array(rows['sigma']).reshape(-1, 3), np.array(rows['weak'], dtype=bool))
     finally:
         sim.close()
 
