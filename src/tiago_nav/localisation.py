@@ -88,7 +88,7 @@ class LocaliserConfig:
               'allow: an axis-aligned wall lies somewhere within its raster cell, unknown, and '
               'the registration alone is pulled by each wall\'s offset in it (refine_on_raster)')
     degenerate_ratio: float = param(
-        0.02, 'a direction of the pose (x, y and the heading times the points\' RMS distance) '
+        0.01, 'a direction of the pose (x, y and the heading times the points\' RMS distance) '
               'along which the scan\'s information is below this fraction of its strongest '
               'direction\'s is unobservable from the scan (a corridor\'s axis): the correction '
               'keeps the prediction along it (observable_directions)', ge=0, lt=1)
@@ -219,6 +219,78 @@ def score(field, poses, points, beams, scale):
     return rho.sum(axis=1)
 
 
+NORMAL_GAP = 0.5         # [m] scan neighbours further apart than this are not one surface
+NORMAL_FLATNESS = 0.1    # a neighbourhood whose spread across its line exceeds this fraction
+                         # of its spread along it is not one straight surface (a corner): no normal
+
+
+def scan_normals(points, half_window=4, max_gap=NORMAL_GAP):
+    """Unit surface normals of scan points, from the points themselves (not from the map): the
+    direction across the line fitted (principal axes) to each point and its up to
+    ``half_window`` neighbours on either side in scan order that lie within ``max_gap`` [m] of
+    it. A point with no such neighbour, or whose neighbourhood is not straight (a corner,
+    :data:`NORMAL_FLATNESS`), gets none.
+
+    Args:
+        points: ``(N, 2)`` scan points [m] in scan order (any frame).
+
+    Returns:
+        ``(normals, ok)``: ``(N, 2)`` unit normals (sign arbitrary) in the points' frame and an
+        ``(N,)`` mask of the points that have one.
+    """
+    pts = np.asarray(points, dtype=float)
+    n = len(pts)
+    if n < 2:
+        return np.zeros((n, 2)), np.zeros(n, dtype=bool)
+    sums = np.zeros((n, 5))     # count, sum x, sum y, and the centred second moments below
+    members = []
+    for k in range(-half_window, half_window + 1):
+        idx = np.arange(n) + k
+        valid = (idx >= 0) & (idx < n)
+        j = np.clip(idx, 0, n - 1)
+        near = valid & (np.hypot(pts[j, 0] - pts[:, 0], pts[j, 1] - pts[:, 1]) <= max_gap)
+        members.append((j, near))
+        sums[:, 0] += near
+        sums[:, 1] += np.where(near, pts[j, 0], 0.0)
+        sums[:, 2] += np.where(near, pts[j, 1], 0.0)
+    mx, my = sums[:, 1] / sums[:, 0], sums[:, 2] / sums[:, 0]
+    sxx = syy = sxy = np.zeros(n)
+    for j, near in members:
+        dx, dy = np.where(near, pts[j, 0] - mx, 0.0), np.where(near, pts[j, 1] - my, 0.0)
+        sxx, syy, sxy = sxx + dx * dx, syy + dy * dy, sxy + dx * dy
+    # principal axis angle of the neighbourhood; the normal is across it
+    phi = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
+    tr = sxx + syy
+    root = np.sqrt(np.maximum((0.5 * (sxx - syy)) ** 2 + sxy ** 2, 0.0))
+    major, minor = 0.5 * tr + root, 0.5 * tr - root
+    ok = (sums[:, 0] >= 2) & (major > 0) & (minor <= NORMAL_FLATNESS ** 2 * major)
+    normals = np.column_stack((-np.sin(phi), np.cos(phi)))
+    return normals, ok
+
+
+def scan_information(points, normals, weights, yaw):
+    """The information ``Jᵀ W J`` [1/m², 1/(m·rad), 1/rad²] (unit point variance) a scan's
+    points give about a pose ``(x, y, yaw)`` when each constrains only the distance along its
+    surface normal: ``J_i = (nx, ny, n · ∂q/∂yaw)`` with ``n`` the normal in map.
+
+    The normals are the scan's own (:func:`scan_normals`), not the map field's gradient: a wall
+    not aligned with the grid is a staircase of cells in the map, whose field gradients tilt
+    back and forth along it and would claim a hold along the wall that the wall does not give.
+
+    Args:
+        points: ``(N, 2)`` points [m] in base_footprint; ``normals`` ``(N, 2)`` theirs, in
+            base_footprint; ``weights`` ``(N,)`` (0 for points without a normal or not on the
+            map); ``yaw`` [rad] the pose's heading.
+    """
+    c, s = math.cos(yaw), math.sin(yaw)
+    nx = c * normals[:, 0] - s * normals[:, 1]
+    ny = s * normals[:, 0] + c * normals[:, 1]
+    dqx = -s * points[:, 0] - c * points[:, 1]
+    dqy = c * points[:, 0] - s * points[:, 1]
+    j = np.column_stack((nx, ny, nx * dqx + ny * dqy))
+    return (j * weights[:, None]).T @ j
+
+
 def observable_directions(info, points, weights, ratio):
     """Which directions of a pose correction a scan constrains, from its information matrix.
 
@@ -234,8 +306,8 @@ def observable_directions(info, points, weights, ratio):
             1/rad²] (Gauss-Newton ``Jᵀ W J``, without any prior).
         points: ``(N, 2)`` scan points [m] in base_footprint.
         weights: ``(N,)`` the points' weights in ``info``.
-        ratio: the threshold, relative to the strongest direction (0: every direction is
-            observable).
+        ratio: the threshold, relative to the strongest direction (0: every direction counts as
+            observable, the split is off).
 
     Returns:
         ``(strong, weak, eigenvalues, length)``: ``strong`` ``(3, k)`` and ``weak``
@@ -252,7 +324,10 @@ def observable_directions(info, points, weights, ratio):
     scaled = info * s_inv[:, None] * s_inv[None, :]
     vals, vecs = np.linalg.eigh(0.5 * (scaled + scaled.T))
     top = max(float(vals[-1]), 0.0)
-    weak = vals < ratio * top if top > 0 else np.ones(3, dtype=bool)
+    if ratio <= 0:
+        weak = np.zeros(3, dtype=bool)
+    else:
+        weak = vals < ratio * top if top > 0 else np.ones(3, dtype=bool)
     return vecs[:, ~weak], vecs[:, weak], vals, length
 
 
@@ -265,8 +340,8 @@ def weak_description(weak, pose, length):
         if abs(v[2]) > math.hypot(v[0], v[1]):
             parts.append('heading')
         else:
-            ang = math.degrees(math.atan2(v[1], v[0])) % 180.0
-            parts.append('position along %.0f deg' % ang)
+            ang = int(round(math.degrees(math.atan2(v[1], v[0])))) % 180
+            parts.append('position along %d deg' % ang)
     return ', '.join(parts)
 
 
@@ -323,6 +398,7 @@ def register_with_information(field, points, guess, config, sensor=(0.0, 0.0), a
     anchor = prior.copy() if anchor is None else np.array(anchor, dtype=float)
     pose = prior.copy()
     beams = beam_directions(points, sensor)
+    normals, has_normal = scan_normals(points)
     info_prior = np.diag([1.0 / config.prior_sigma_xy ** 2] * 2
                          + [1.0 / math.radians(config.prior_sigma_yaw_deg) ** 2])
     scales = np.geomspace(config.initial_scale, config.robust_scale, max(1, config.iterations // 2))
@@ -339,8 +415,9 @@ def register_with_information(field, points, guess, config, sensor=(0.0, 0.0), a
         # the loss scale stands for the points' range std: their information is 1 / scale²
         jtw = (j * w[:, None]).T
         jtwj = jtw @ j
-        strong, weak, vals, length = observable_directions(jtwj, points, w,
-                                                           config.degenerate_ratio)
+        wn = np.where(has_normal, w, 0.0)
+        strong, weak, vals, length = observable_directions(
+            scan_information(points, normals, wn, pose[2]), points, wn, config.degenerate_ratio)
         pose = _keep_weak(pose, anchor, strong, length)
         dp = prior - pose
         dp[2] = wrap_angle(dp[2])
