@@ -47,6 +47,10 @@ COV_INDEX = (0, 1, 5)
 
 REPUBLISH_OFFSET = rospy.Duration(0, 100000)   # 0.1 ms
 
+# registrations in a row observing every direction before the node logs that the geometry
+# recovered from a degenerate one
+RECOVERED_AFTER = 3
+
 
 @dataclass(frozen=True)
 class Params:
@@ -118,6 +122,8 @@ class LocalisationNode:
         self.localiser = None
         self.lock = threading.Lock()
         self.frozen = FrozenScanCheck()
+        self.degenerate = False     # the last logged state of the scan geometry
+        self.clear_streak = 0       # registrations in a row observing every direction
         self.map_to_odom = None
         self.sent = collections.deque(maxlen=64)    # recent stamps sent (tf refuses repeats)
         self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
@@ -234,9 +240,13 @@ class LocalisationNode:
                 up = self.localiser.update(odom, pts, laser[:2])
                 self.map_to_odom = up.map_to_odom
                 pose, cov, rejected = up.pose, up.covariance, up.reason
+                change = self.degeneracy(up) if up.corrected else None
             else:                           # about where the last registered scan was taken
                 pose, cov, rejected = (compose(self.map_to_odom, odom),
-                                       self.localiser.covariance.copy(), '')
+                                       self.localiser.predicted_covariance(odom), '')
+                change = None
+        if change:
+            rospy.loginfo('localisation: %s', change)
         if rejected:
             rospy.logwarn_throttle(5.0, 'localisation: correction rejected (%s); following '
                                    'odometry', rejected)
@@ -245,6 +255,29 @@ class LocalisationNode:
         # may stand still
         self.send_transform(stamp, also_now=not self.sent)
         self.publish_pose(stamp, pose, cov)
+
+    def degeneracy(self, update):
+        """What to log about the scan geometry after an accepted registration ``update``, or
+        None: once when some direction becomes unobservable (e.g. entering a corridor), and once
+        when every direction has been observable for :data:`RECOVERED_AFTER` registrations in a
+        row (so a corridor's end seen on and off does not log per scan)."""
+        if update.weak:
+            self.clear_streak = 0
+            if self.degenerate:
+                return None
+            self.degenerate = True
+            return ('scan geometry is degenerate at (%.2f, %.2f): the %s is unobservable from '
+                    'the scan and follows odometry (its standard deviation grows with the '
+                    'distance driven, in /amcl_pose\'s covariance)'
+                    % (update.pose[0], update.pose[1], update.weak))
+        if not self.degenerate:
+            return None
+        self.clear_streak += 1
+        if self.clear_streak < RECOVERED_AFTER:
+            return None
+        self.degenerate = False
+        return ('scan geometry constrains every direction again at (%.2f, %.2f)'
+                % (update.pose[0], update.pose[1]))
 
     def publish_pose(self, stamp, pose, covariance):
         out = PoseWithCovarianceStamped()
