@@ -15,12 +15,16 @@ Each scan is one :meth:`Localiser.update`:
    registered to the map: Gauss-Newton on the bilinearly interpolated distance field, iteratively
    reweighted with Cauchy weights whose scale anneals from ``initial_scale`` to ``robust_scale``,
    so points far from any mapped cell (unmapped obstacles, people, mixed pixels) lose their pull;
-   a weak prior ties directions the scan does not constrain (a corridor's axis) to the prediction;
+   only the directions the scan observes are corrected (:func:`observable_directions`, from the
+   information of the scan's own surface normals): along the others (a corridor's axis) the
+   pose stays the prediction, and so does its covariance (:meth:`Localiser.predicted_covariance`,
+   growing with the distance driven);
    then (``raster_band``) the translation moves to the middle of what the map's cells allow for
    the axis-aligned walls in view (:func:`refine_on_raster`);
 3. **gate**: the correction is kept only if enough points end within ``inlier_distance`` of the
-   map and it moves the pose no more than ``max_correction`` / ``max_correction_yaw_deg`` from
-   the prediction; otherwise the prediction is kept (and the update says why).
+   map and it moves the pose no more than ``max_correction`` / ``max_correction_yaw_deg`` (each
+   widened by 3 standard deviations of the prediction) from the prediction; otherwise the
+   prediction is kept (and the update says why).
 
 The result gives ``map → odom`` (``pose_map ∘ inverse(pose_odom)``), what a localisation node
 publishes on tf, and a 3 × 3 covariance of ``(x, y, yaw)`` for a PoseWithCovarianceStamped.
@@ -570,6 +574,13 @@ def search(field, points, guess, config, sensor=(0.0, 0.0), keep=4):
     return results[int(np.argmin(finals))]
 
 
+# the search along an unobservable direction (Localiser.search_along_weak): step [m], reach at
+# most [m], and by how many points' worth of the score cap the best pose must beat the prediction
+WEAK_SEARCH_STEP = 0.05
+WEAK_SEARCH_MAX = 2.0
+WEAK_SEARCH_MARGIN = 5
+
+
 def _sqrtm(a):
     """The symmetric positive semi-definite square root of a symmetric ``a``."""
     vals, vecs = np.linalg.eigh(0.5 * (a + a.T))
@@ -706,6 +717,44 @@ class Localiser:
             return True
         return False
 
+    def search_along_weak(self, points, predicted, predicted_cov, sensor):
+        """The start pose of a tracking registration: ``predicted``, or, after registrations
+        that left a direction unobservable and while the prediction's standard deviation along
+        it exceeds :data:`WEAK_SEARCH_STEP`, the best-scoring pose along that direction within 3
+        standard deviations (at most :data:`WEAK_SEARCH_MAX`) of the prediction, if it beats the
+        prediction's :func:`score` by at least :data:`WEAK_SEARCH_MARGIN` points' worth.
+
+        Why: after a long corridor the along-axis drift is larger than the Cauchy scale, so the
+        first surfaces that would fix it (the corridor's end, the room beyond) are too far off
+        the map to pull, and the axis would stay unobservable; scoring whole poses along it
+        finds them. In a corridor every pose along it scores the same and the prediction stays.
+        """
+        info = self.information
+        if info is None or not info.degenerate:
+            return predicted
+        c = self.config
+        beams = beam_directions(points, sensor)
+        best, best_score = np.array(predicted, dtype=float), None
+        for v in info.weak.T:
+            d = v / np.array([1.0, 1.0, info.length])
+            if math.hypot(d[0], d[1]) < 0.5:          # a heading: not searched
+                continue
+            d = d / math.hypot(d[0], d[1])
+            sigma = math.sqrt(max(float(d @ predicted_cov @ d), 0.0))
+            if sigma < WEAK_SEARCH_STEP:
+                continue
+            reach = min(3.0 * sigma, WEAK_SEARCH_MAX)
+            offsets = np.arange(-reach, reach + 1e-9, WEAK_SEARCH_STEP)
+            cand = np.array(predicted, dtype=float)[None, :] + offsets[:, None] * d[None, :]
+            scores = score(self.field, cand, points, beams, c.inlier_distance)
+            here = float(score(self.field, np.array([predicted]), points, beams,
+                               c.inlier_distance)[0])
+            k = int(np.argmin(scores))
+            if here - scores[k] >= WEAK_SEARCH_MARGIN * math.log1p(9.0) and \
+                    (best_score is None or scores[k] < best_score):
+                best, best_score = cand[k], float(scores[k])
+        return tuple(float(x) for x in best)
+
     def update(self, odom_pose, points, sensor=None):
         """Predict from odometry, correct with the scan, gate; returns an :class:`Update`.
 
@@ -726,9 +775,12 @@ class Localiser:
         if len(pts) < c.min_inliers:
             reason = 'only %d scan points (need %d)' % (len(pts), c.min_inliers)
         else:
-            solve = search if self._searching else register_with_information
-            pose, cov, r, info = solve(self.field, pts, predicted, c,
-                                       sensor or (LASER_OFFSET, 0.0))
+            sensor = sensor or (LASER_OFFSET, 0.0)
+            if self._searching:
+                pose, cov, r, info = search(self.field, pts, predicted, c, sensor)
+            else:
+                start = self.search_along_weak(pts, predicted, predicted_cov, sensor)
+                pose, cov, r, info = register_with_information(self.field, pts, start, c, sensor)
             extra = (c.search_radius, c.search_yaw_deg) if self._searching else (0.0, 0.0)
             # a direction unobservable for a while (a corridor's axis) has drifted as far as the
             # odometry has: the gate allows 3 standard deviations of the prediction beyond the
