@@ -4,9 +4,16 @@ world's route (start room, corridor, a loop in the big room and back; the nine c
 and unmapped) with drifting odometry (distance x 1.02, rotation x 1.03, 1 % noise per step), and
 the localiser (:mod:`tiago_nav.localisation`) registers each scan it finds due, as the node
 does. Its error against the truth, and dead reckoning's, over five seeds, with the ideal laser
-and with the default ``tiago`` laser. Writes bench/results/localisation.json.
+and with the default ``tiago`` laser.
 
-Usage: bench/bench_localisation.py [--seeds 5]
+Then the corridors, with the ``tiago`` laser and the same drift: worlds/corridor_start.yaml
+(a start 1 m inside an 8 m corridor, to the room beyond: the error over the whole run) and
+worlds/corridor_long.yaml (through a 20 m featureless corridor: along it, the localised error's
+growth against dead reckoning's over the stretch where the scan leaves the axis unobservable,
+and the steps between consecutive estimates; :func:`tiago_nav.testing.localisation.corridor_figures`).
+Writes bench/results/localisation.json.
+
+Usage: bench/bench_localisation.py [--seeds 5] [--only course|corridors]
 """
 import argparse
 import json
@@ -40,6 +47,8 @@ def summary(runs):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--seeds', type=int, default=5)
+    ap.add_argument('--only', choices=('course', 'corridors'),
+                    help='run one part; the other keeps its figures from the last JSON')
     args = ap.parse_args()
     if os.path.join(ROOT, 'src') not in sys.path:
         sys.path.append(os.path.join(ROOT, 'src'))
@@ -47,8 +56,66 @@ def main():
     from tiago_nav.sim.laser import LaserModel
     from tiago_nav.sim.world import load_world
     from tiago_nav.testing.localisation import run_route
+    path = os.path.join(RESULTS, 'localisation.json')
+    out = {}
+    if args.only and os.path.exists(path):
+        with open(path) as f:
+            out = json.load(f)
+    if args.only != 'corridors':
+        course(args, out)
+    if args.only != 'course':
+        corridors(args, out)
+    out['meta'] = meta(vars(args), real_time_factor='in process (simulated time)',
+                       laser_model='ideal and tiago', odometry_model='drift (injected)')
+    os.makedirs(RESULTS, exist_ok=True)
+    with open(path, 'w') as f:
+        json.dump(out, f, indent=2)
+    print('wrote bench/results/localisation.json')
+
+
+def corridors(args, out):
+    """The two corridor worlds (tiago laser), per seed and pooled, into ``out['corridors']``."""
+    from tiago_nav.sim.laser import LaserModel
+    from tiago_nav.sim.world import load_world
+    from tiago_nav.testing.localisation import (CORRIDOR_LONG_ROUTE, CORRIDOR_START_ROUTE,
+                                                corridor_figures, run_route)
+    res = {}
+    print('| world | seed | scans | featureless (m) | localised along growth | dead reckoning '
+          'along growth | max step in it | max error increase | max correction | '
+          'p95 / max |')
+    print('|---|---|---|---|---|---|---|---|---|---|')
+    for name, route in (('corridor_start', CORRIDOR_START_ROUTE),
+                        ('corridor_long', CORRIDOR_LONG_ROUTE)):
+        world = load_world(os.path.join(ROOT, 'worlds', name + '.yaml'))
+        runs = []
+        for seed in range(args.seeds):
+            r = run_route(world, route=route, seed=seed, max_time=200.0,
+                          laser=LaserModel(laser_model='tiago'))
+            f = corridor_figures(r)
+            f['seed'] = seed
+            runs.append(f)
+            print('| %s | %d | %d | %.1f | %.3f m | %.3f m | %.3f m | %.3f m | %.3f m | '
+                  '%.3f / %.3f m |' % (name, seed, f['scans'], f.get('featureless_m', 0.0),
+                                       f.get('loc_along_growth_m', 0.0),
+                                       f.get('odo_along_growth_m', 0.0),
+                                       f.get('max_step_featureless_m', 0.0),
+                                       f['max_error_increase_m'], f['max_correction_m'],
+                                       f['localised_p95_m'], f['localised_max_m']), flush=True)
+        res[name] = {'route': [list(p) for p in route], 'runs': runs,
+                     'worst': {k: max(r.get(k, 0.0) for r in runs)
+                               for k in ('localised_p95_m', 'localised_max_m',
+                                         'max_step_featureless_m', 'max_error_increase_m',
+                                         'max_correction_m')}}
+    out['corridors'] = {'laser': 'tiago', 'seeds': args.seeds, 'worlds': res}
+
+
+def course(args, out):
+    """The course route with both lasers, into ``out``."""
+    from tiago_nav.sim.laser import LaserModel
+    from tiago_nav.sim.world import load_world
+    from tiago_nav.testing.localisation import run_route
     world = load_world(os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml'))
-    out = {'world': world.name, 'seeds': args.seeds, 'lasers': {}}
+    out.update({'world': world.name, 'seeds': args.seeds, 'lasers': {}})
     print('| laser | scans | registered | rejected | localised p95 / max | dead reckoning p95 | '
           'update median |')
     print('|---|---|---|---|---|---|---|')
@@ -61,12 +128,6 @@ def main():
                              100 * s['localised_p95_m'], s['localised_p95_deg'],
                              100 * s['localised_max_m'], 100 * s['dead_reckoning_p95_m'],
                              s['dead_reckoning_p95_deg'], s['update_median_ms'] or 0.0), flush=True)
-    out['meta'] = meta(vars(args), real_time_factor='in process (simulated time)',
-                       laser_model='ideal and tiago', odometry_model='drift (injected)')
-    os.makedirs(RESULTS, exist_ok=True)
-    with open(os.path.join(RESULTS, 'localisation.json'), 'w') as f:
-        json.dump(out, f, indent=2)
-    print('wrote bench/results/localisation.json')
 
 
 if __name__ == '__main__':

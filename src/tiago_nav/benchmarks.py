@@ -43,7 +43,7 @@ BENCHMARKS = (
          ['lockstep.json']),
         ('bench/bench_lockstep.py --task nav --n 3 --nav 0 --modes on '
          '--out bench/results/lockstep_nav.json', ['lockstep_nav.json'])]),
-    ('localisation', 'Localisation along the course route', [
+    ('localisation', 'Localisation along the course route and through corridors', [
         ('bench/bench_localisation.py', ['localisation.json'])]),
     ('soak', 'Soak', [
         ('bench/bench_soak.py', ['soak.json'])]),
@@ -160,7 +160,11 @@ ABOUT = {
         'odometry drift (distance × 1.02, rotation × 1.03, 1 % noise per step), and the '
         'localiser registers each scan it finds due, as the node does; its error against the '
         'truth, and dead reckoning\'s, over `--seeds` (5) seeds, with the ideal and the tiago '
-        'laser. Bar: p95 at most 5 cm and 2°.'),
+        'laser. Bar: p95 at most 5 cm and 2°. Then, with the tiago laser and the same drift, '
+        'worlds/corridor_start.yaml (a start 1 m inside an 8 m corridor, to the room beyond; '
+        'bar: max 5 cm, p95 3 cm) and worlds/corridor_long.yaml (through a 20 m featureless '
+        'corridor; bar: the error along it grows no faster than dead reckoning\'s, no step '
+        'over 2 cm between consecutive estimates while it is unobservable).'),
     'soak': (
         'Many whole missions over `demo.launch`, one launch (a private master) per world, each '
         'mission starting where the last ended: `--n` (10; 2 with `--quick`) seeded random '
@@ -547,9 +551,27 @@ def render_localisation(d):
              s.get('localised_p95_m'), s.get('localised_p95_deg'), s.get('localised_max_m'),
              s.get('dead_reckoning_p95_m'), s.get('update_median_ms'))
             for laser, s in d.get('lasers', {}).items()]
-    return ['%s, %s seeds, drifting odometry.' % (d.get('world'), _f(d.get('seeds'))), ''] + \
+    out = ['%s, %s seeds, drifting odometry.' % (d.get('world'), _f(d.get('seeds'))), ''] + \
         _table(('laser', 'scans', 'registered', 'rejected', 'p95 [m]', 'p95 [deg]', 'max [m]',
                 'dead reckoning p95 [m]', 'update median [ms]'), rows)
+    c = d.get('corridors')
+    if c:
+        rows = [(name, r.get('seed'), r.get('scans'), r.get('featureless_m'),
+                 r.get('loc_along_growth_m'), r.get('odo_along_growth_m'),
+                 r.get('sigma_along_end_m'), r.get('max_step_featureless_m'),
+                 r.get('max_error_increase_m'), r.get('max_correction_m'),
+                 r.get('localised_p95_m'), r.get('localised_max_m'))
+                for name, w in c.get('worlds', {}).items() for r in w.get('runs', [])]
+        out += ['', 'Corridors, %s laser, %s seeds: featureless = the longest unbroken stretch '
+                'where the scan left the axis unobservable; growth = change of the along-axis '
+                'error over it; step = largest change of the error between two consecutive '
+                'estimates in it; increase / correction = the largest rise / fall of the error '
+                'between two consecutive estimates over the whole run.'
+                % (c.get('laser'), _f(c.get('seeds'))), '']
+        out += _table(('world', 'seed', 'scans', 'featureless [m]', 'localised growth [m]',
+                       'dead reckoning growth [m]', 'σ along at its end [m]', 'step [m]',
+                       'increase [m]', 'correction [m]', 'p95 [m]', 'max [m]'), rows)
+    return out
 
 
 def render_soak(d):

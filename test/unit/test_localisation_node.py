@@ -59,3 +59,23 @@ def test_a_tick_needs_a_re_send_only_when_no_send_reaches_past_it():
     assert not reaches_past(scans, t(10.2))                 # a silent laser: re-send
     assert not reaches_past(scans, t(10.0 + 1 / 15 + 0.1))  # a send at the tick is not past it
     assert not reaches_past([], t(10.1))                    # nothing sent yet
+
+
+def test_degenerate_geometry_is_logged_once_and_its_recovery_after_three_registrations():
+    import types
+    from tiago_nav.localisation import Update
+    from tiago_nav.nodes.localisation import RECOVERED_AFTER, LocalisationNode
+
+    def up(weak, x):
+        return Update((x, 0.0, 0.0), (0.0, 0.0, 0.0), np.eye(3), (x, 0.0, 0.0), True, 100, 200,
+                      '', weak)
+
+    node = types.SimpleNamespace(degenerate=False, clear_streak=0)
+    said = [LocalisationNode.degeneracy(node, up(w, 0.1 * k)) for k, w in enumerate(
+        [''] * 3 + ['position along 0 deg'] * 20 + ['', 'position along 0 deg'] + [''] * 5)]
+    lines = [s for s in said if s]
+    assert len(lines) == 2, lines
+    assert lines[0].startswith('scan geometry is degenerate at (0.30, 0.00): the position along '
+                               '0 deg is unobservable')
+    assert lines[1] == 'scan geometry constrains every direction again at (%.2f, 0.00)' % (
+        0.1 * (25 + RECOVERED_AFTER - 1))

@@ -155,6 +155,62 @@ def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=L
         sim.close()
 
 
+# Through corridor_long's 20 m corridor (along +x, y = 0) from its start room to the room beyond.
+CORRIDOR_LONG_ROUTE = ((0.5, 0.0), (19.5, 0.0), (22.5, 0.5))
+# From corridor_start's start, 1 m inside its 8 m corridor, to the room beyond (pose B's place).
+CORRIDOR_START_ROUTE = ((7.0, 0.0), (10.5, 0.5))
+
+
+def corridor_figures(result, axis=0.0):
+    """Figures of a run along a corridor whose axis points ``axis`` [rad] in map, from a
+    :class:`RouteResult`. *Featureless*: the scans whose last registration found a direction
+    unobservable (so the along-axis estimate follows odometry).
+
+    Returns:
+        a dict: ``scans``, ``featureless_scans``; over the longest unbroken featureless
+        stretch, ``featureless_m`` (its length along the axis [m]), ``loc_along_growth_m`` and
+        ``odo_along_growth_m`` (how much the along-axis error of the localised and of the
+        dead-reckoned pose changed over it, absolute [m]), ``sigma_along_end_m`` and
+        ``error_along_end_m`` (the localiser's standard deviation along the axis, from the x
+        and y variances, and its actual along-axis error at the stretch's last scan [m]);
+        ``max_step_featureless_m``: the largest change of the localised position error
+        between two consecutive featureless estimates [m]; ``max_error_increase_m``: the
+        largest increase of the localised position error between two consecutive estimates
+        over the whole run [m]; ``max_correction_m``: its largest decrease (a correction
+        towards the truth, where the axis is observed again) [m]; ``localised_p95_m`` and
+        ``localised_max_m`` over the run; ``lateral_p95_m``: the across-axis error's p95 over
+        the featureless scans [m].
+    """
+    u = np.array([math.cos(axis), math.sin(axis)])
+    v = np.array([-u[1], u[0]])
+    along = result.loc_err[:, :2] @ u
+    odo_along = result.odo_err[:, :2] @ u
+    weak = np.asarray(result.weak, dtype=bool)
+    out = {'scans': int(len(along)), 'featureless_scans': int(np.count_nonzero(weak)),
+           'localised_p95_m': float(np.percentile(result.loc_xy, 95)),
+           'localised_max_m': float(result.loc_xy.max())}
+    steps = np.diff(result.loc_xy)
+    out['max_error_increase_m'] = float(max(steps.max(), 0.0)) if len(steps) else 0.0
+    out['max_correction_m'] = float(max(-steps.min(), 0.0)) if len(steps) else 0.0
+    both = weak[1:] & weak[:-1]
+    if np.any(both):
+        moves = np.hypot(*np.diff(result.loc_err[:, :2], axis=0).T)
+        out['max_step_featureless_m'] = float(moves[both].max())
+        out['lateral_p95_m'] = float(np.percentile(np.abs(result.loc_err[weak, :2] @ v), 95))
+        # the longest unbroken run of featureless scans
+        edges = np.flatnonzero(np.diff(np.concatenate(([0], weak.astype(int), [0]))))
+        starts, ends = edges[::2], edges[1::2] - 1
+        k = int(np.argmax(ends - starts))
+        a, b = starts[k], ends[k]
+        out.update({
+            'featureless_m': float(abs((result.truth[b, :2] - result.truth[a, :2]) @ u)),
+            'loc_along_growth_m': float(abs(along[b] - along[a])),
+            'odo_along_growth_m': float(abs(odo_along[b] - odo_along[a])),
+            'sigma_along_end_m': float(math.sqrt(u @ np.diag(result.sigma[b, :2] ** 2) @ u)),
+            'error_along_end_m': float(abs(along[b]))})
+    return out
+
+
 def main(seeds=range(5)):
     """Print the localised and dead-reckoned errors along :data:`COURSE_ROUTE` per seed and
     pooled, and the median update time."""
