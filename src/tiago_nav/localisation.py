@@ -24,7 +24,12 @@ Each scan is one :meth:`Localiser.update`:
 3. **gate**: the correction is kept only if enough points end within ``inlier_distance`` of the
    map and it moves the pose no more than ``max_correction`` / ``max_correction_yaw_deg`` (each
    widened by 3 standard deviations of the prediction) from the prediction; otherwise the
-   prediction is kept (and the update says why).
+   prediction is kept (and the update says why);
+4. **publish**: the part of the correction along a direction the last registration did not
+   observe (a corridor's axis seen again) reaches the published estimate (:attr:`Localiser.
+   estimate`, ``map_to_odom``) by at most ``max_correction_step`` per estimate (every scan,
+   :meth:`Localiser.follow` between registrations), while the registered pose, from which the
+   next prediction and registration start, takes it at once; everything else at once.
 
 The result gives ``map → odom`` (``pose_map ∘ inverse(pose_odom)``), what a localisation node
 publishes on tf, and a 3 × 3 covariance of ``(x, y, yaw)`` for a PoseWithCovarianceStamped.
@@ -101,6 +106,12 @@ class LocaliserConfig:
               'along unobservable directions grows by it', ge=0)
     odometry_sigma_yaw: float = param(
         0.03, '[rad/rad] std of the odometry\'s heading error per radian turned', ge=0)
+    max_correction_step: float = param(
+        0.015, '[m] a correction along a direction the scan did not observe before (a '
+               'corridor\'s axis seen again after a long stretch) moves the published estimate '
+               '(pose, map -> odom) towards the registered pose by at most this per estimate '
+               '(scan), until it has converged; the registration itself tracks the registered '
+               'pose (0: at once)', ge=0)
     rest_updates: int = param(
         5, 'scans registered anyway once the robot has come to rest (odometry unchanged since '
            'the scan before), until it moves again: at rest they refine the estimate that places '
@@ -123,7 +134,10 @@ class Update:
     ``reason``: why a correction was rejected ('' when accepted); ``weak``: the directions
     the scan did not observe, kept at the prediction (:func:`weak_description`, e.g.
     ``'position along 0 deg'``; '' when the scan constrains every direction or was not
-    registered).
+    registered); ``registered``: the registered pose (the filter's state, what the next
+    prediction starts from), which ``pose`` (the published estimate) converges to by at most
+    ``max_correction_step`` per estimate along a re-acquired direction; ``pending`` [m]: how
+    far ``pose`` still is from it (0 once converged).
     """
     pose: tuple
     map_to_odom: tuple
@@ -134,6 +148,8 @@ class Update:
     points: int
     reason: str = ''
     weak: str = ''
+    registered: tuple = None
+    pending: float = 0.0
 
 
 class DistanceField:
@@ -574,6 +590,22 @@ def search(field, points, guess, config, sensor=(0.0, 0.0), keep=4):
     return results[int(np.argmin(finals))]
 
 
+def weak_axes(info):
+    """The unit directions ``(2, k)`` in map of the positions an :class:`Information` finds
+    unobservable (a corridor's axis); a weak direction that is mostly a heading gives none."""
+    out = []
+    for v in info.weak.T:
+        d = v / np.array([1.0, 1.0, info.length])
+        n = math.hypot(d[0], d[1])
+        if n / np.linalg.norm(d) >= 0.5:
+            out.append(d[:2] / n)
+    if not out:
+        return np.zeros((2, 0))
+    # orthonormal (two weak positions: every position)
+    q, _ = np.linalg.qr(np.array(out).T)
+    return q[:, :len(out)]
+
+
 # the search along an unobservable direction (Localiser.search_along_weak): step [m], reach at
 # most [m], and by how many points' worth of the score cap the best pose must beat the prediction
 WEAK_SEARCH_STEP = 0.05
@@ -597,6 +629,11 @@ class Localiser:
         config: :class:`LocaliserConfig`.
         odom: base_footprint in odom ``(x, y, yaw)`` when the robot was at ``pose`` (the first
             update predicts the motion since); None: at the first update's time.
+
+    Attributes: ``pose``, the registered pose (the filter's state: predictions, registrations
+    and the gate start from it); :attr:`estimate`, the published one (``pose`` plus what a
+    re-acquired direction's correction still has to apply, :attr:`pending`), which
+    :attr:`map_to_odom` and every :class:`Update` give.
     """
 
     def __init__(self, grid, pose, config=LocaliserConfig(), odom=None):
@@ -612,11 +649,55 @@ class Localiser:
 
     @property
     def map_to_odom(self):
-        """The pose of odom in map (``pose ∘ inverse(odom pose)`` of the last update), or the
-        pose itself before any odometry was seen."""
+        """The published pose of odom in map: ``estimate ∘ inverse(odom pose)`` of the last
+        update (the registered one, :attr:`pose`, shifted by the :attr:`pending` offset in map),
+        or the estimate itself before any odometry was seen."""
+        off = (float(self._offset[0]), float(self._offset[1]), 0.0)
         if self._odom is None:
-            return self.pose
-        return compose(self.pose, inverse(self._odom))
+            return self.estimate
+        return compose(off, compose(self.pose, inverse(self._odom)))
+
+    @property
+    def estimate(self):
+        """The published pose of base_footprint in map at the last update: the registered
+        :attr:`pose` (the filter's state, which every prediction and registration starts from)
+        plus the :attr:`pending` offset still to be applied."""
+        return (self.pose[0] + float(self._offset[0]), self.pose[1] + float(self._offset[1]),
+                self.pose[2])
+
+    @property
+    def pending(self):
+        """``(2,)`` [m] in map: the published estimate minus the registered pose, what a
+        re-acquired direction's correction still has to apply (zero once converged)."""
+        return self._offset.copy()
+
+    def published_covariance(self, covariance):
+        """``covariance`` (the registered pose's) widened by the pending offset ``o`` (``+ o
+        oᵀ`` in x, y): the published estimate is that much further from the best one."""
+        out = np.array(covariance, dtype=float)
+        out[:2, :2] += np.outer(self._offset, self._offset)
+        return out
+
+    def _step_pending(self):
+        """One estimate's worth of convergence: the pending offset shrinks by at most
+        ``max_correction_step`` (all of it when that is 0); once it is gone the re-acquired
+        directions are ordinary again."""
+        limit = self.config.max_correction_step
+        norm = float(np.hypot(*self._offset))
+        if limit <= 0 or norm <= limit:
+            self._offset = np.zeros(2)
+        else:
+            self._offset = self._offset * (1.0 - limit / norm)
+
+    def follow(self, odom_pose):
+        """The published estimate at a scan that is not registered (not :meth:`due`): the
+        last ``map_to_odom`` carried by the odometry, after one step of a pending correction
+        (:meth:`_step_pending`, so a re-acquisition converges also between registrations and at
+        rest). Returns ``(pose, covariance)``: base_footprint in map and the 3 × 3 covariance
+        (the prediction's, :meth:`predicted_covariance`, widened by what is pending)."""
+        self._step_pending()
+        return (compose(self.map_to_odom, tuple(odom_pose)),
+                self.published_covariance(self.predicted_covariance(odom_pose)))
 
     def reset(self, pose, covariance=None):
         """Restart from ``pose`` (``(x, y, yaw)`` of base_footprint in map, e.g. /initialpose):
@@ -632,6 +713,11 @@ class Localiser:
         self.information = None  # the last registration's Information
         self._seen = None       # odom → base_footprint of the scan before (due)
         self._rest = 0          # scans due at rest since the robot stopped
+        # the published estimate minus the registered pose [m, map], and the unit directions
+        # (2, k) in map whose corrections go through it (unobservable at the last
+        # registration, or still converging): a (re)set sets the pose at once
+        self._offset = np.zeros(2)
+        self._axes = np.zeros((2, 0))
 
     def predict(self, odom_pose):
         """The pose in map predicted from the odometry delta since the last update.
@@ -804,11 +890,32 @@ class Localiser:
             # along the unobservable directions the pose is the prediction, and so is its
             # uncertainty: the prediction's covariance projected on them
             weak = info.weak_projector()
+            # a correction along a direction the last registrations did not observe (the
+            # drift of a long corridor, corrected by the first scans that see its end) is
+            # applied to the registered pose at once but reaches the published estimate in
+            # steps of at most max_correction_step: the offset keeps the estimate where the
+            # prediction put it along those directions. The share held back is the
+            # correction's part along them measured along the correction itself (mᵀPm / mᵀm,
+            # P the projector on them), so the estimate moves straight from the prediction to
+            # the registered pose: a weak direction a few degrees off the corridor's axis (the
+            # room beyond starts to show) must not turn an along-axis correction into a
+            # lateral offset of the estimate
+            moved = np.array([pose[0] - predicted[0], pose[1] - predicted[1]])
+            along = self._axes.T @ moved
+            norm2 = float(moved @ moved)
+            if norm2 > 0 and along.size:
+                self._offset = self._offset - (float(along @ along) / norm2) * moved
             self.pose = pose
             self.covariance = cov + weak @ predicted_cov @ weak.T
             self._searching = False
+            if info.degenerate:
+                self._axes = weak_axes(info)
+        self._step_pending()
+        if not reason and not info.degenerate and not np.any(self._offset):
+            self._axes = np.zeros((2, 0))       # observed and converged: ordinary again
         self.information = info
         weak = weak_description(info.weak, self.pose, info.length) \
             if info is not None and not reason else ''
-        return Update(self.pose, self.map_to_odom, self.covariance.copy(), predicted,
-                      not reason, inliers, len(pts), reason, weak)
+        return Update(self.estimate, self.map_to_odom, self.published_covariance(self.covariance),
+                      predicted, not reason, inliers, len(pts), reason, weak, self.pose,
+                      float(np.hypot(*self._offset)))

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from tiago_nav.geometry import compose, wrap_angle
+from tiago_nav.geometry import compose, inverse, wrap_angle
 from tiago_nav.localisation import (Localiser, LocaliserConfig, register_with_information,
                                     search, weak_description)
 from tiago_nav.params import ParamError
@@ -234,16 +234,17 @@ def test_the_axis_is_corrected_once_the_corridor_end_comes_into_view():
         return out[np.hypot(out[:, 0] - LASER_OFFSET, out[:, 1]) <= 12.0]
 
     loc = Localiser(grid, (1.5, 0.0, 0.0), odom=(0.0, 0.0, 0.0))
-    errors, weak = [], []
+    errors, published, weak = [], [], []
     for k in range(0, 86):                          # 8.5 m, to x = 10
         truth = (1.5 + 0.1 * k, 0.0, 0.0)
         up = loc.update((0.105 * k, 0.0, 0.0), scan(truth), SENSOR)
         assert up.corrected, up.reason
-        errors.append(abs(up.pose[0] - truth[0]))
+        errors.append(abs(up.registered[0] - truth[0]))
+        published.append(up.pose[0] - truth[0])
         weak.append(bool(up.weak))
     errors = np.array(errors)
     assert weak[5] and not weak[-1]
-    fixed = int(np.argmax(np.diff(errors) < -0.05)) + 1     # the correction
+    fixed = int(np.argmax(np.diff(errors) < -0.05)) + 1     # the registration's correction
     # until then unobservable: the odometry's error, 5 mm per 0.1 m, more than the Cauchy scale
     assert np.allclose(errors[:fixed], 0.005 * np.arange(fixed), atol=0.005)
     assert errors[fixed - 1] > 0.1
@@ -251,3 +252,126 @@ def test_the_axis_is_corrected_once_the_corridor_end_comes_into_view():
     # registration now and then, the estimate following odometry for a few scans)
     assert np.all(errors[fixed:] < 0.035) and errors[-1] < 0.02, errors[fixed:]
     assert np.max(np.diff(errors)) <= 0.006                 # it never grows by a step
+    # the published estimate follows in steps of at most max_correction_step, and converges
+    steps = np.abs(np.diff(published))
+    assert np.max(steps) <= LocaliserConfig().max_correction_step + 0.006, steps
+    assert abs(published[-1]) < 0.02
+
+
+def corridor_with_end(end):
+    """A 30 m corridor (as :func:`corridor`) closed by a wall across it at x = ``end``, and
+    exact scans there: ``(grid, scan(pose))``."""
+    d = corridor_world(WIDTH, length=30.0, start=(-1.0, 0.0, 0.0))
+    d['walls'].append({'x': end + 0.075, 'y': 0.0, 'length': WIDTH + 0.3, 'width': 0.15,
+                       'yaw_deg': 90.0})
+    grid = rasterise_world(World.from_dict(d))
+
+    def scan(pose):
+        pts = corridor_scan(pose, max_range=40.0)
+        lx = pose[0] + LASER_OFFSET
+        hit = pose[0] + pts[:, 0] > end
+        out = pts.copy()
+        t = (end - lx) / np.maximum(pts[hit, 0] - LASER_OFFSET, 1e-9)
+        out[hit, 0] = LASER_OFFSET + t * (pts[hit, 0] - LASER_OFFSET)
+        out[hit, 1] = t * pts[hit, 1]
+        return out[np.hypot(out[:, 0] - LASER_OFFSET, out[:, 1]) <= 12.0]
+    return grid, scan
+
+
+def test_a_27_cm_re_acquisition_reaches_the_published_estimate_in_bounded_steps():
+    """12 m of featureless corridor with odometry over-reading by 2.2 %: about 27 cm of
+    along-axis drift when the end wall (8 m ahead) comes into the registration. The registered pose takes the whole correction
+    at once (the registration and its gate work on it); the published estimate (pose,
+    map -> odom) moves towards it by at most max_correction_step per estimate, registered or
+    not, and converges; a reset still sets the pose at once."""
+    grid, scan = corridor_with_end(22.0)
+    limit = LocaliserConfig().max_correction_step
+    assert 0 < limit <= 0.02
+    loc = Localiser(grid, (1.5, 0.0, 0.0), odom=(0.0, 0.0, 0.0))
+    truth_x, odom_x = 1.5, 0.0
+    published, registered, pending = [], [], []
+    for k in range(180):
+        truth_x += 0.1 if k < 140 else 0.0          # then at rest (the end wall in view)
+        odom_x += 0.1022 if k < 140 else 0.0
+        truth = (truth_x, 0.0, 0.0)
+        if k % 2:                                   # every other scan is not registered
+            pose, cov = loc.follow((odom_x, 0.0, 0.0))
+            reg = compose(compose(loc.pose, inverse(loc.odom)), (odom_x, 0.0, 0.0))
+        else:
+            up = loc.update((odom_x, 0.0, 0.0), scan(truth), SENSOR)
+            assert up.corrected, up.reason
+            pose, reg, cov = up.pose, up.registered, up.covariance
+            assert up.pending == pytest.approx(float(np.hypot(*loc.pending)))
+        published.append(pose[0] - truth_x)
+        registered.append(reg[0] - truth_x)
+        pending.append(float(np.hypot(*loc.pending)))
+        # the published covariance covers what is still pending
+        assert math.sqrt(cov[0, 0]) >= pending[-1] - 1e-9
+    published, registered = np.array(published), np.array(registered)
+    jump = int(np.argmax(np.abs(np.diff(registered)))) + 1
+    assert registered[jump - 1] > 0.25 and abs(registered[jump]) < 0.02      # in one step
+    assert max(pending) > 0.2
+    # never more than the limit between two estimates (the odometry's own 2.2 mm per 0.1 m
+    # drives the error the other way)
+    assert np.max(np.abs(np.diff(published))) <= limit + 1e-9
+    # converges: within (pending / limit) + 2 estimates the estimate is the registered pose
+    # (which then follows odometry when the few end-wall points drop out of the registration)
+    done = jump + int(math.ceil(max(pending) / limit)) + 2
+    assert all(p == 0.0 for p in pending[done:]) and np.all(np.abs(published[done:]) < 0.03)
+    assert np.allclose(published[done:], registered[done:], atol=1e-9)
+    # monotone: the pending correction only shrinks once it began
+    assert all(b <= a + 1e-9 for a, b in zip(pending[jump:], pending[jump + 1:]))
+    # 0: at once (the published estimate is the registered one)
+    at_once = Localiser(grid, (1.5, 0.0, 0.0), LocaliserConfig(max_correction_step=0.0),
+                        odom=(0.0, 0.0, 0.0))
+    for k in range(141):
+        up = at_once.update((0.1022 * k, 0.0, 0.0), scan((1.5 + 0.1 * k, 0.0, 0.0)), SENSOR)
+        assert up.pose == up.registered and up.pending == 0.0
+    assert abs(up.pose[0] - (1.5 + 14.0)) < 0.03
+
+
+def test_a_reset_sets_the_pose_at_once_even_while_a_correction_is_pending():
+    grid, scan = corridor_with_end(22.0)
+    loc = Localiser(grid, (1.5, 0.0, 0.0), odom=(0.0, 0.0, 0.0))
+    for k in range(150):
+        truth = (1.5 + 0.1 * k, 0.0, 0.0)
+        up = loc.update((0.1022 * k, 0.0, 0.0), scan(truth), SENSOR)
+        if up.pending > 0.1:
+            break
+    assert up.pending > 0.1
+    given = (truth[0], 0.02, 0.0)
+    loc.reset(given)
+    assert loc.estimate == given and not np.any(loc.pending)
+    assert loc.map_to_odom == given
+    up = loc.update((0.1022 * k, 0.0, 0.0), scan(truth), SENSOR)
+    assert up.pose == up.registered and up.pending == 0.0
+    assert abs(up.pose[0] - truth[0]) < 1e-3 and abs(up.pose[1]) < 0.01
+
+
+def test_ordinary_corrections_in_a_room_are_not_smoothed():
+    """A room scan observes every direction: a 8 cm correction reaches the estimate at once."""
+    import os
+    from conftest import ROOT
+    from tiago_nav.sim.simulator import SimConfig, Simulator
+    from tiago_nav.sim.world import load_world
+    world = load_world(os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml'))
+    truth = (0.3, 0.2, math.radians(20.0))
+    sim = Simulator(world, SimConfig(seed=1), start_pose=truth)
+    try:
+        las = sim.config.laser
+        ranges = sim.scan()
+    finally:
+        sim.close()
+    loc = Localiser(rasterise_world(world), truth, odom=(0.0, 0.0, 0.0))
+    pts = loc.scan_points(ranges, las.angle_min, las.angle_increment, las.range_min,
+                          las.range_max, (las.offset, 0.0, 0.0))
+    loc.update((0.0, 0.0, 0.0), pts, (las.offset, 0.0))        # the search: at once
+    loc.pose = compose(truth, (0.08, 0.0, 0.0))
+    up = loc.update((0.0, 0.0, 0.0), pts, (las.offset, 0.0))
+    assert up.corrected and up.pose == up.registered and up.pending == 0.0
+    assert math.hypot(up.pose[0] - truth[0], up.pose[1] - truth[1]) < 0.02
+
+
+def test_max_correction_step_is_validated():
+    with pytest.raises(ParamError, match='max_correction_step'):
+        LocaliserConfig(max_correction_step=-0.01)

@@ -242,9 +242,9 @@ class LocalisationNode:
                 pose, cov, rejected = up.pose, up.covariance, up.reason
                 change = self.degeneracy(up) if up.corrected else None
             else:                           # about where the last registered scan was taken
-                pose, cov, rejected = (compose(self.map_to_odom, odom),
-                                       self.localiser.predicted_covariance(odom), '')
-                change = None
+                # (a re-acquired direction's pending correction takes its step here too)
+                pose, cov = self.localiser.follow(odom)
+                self.map_to_odom, rejected, change = self.localiser.map_to_odom, '', None
         if change:
             rospy.loginfo('localisation: %s', change)
         if rejected:
