@@ -10,7 +10,8 @@ Then the corridors, with the ``tiago`` laser and the same drift: worlds/corridor
 (a start 1 m inside an 8 m corridor, to the room beyond: the error over the whole run) and
 worlds/corridor_long.yaml (through a 20 m featureless corridor: along it, the localised error's
 growth against dead reckoning's over the stretch where the scan leaves the axis unobservable,
-and the steps between consecutive estimates; :func:`tiago_nav.testing.localisation.corridor_figures`).
+the steps between consecutive estimates (in that stretch and over the whole run, where the
+axis is re-acquired) and how many estimates a re-acquired correction took to converge; :func:`tiago_nav.testing.localisation.corridor_figures`).
 Writes bench/results/localisation.json.
 
 Usage: bench/bench_localisation.py [--seeds 5] [--only course|corridors]
@@ -81,9 +82,9 @@ def corridors(args, out):
                                                 corridor_figures, run_route)
     res = {}
     print('| world | seed | scans | featureless (m) | localised along growth | dead reckoning '
-          'along growth | max step in it | max error increase | max correction | '
-          'p95 / max |')
-    print('|---|---|---|---|---|---|---|---|---|---|')
+          'along growth | max step in it | max step, run | pending | converged in | '
+          'max error increase | max correction | p95 / max |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|---|---|')
     for name, route in (('corridor_start', CORRIDOR_START_ROUTE),
                         ('corridor_long', CORRIDOR_LONG_ROUTE)):
         world = load_world(os.path.join(ROOT, 'worlds', name + '.yaml'))
@@ -94,18 +95,20 @@ def corridors(args, out):
             f = corridor_figures(r)
             f['seed'] = seed
             runs.append(f)
-            print('| %s | %d | %d | %.1f | %.3f m | %.3f m | %.3f m | %.3f m | %.3f m | '
-                  '%.3f / %.3f m |' % (name, seed, f['scans'], f.get('featureless_m', 0.0),
-                                       f.get('loc_along_growth_m', 0.0),
-                                       f.get('odo_along_growth_m', 0.0),
-                                       f.get('max_step_featureless_m', 0.0),
-                                       f['max_error_increase_m'], f['max_correction_m'],
-                                       f['localised_p95_m'], f['localised_max_m']), flush=True)
+            print('| %s | %d | %d | %.1f | %.3f m | %.3f m | %.3f m | %.3f m | %.3f m | %d | '
+                  '%.3f m | %.3f m | %.3f / %.3f m |' % (
+                      name, seed, f['scans'], f.get('featureless_m', 0.0),
+                      f.get('loc_along_growth_m', 0.0), f.get('odo_along_growth_m', 0.0),
+                      f.get('max_step_featureless_m', 0.0), f['max_step_m'],
+                      f['max_pending_m'], f['converge_estimates'],
+                      f['max_error_increase_m'], f['max_correction_m'],
+                      f['localised_p95_m'], f['localised_max_m']), flush=True)
         res[name] = {'route': [list(p) for p in route], 'runs': runs,
                      'worst': {k: max(r.get(k, 0.0) for r in runs)
                                for k in ('localised_p95_m', 'localised_max_m',
-                                         'max_step_featureless_m', 'max_error_increase_m',
-                                         'max_correction_m')}}
+                                         'max_step_featureless_m', 'max_step_m',
+                                         'max_pending_m', 'converge_estimates',
+                                         'max_error_increase_m', 'max_correction_m')}}
     out['corridors'] = {'laser': 'tiago', 'seeds': args.seeds, 'worlds': res}
 
 

@@ -164,7 +164,9 @@ ABOUT = {
         'worlds/corridor_start.yaml (a start 1 m inside an 8 m corridor, to the room beyond; '
         'bar: max 5 cm, p95 3 cm) and worlds/corridor_long.yaml (through a 20 m featureless '
         'corridor; bar: the error along it grows no faster than dead reckoning\'s, no step '
-        'over 2 cm between consecutive estimates while it is unobservable).'),
+        'over 2 cm between consecutive estimates over the whole run, re-acquisition of the axis '
+        'included, which the published estimate approaches by at most `max_correction_step` '
+        'per estimate).'),
     'soak': (
         'Many whole missions over `demo.launch`, one launch (a private master) per world, each '
         'mission starting where the last ended: `--n` (10; 2 with `--quick`) seeded random '
@@ -559,18 +561,24 @@ def render_localisation(d):
         rows = [(name, r.get('seed'), r.get('scans'), r.get('featureless_m'),
                  r.get('loc_along_growth_m'), r.get('odo_along_growth_m'),
                  r.get('sigma_along_end_m'), r.get('max_step_featureless_m'),
+                 r.get('max_step_m'), r.get('max_pending_m'), r.get('converge_estimates'),
                  r.get('max_error_increase_m'), r.get('max_correction_m'),
                  r.get('localised_p95_m'), r.get('localised_max_m'))
                 for name, w in c.get('worlds', {}).items() for r in w.get('runs', [])]
         out += ['', 'Corridors, %s laser, %s seeds: featureless = the longest unbroken stretch '
                 'where the scan left the axis unobservable; growth = change of the along-axis '
-                'error over it; step = largest change of the error between two consecutive '
-                'estimates in it; increase / correction = the largest rise / fall of the error '
-                'between two consecutive estimates over the whole run.'
+                'error over it; step in it = largest change of the error between two '
+                'consecutive estimates in it; step, run = the same over the whole run, '
+                're-acquisition included; pending = the largest distance the published '
+                'estimate was behind the registered pose; converged in = the most '
+                'consecutive estimates a pending correction took to converge; increase / '
+                'correction = the largest rise / fall of the error\'s norm between two '
+                'consecutive estimates over the whole run.'
                 % (c.get('laser'), _f(c.get('seeds'))), '']
         out += _table(('world', 'seed', 'scans', 'featureless [m]', 'localised growth [m]',
-                       'dead reckoning growth [m]', 'σ along at its end [m]', 'step [m]',
-                       'increase [m]', 'correction [m]', 'p95 [m]', 'max [m]'), rows)
+                       'dead reckoning growth [m]', 'σ along at its end [m]',
+                       'step in it [m]', 'step, run [m]', 'pending [m]',
+                       'converged in [estimates]', 'increase [m]', 'correction [m]', 'p95 [m]', 'max [m]'), rows)
     return out
 
 

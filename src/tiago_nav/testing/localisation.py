@@ -64,7 +64,9 @@ class RouteResult:
     Also per scan: ``truth`` ``(N, 3)`` the true pose, ``loc_err`` and ``odo_err`` ``(N, 3)``
     the localised and dead-reckoned pose minus the truth ``(dx, dy, dyaw)`` [m, m, rad] in
     map, ``sigma`` ``(N, 3)`` the standard deviations of the localiser's covariance, and
-    ``weak`` ``(N,)`` whether the last registration found a direction unobservable."""
+    ``weak`` ``(N,)`` whether the last registration found a direction unobservable, ``pending``
+    ``(N,)`` [m] how far the published estimate still was from the registered pose (a
+    re-acquired direction's correction converging, ``max_correction_step`` per estimate)."""
     loc_xy: np.ndarray
     loc_yaw: np.ndarray
     odo_xy: np.ndarray
@@ -76,6 +78,7 @@ class RouteResult:
     odo_err: np.ndarray = None
     sigma: np.ndarray = None
     weak: np.ndarray = None
+    pending: np.ndarray = None
 
     def p95(self, what):
         return float(np.percentile(getattr(self, what), 95))
@@ -110,7 +113,7 @@ def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=L
         start = tuple(a + b for a, b in zip(sim.pose, initial_error))
         loc = Localiser(grid, start, config)
         errs = {k: [] for k in ('lx', 'ly', 'ox', 'oy')}
-        rows = {k: [] for k in ('truth', 'loc', 'odo', 'sigma', 'weak')}
+        rows = {k: [] for k in ('truth', 'loc', 'odo', 'sigma', 'weak', 'pending')}
         secs, rejected, i = [], 0, 0
         while i < len(route) and sim.time < max_time:
             pose = sim.pose
@@ -134,7 +137,7 @@ def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=L
                 rejected += not up.corrected
                 estimate = up.pose
             else:
-                estimate = compose(loc.map_to_odom, odom)
+                estimate, _ = loc.follow(odom)      # as the node does between registrations
             truth = sim.pose
             dead = compose(sim.start_pose, odom)
             for key, est in (('l', estimate), ('o', dead)):
@@ -145,12 +148,14 @@ def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=L
             rows['truth'].append(tuple(truth))
             rows['sigma'].append(tuple(np.sqrt(np.maximum(np.diag(loc.covariance), 0.0))))
             rows['weak'].append(loc.information is not None and loc.information.degenerate)
+            rows['pending'].append(float(np.hypot(*loc.pending)))
         return RouteResult(np.array(errs['lx']), np.array(errs['ly']), np.array(errs['ox']),
                            np.array(errs['oy']), secs, rejected,
                            np.array(rows['truth']).reshape(-1, 3),
                            np.array(rows['loc']).reshape(-1, 3),
                            np.array(rows['odo']).reshape(-1, 3),
-                           np.array(rows['sigma']).reshape(-1, 3), np.array(rows['weak'], dtype=bool))
+                           np.array(rows['sigma']).reshape(-1, 3), np.array(rows['weak'], dtype=bool),
+                           np.array(rows['pending']))
     finally:
         sim.close()
 
@@ -179,7 +184,12 @@ def corridor_figures(result, axis=0.0):
         over the whole run [m]; ``max_correction_m``: its largest decrease (a correction
         towards the truth, where the axis is observed again) [m]; ``localised_p95_m`` and
         ``localised_max_m`` over the run; ``lateral_p95_m``: the across-axis error's p95 over
-        the featureless scans [m].
+        the featureless scans [m]; ``max_step_m``: the largest change of the localised
+        position error between two consecutive estimates over the whole run, re-acquisition
+        included [m]; ``max_pending_m``: the largest distance the published estimate was
+        behind the registered pose [m] (about what the registration corrected in one step);
+        ``converge_estimates``: the most consecutive estimates it took to converge (from the
+        first with a pending correction to the first without; 0 when there was none).
     """
     u = np.array([math.cos(axis), math.sin(axis)])
     v = np.array([-u[1], u[0]])
@@ -192,6 +202,16 @@ def corridor_figures(result, axis=0.0):
     steps = np.diff(result.loc_xy)
     out['max_error_increase_m'] = float(max(steps.max(), 0.0)) if len(steps) else 0.0
     out['max_correction_m'] = float(max(-steps.min(), 0.0)) if len(steps) else 0.0
+    moves_all = np.hypot(*np.diff(result.loc_err[:, :2], axis=0).T)
+    out['max_step_m'] = float(moves_all.max()) if len(moves_all) else 0.0
+    pend = np.zeros(len(along)) if result.pending is None else np.asarray(result.pending)
+    busy = pend > 0
+    out['max_pending_m'] = float(pend.max()) if len(pend) else 0.0
+    if np.any(busy):
+        e = np.flatnonzero(np.diff(np.concatenate(([0], busy.astype(int), [0]))))
+        out['converge_estimates'] = int(np.max(e[1::2] - e[::2])) + 1
+    else:
+        out['converge_estimates'] = 0
     both = weak[1:] & weak[:-1]
     if np.any(both):
         moves = np.hypot(*np.diff(result.loc_err[:, :2], axis=0).T)
