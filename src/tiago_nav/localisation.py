@@ -25,11 +25,12 @@ Each scan is one :meth:`Localiser.update`:
    map and it moves the pose no more than ``max_correction`` / ``max_correction_yaw_deg`` (each
    widened by 3 standard deviations of the prediction) from the prediction; otherwise the
    prediction is kept (and the update says why);
-4. **publish**: the part of the correction along a direction the last registration did not
-   observe (a corridor's axis seen again) reaches the published estimate (:attr:`Localiser.
-   estimate`, ``map_to_odom``) by at most ``max_correction_step`` per estimate (every scan,
-   :meth:`Localiser.follow` between registrations), while the registered pose, from which the
-   next prediction and registration start, takes it at once; everything else at once.
+4. **publish**: after a registration that left a position unobservable (a corridor's axis),
+   a position correction (the axis seen again) reaches the published estimate
+   (:attr:`Localiser.estimate`, ``map_to_odom``) by at most ``max_correction_step`` per
+   estimate (every scan, :meth:`Localiser.follow` between registrations), while the
+   registered pose, from which the next prediction and registration start, takes it at once;
+   every other correction at once.
 
 The result gives ``map → odom`` (``pose_map ∘ inverse(pose_odom)``), what a localisation node
 publishes on tf, and a 3 × 3 covariance of ``(x, y, yaw)`` for a PoseWithCovarianceStamped.
@@ -107,11 +108,11 @@ class LocaliserConfig:
     odometry_sigma_yaw: float = param(
         0.03, '[rad/rad] std of the odometry\'s heading error per radian turned', ge=0)
     max_correction_step: float = param(
-        0.015, '[m] a correction along a direction the scan did not observe before (a '
-               'corridor\'s axis seen again after a long stretch) moves the published estimate '
-               '(pose, map -> odom) towards the registered pose by at most this per estimate '
-               '(scan), until it has converged; the registration itself tracks the registered '
-               'pose (0: at once)', ge=0)
+        0.01, '[m] after a registration that left a position unobservable (a corridor\'s '
+              'axis), a position correction (the axis seen again after a long stretch) moves '
+              'the published estimate (pose, map -> odom) towards the registered pose by at '
+              'most this per estimate (scan), until it has converged; the registration itself '
+              'works on the registered pose (0: at once)', ge=0)
     rest_updates: int = param(
         5, 'scans registered anyway once the robot has come to rest (odometry unchanged since '
            'the scan before), until it moves again: at rest they refine the estimate that places '
@@ -136,7 +137,7 @@ class Update:
     ``'position along 0 deg'``; '' when the scan constrains every direction or was not
     registered); ``registered``: the registered pose (the filter's state, what the next
     prediction starts from), which ``pose`` (the published estimate) converges to by at most
-    ``max_correction_step`` per estimate along a re-acquired direction; ``pending`` [m]: how
+    ``max_correction_step`` per estimate after a re-acquisition; ``pending`` [m]: how
     far ``pose`` still is from it (0 once converged).
     """
     pose: tuple
@@ -714,8 +715,9 @@ class Localiser:
         self._seen = None       # odom → base_footprint of the scan before (due)
         self._rest = 0          # scans due at rest since the robot stopped
         # the published estimate minus the registered pose [m, map], and the unit directions
-        # (2, k) in map whose corrections go through it (unobservable at the last
-        # registration, or still converging): a (re)set sets the pose at once
+        # (2, k) in map of the positions unobservable at the last registration (kept while
+        # the offset converges): while there are any, position corrections go through the
+        # offset. A (re)set sets the pose at once
         self._offset = np.zeros(2)
         self._axes = np.zeros((2, 0))
 
@@ -890,21 +892,19 @@ class Localiser:
             # along the unobservable directions the pose is the prediction, and so is its
             # uncertainty: the prediction's covariance projected on them
             weak = info.weak_projector()
-            # a correction along a direction the last registrations did not observe (the
-            # drift of a long corridor, corrected by the first scans that see its end) is
-            # applied to the registered pose at once but reaches the published estimate in
-            # steps of at most max_correction_step: the offset keeps the estimate where the
-            # prediction put it along those directions. The share held back is the
-            # correction's part along them measured along the correction itself (mᵀPm / mᵀm,
-            # P the projector on them), so the estimate moves straight from the prediction to
-            # the registered pose: a weak direction a few degrees off the corridor's axis (the
-            # room beyond starts to show) must not turn an along-axis correction into a
-            # lateral offset of the estimate
-            moved = np.array([pose[0] - predicted[0], pose[1] - predicted[1]])
-            along = self._axes.T @ moved
-            norm2 = float(moved @ moved)
-            if norm2 > 0 and along.size:
-                self._offset = self._offset - (float(along @ along) / norm2) * moved
+            # while a position was unobservable at the last registration (or its
+            # re-acquisition is still converging), a correction of the position (the drift of
+            # a long corridor, corrected by the first scans that see its end) is applied to the
+            # registered pose at once but reaches the published estimate in steps of at most
+            # max_correction_step, straight from the prediction: the offset keeps the estimate
+            # at the prediction. All of the position correction, not only its part along the
+            # weak direction: that direction is a few degrees off the corridor's axis when the
+            # room beyond starts to show, and a projection on it would turn an along-axis
+            # correction into a lateral jump. Corrections within one step (the lateral ones in
+            # a corridor, millimetres) still arrive at once
+            if self._axes.size:
+                self._offset = self._offset - np.array([pose[0] - predicted[0],
+                                                        pose[1] - predicted[1]])
             self.pose = pose
             self.covariance = cov + weak @ predicted_cov @ weak.T
             self._searching = False
