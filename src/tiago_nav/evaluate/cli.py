@@ -1,5 +1,5 @@
 """``rosrun tiago_nav evaluate SUITE.yaml --out DIR [--workers N] [--scheduler ADDR] [--resume]
-[--dry-run] [--only ID ...] [--record]``: the batch evaluator (docs/evaluation.md).
+[--dry-run] [--only ID ...] [--record] [--isolation auto|netns|loopback]``: the batch evaluator (docs/evaluation.md).
 
 Exit 0 when every run ended (whatever its outcome), 1 when a run has no result, 2 for a bad
 suite file or argument (the message names the file, the field and the reason).
@@ -31,6 +31,10 @@ def parse_args(argv):
     ap.add_argument('--dry-run', action='store_true', help='list the runs and exit')
     ap.add_argument('--only', nargs='+', metavar='RUN_ID', help='only these runs (ids or unique prefixes)')
     ap.add_argument('--record', action='store_true', help='record a bag per run (rosbag)')
+    ap.add_argument('--isolation', choices=('auto', 'netns', 'loopback'), default='auto',
+                    help='netns: each run in a network namespace of its own with only loopback; '
+                         'loopback: the host network, loopback addresses and a port per worker; '
+                         'auto (default): netns where the machine allows it')
     a = ap.parse_args(argv)
     if a.workers is not None and a.workers < 1:
         ap.error('--workers: must be >= 1, got %d' % a.workers)
@@ -75,6 +79,12 @@ def main(argv=None):
             print(describe(r))
         print('%d runs' % len(runs))
         return EXIT_OK
+    from tiago_nav.evaluate.isolation import IsolationError, resolve
+    try:        # on a cluster of its own, each worker resolves 'auto' for its machine
+        isolation = a.isolation if a.scheduler and a.isolation == 'auto' else resolve(a.isolation)
+    except IsolationError as e:
+        sys.stderr.write('evaluate: --isolation %s: %s\n' % (a.isolation, e))
+        return EXIT_USAGE
     out = os.path.abspath(a.out)
     os.makedirs(os.path.join(out, 'worlds'), exist_ok=True)
     import yaml
@@ -86,8 +96,8 @@ def main(argv=None):
         old = read_json(os.path.join(out, 'runs', r['id'], 'result.json')) if a.resume else None
         (done if old is not None and old.get('outcome') else todo).append(r)
     report.write_manifest(out, a.suite, data, runs, vars(a))
-    print('evaluate: %d runs (%d to do, %d done before) -> %s' % (len(runs), len(todo), len(done), out),
-          flush=True)
+    print('evaluate: %d runs (%d to do, %d done before), isolation %s -> %s'
+          % (len(runs), len(todo), len(done), isolation, out), flush=True)
     state = {'done': 0, 'failed': 0, 't0': time.monotonic()}
 
     def progress(res):
@@ -102,8 +112,8 @@ def main(argv=None):
             res.get('outcome'), (res.get('reason') or '')[:100]), flush=True)
     if todo:
         from tiago_nav.evaluate.engine import run_all
-        run_all(todo, out, workers=a.workers, scheduler=a.scheduler, record=a.record,
-                progress=progress)
+        run_all([dict(r, isolation=isolation) for r in todo], out, workers=a.workers,
+                scheduler=a.scheduler, record=a.record, progress=progress)
     results, missing = [], []
     for r in runs:
         res = read_json(os.path.join(out, 'runs', r['id'], 'result.json'))

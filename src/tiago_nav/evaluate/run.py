@@ -3,7 +3,11 @@
 :func:`execute` starts the run's supervisor (:mod:`tiago_nav.nodes.evaluate_run`: roscore,
 demo.launch, the candidate, the mission client) as the leader of a new session, on the
 worker slot's port (:func:`claim_slot`), with its own ROS_HOME, ROS_LOG_DIR and folder, and
-loopback-only ROS_IP/ROS_HOSTNAME/ROS_MASTER_URI. A wall-clock watchdog kills the whole
+loopback-only ROS_IP/ROS_HOSTNAME/ROS_MASTER_URI; where network namespaces are available
+(:mod:`tiago_nav.evaluate.isolation`), in a network namespace of its own with only loopback
+(the run's ``isolation``, from its spec or ``TIAGO_NAV_EVAL_ISOLATION``, ``auto`` by default).
+The supervisor marks its stages with their time and CPU (:mod:`tiago_nav.evaluate.timing`),
+from which the result's ``phases`` come. A wall-clock watchdog kills the whole
 group; afterwards every process still carrying the run's token in its environment (roslaunch
 puts each node in a session of its own) is killed too. :func:`judge` turns the supervisor's
 ``raw.json`` into ``result.json`` (:data:`SCHEMA`), written atomically.
@@ -30,7 +34,7 @@ OUTCOMES = ('succeeded', 'aborted', 'collision', 'timeout', 'detection_failure')
 TOKEN_VAR = 'TIAGO_NAV_EVAL_TOKEN'
 # result.json fields that follow the wall clock or the worker, not the run's row
 WALL_CLOCK_FIELDS = ('cpu_s', 'wall_s', 'run_wall_s', 'startup_wall_s', 'sim_wall_ratio', 'host',
-                     'port', 'slot', 'attempt', 'first_attempt')
+                     'port', 'slot', 'attempt', 'first_attempt', 'phases', 'isolation')
 _SLOT = {}                      # this process's claimed slot: {'slot', 'fd'}
 
 
@@ -158,10 +162,13 @@ def execute(spec, out_dir, record=False, attempt=1):
     env = run_env(run_dir, port, token)
     lim = spec['limits']
     wall_limit = lim['startup_timeout'] + lim['wall_time_limit'] + 30.0
+    from tiago_nav.evaluate import isolation as iso
+    mode = iso.resolve(spec.get('isolation') or os.environ.get(iso.MODE_VAR, 'auto'))
+    cmd = iso.command(mode, [sys.executable, '-m', 'tiago_nav.nodes.evaluate_run', run_dir])
     ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     w0 = time.monotonic()
     with open(os.path.join(run_dir, 'supervisor.log'), 'w') as log:
-        p = subprocess.Popen([sys.executable, '-m', 'tiago_nav.nodes.evaluate_run', run_dir], env=env,
+        p = subprocess.Popen(cmd, env=env,
                              stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                              start_new_session=True)
         watchdog = False
@@ -189,9 +196,13 @@ def execute(spec, out_dir, record=False, attempt=1):
                    'reason': 'no result from the run (stage %s, supervisor exit %s%s; see '
                              'supervisor.log)' % (stage, p.returncode, ', killed by the wall-clock '
                                                   'watchdog' if watchdog else '')}
+    j0, jc0 = time.monotonic(), time.process_time()
     result = judge(spec, raw)
+    from tiago_nav.evaluate.timing import phases, read_marks
     result.update(attempt=attempt, slot=slot, port=port, run_wall_s=wall, cpu_s=cpu,
-                  leftover_processes=leftovers, host=socket.gethostname())
+                  leftover_processes=leftovers, host=socket.gethostname(), isolation=mode,
+                  phases=phases(read_marks(run_dir), w0, w0 + wall, cpu, time.monotonic() - j0,
+                                time.process_time() - jc0))
     write_json(os.path.join(run_dir, 'result.json'), result)
     return result
 
