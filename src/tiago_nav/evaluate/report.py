@@ -13,6 +13,7 @@ import time
 from xml.sax.saxutils import escape, quoteattr
 
 from tiago_nav.evaluate import metrics as M
+from tiago_nav.evaluate import timing
 from tiago_nav.evaluate.run import INFRA, write_json
 
 COLUMNS = ('run_id', 'outcome', 'reason', 'world', 'world_group', 'profile', 'use_corridor_law',
@@ -138,13 +139,71 @@ def markdown(summary, comparison, results, meta):
     if infra:
         lines += ['', '## Infrastructure errors (retried once; not in the rates)', '']
         lines += ['- `%s` %s: %s' % (r['run_id'], r.get('outcome'), r.get('reason', '')) for r in infra]
+    lines += isolation_lines(meta)
     bad = [r for r in valid if r['outcome'] != 'succeeded']
     if bad:
         lines += ['', '## Runs that did not succeed', '']
         lines += ['- `%s` %s B=%s law=%s seed=%s %s: **%s** %s' % (
             r['run_id'], r['world'], r.get('goal'), r.get('use_corridor_law'), r.get('seed'),
             r['candidate'], r['outcome'], r.get('reason', '')) for r in bad]
+    lines += time_lines(results, meta)
     return '\n'.join(lines) + '\n'
+
+
+def isolations(results):
+    """``{isolation: runs}`` over the results that ran (``netns``, ``loopback``)."""
+    out = {}
+    for r in results:
+        if r.get('isolation'):
+            out[r['isolation']] = out.get(r['isolation'], 0) + 1
+    return out
+
+
+def isolation_lines(meta):
+    iso = meta.get('isolation') or {}
+    if not iso:
+        return []
+    about = {'netns': 'each run in a network namespace of its own, only loopback up',
+             'loopback': 'the host network, loopback addresses, one port per worker'}
+    return ['', 'Isolation: %s.' % '; '.join('%s (%s) for %d run%s' % (k, about.get(k, '?'), n, '' if n == 1 else 's')
+                                             for k, n in sorted(iso.items()))]
+
+
+def time_lines(results, meta):
+    """summary.md's "Where the time goes": the batch's phases (:mod:`timing`), then per run."""
+    t = meta.get('time')
+    if not t:
+        return []
+    lines = ['', '## Where the time goes', '',
+             'Missions took %s of the batch\'s worker time (%.0f s: wall time x workers%s).'
+             % ('-' if t['mission_share'] is None else '%.1f %%' % (100 * t['mission_share']),
+                t['worker_time_s'], '' if meta.get('workers_effective') else '; the runs\' summed '
+                'wall time when the worker count is unknown'), '',
+             '| phase | wall [s] | share of run wall | median wall [s] | CPU [s] | median CPU [s] |',
+             '|---|---|---|---|---|---|']
+    for k in timing.PHASES:
+        p = t['phases'][k]
+        lines.append('| %s | %.1f | %s | %s | %s | %s |' % (
+            k, p['wall_s'], '-' if p['wall_share'] is None else '%.1f %%' % (100 * p['wall_share']),
+            _f(p['median_wall_s'], '%.2f'), _f(p['cpu_s'], '%.1f'), _f(p['median_cpu_s'], '%.2f')))
+    lines += ['', '### Per run (wall / CPU seconds)', '',
+              '| run | outcome | start-up | mission | judging | teardown | total |',
+              '|---|---|---|---|---|---|---|']
+    for r in results:
+        ph = r.get('phases')
+        if not isinstance(ph, dict):
+            continue
+
+        def cell(k):
+            p = ph.get(k) or {}
+            return '%s / %s' % (_f(p.get('wall_s'), '%.2f'), _f(p.get('cpu_s'), '%.2f'))
+        total_w = sum((ph.get(k) or {}).get('wall_s') or 0.0 for k in timing.PHASES)
+        cpus = [(ph.get(k) or {}).get('cpu_s') for k in timing.PHASES]
+        total_c = None if any(c is None for c in cpus) else sum(cpus)
+        lines.append('| `%s` | %s | %s | %s | %s | %s | %.2f / %s |' % (
+            r['run_id'], r.get('outcome'), cell('startup'), cell('mission'), cell('judging'),
+            cell('teardown'), total_w, _f(total_c, '%.2f')))
+    return lines
 
 
 def junit(results):
@@ -237,6 +296,10 @@ def write_all(out, runs, results, wall_s, workers=None, scheduler=None):
     judged = [r for r in results if r.get('run_wall_s')]
     meta = {'wall_s': wall_s, 'runs': len(results), 'workers': workers, 'scheduler': scheduler,
             'missions_per_minute': len(judged) / wall_s * 60.0 if judged and wall_s > 0 else None}
+    # a local cluster has workers or the number of cores; a scheduler's count is not known here
+    meta['workers_effective'] = None if scheduler else (workers or os.cpu_count() or 1)
+    meta['isolation'] = isolations(results)
+    meta['time'] = timing.batch(results, wall_s, meta['workers_effective'])
     write_csv(os.path.join(out, 'results.csv'), results)
     summary = summarise(results)
     comparison = compare(results)

@@ -86,6 +86,10 @@ class Supervisor:
     def stage(self, name):
         with open(os.path.join(self.dir, 'stage'), 'w') as f:
             f.write(name)
+        # the time and the run's CPU at each stage, for the time breakdown
+        from tiago_nav.evaluate.run import TOKEN_VAR
+        from tiago_nav.evaluate.timing import mark
+        mark(self.dir, name, os.environ.get(TOKEN_VAR), TOKEN_VAR)
 
     def start(self, name, cmd):
         log = open(os.path.join(self.dir, name + '.log'), 'w')
