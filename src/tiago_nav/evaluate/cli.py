@@ -83,7 +83,8 @@ def main(argv=None):
     try:        # on a cluster of its own, each worker resolves 'auto' for its machine
         isolation = a.isolation if a.scheduler and a.isolation == 'auto' else resolve(a.isolation)
     except IsolationError as e:
-        sys.stderr.write('evaluate: --isolation %s: %s\n' % (a.isolation, e))
+        sys.stderr.write('evaluate: --isolation %s: %s; use --isolation loopback or auto\n'
+                         % (a.isolation, e))
         return EXIT_USAGE
     out = os.path.abspath(a.out)
     os.makedirs(os.path.join(out, 'worlds'), exist_ok=True)

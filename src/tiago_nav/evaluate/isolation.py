@@ -87,8 +87,7 @@ def resolve(mode):
     if prefix is not None:
         return 'netns'
     if mode == 'netns':
-        raise IsolationError('no network namespace for the runs here (%s); use --isolation '
-                             'loopback or auto' % why)
+        raise IsolationError('no network namespace here (%s)' % why)
     return 'loopback'
 
 
