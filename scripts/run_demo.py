@@ -7,8 +7,13 @@ next to the world's ground truth (the movable obstacles in laser view from the f
 each error, writes a PNG of the run (map, robot path, final scan, true vs found obstacles),
 shuts everything down and exits 0 only if the mission succeeded without a collision.
 
+With --isolated it runs in a network namespace of its own with only loopback up (``unshare -n``
+as root, ``unshare -rn`` with user namespaces): nothing of the demo is reachable from outside,
+not even ROS's C++ nodes (rosout, robot_state_publisher), which listen on all interfaces
+whatever ROS_IP says (docs/troubleshooting.md).
+
 Usage: scripts/run_demo.py [--world W] [--x 11 --y 0 --yaw -45] [--no-corridor]
-                           [--rtf 5] [--png bench/results/demo.png]
+                           [--rtf 5] [--png bench/results/demo.png] [--isolated]
 """
 import argparse
 import json
@@ -40,7 +45,11 @@ def main():
     ap.add_argument('--launch-arg', action='append', default=[], metavar='NAME:=VALUE',
                     help='a further demo.launch argument, e.g. laser_model:=ideal (repeatable)')
     ap.add_argument('--png', default=os.path.join(ROOT, 'bench', 'results', 'demo.png'))
+    ap.add_argument('--isolated', action='store_true',
+                    help='run in a network namespace of its own with only loopback up')
     args = ap.parse_args()
+    if args.isolated:
+        return isolated([a for a in sys.argv[1:] if a != '--isolated'])
     world = load_world(args.world)
     print('== demo: %s, pose B (%.2f, %.2f, %.0f deg), corridor law %s, simulator at %s'
           % (world.name, args.x, args.y, args.yaw, 'on' if args.corridor else 'off',
@@ -104,6 +113,19 @@ def main():
         return 1
     finally:
         h.close()
+
+
+def isolated(argv):
+    """This script again with ``argv``, in a network namespace of its own (loopback only)."""
+    import subprocess
+    from tiago_nav.evaluate.isolation import IsolationError, command, resolve
+    try:
+        cmd = command(resolve('netns'), [sys.executable, os.path.abspath(__file__)] + argv)
+    except IsolationError as e:
+        print('demo: --isolated: %s' % e)
+        return 2
+    print('== demo in a network namespace of its own (only loopback up)', flush=True)
+    return subprocess.call(cmd)
 
 
 if __name__ == '__main__':
