@@ -5,10 +5,14 @@ worker processes), through ``rosrun tiago_nav evaluate`` as a user runs it. Repo
 minute per setting and whether every run's result is the same in every setting (all but the
 wall-clock figures, ``tiago_nav.evaluate.run.WALL_CLOCK_FIELDS``: wall and CPU seconds,
 simulated/wall ratio, start-up time, the worker's host, slot and port).
+Per setting it also reports where the time goes (``tiago_nav.evaluate.timing``): the runs'
+start-up, mission, teardown and judging wall time and CPU (totals and medians) and the share
+of the setting's worker time (wall time x workers) spent in missions; and the runs' isolation.
 Writes bench/results/evaluate.json and evaluate.png.
 
 Usage: bench/bench_evaluate.py [--suite suites/course.yaml] [--runs 20] [--workers 1 2 3]
-                               [--no-cluster] [--keep DIR]
+                               [--no-cluster] [--keep DIR] [--isolation auto|netns|loopback]
+                               [--quick] [--out JSON]
 """
 import argparse
 import json
@@ -116,11 +120,19 @@ def main():
     ap.add_argument('--keep', help='write the evaluate output folders here (default: a temporary '
                                    'folder, removed)')
     ap.add_argument('--out', default=os.path.join(RESULTS, 'evaluate.json'))
+    ap.add_argument('--isolation', choices=('auto', 'netns', 'loopback'), default='auto',
+                    help="the evaluator's --isolation")
+    ap.add_argument('--quick', action='store_true',
+                    help='4 runs, 2 workers, no separate cluster (a quick look; overrides those options)')
     args = ap.parse_args()
+    if args.quick:
+        args.runs, args.workers, args.cluster = 4, [2], False
     if os.path.join(ROOT, 'src') not in sys.path:
         sys.path.append(os.path.join(ROOT, 'src'))
     from tiago_nav.benchmarks import meta
     from tiago_nav.evaluate.run import WALL_CLOCK_FIELDS, differences
+    from tiago_nav.evaluate.report import isolations
+    from tiago_nav.evaluate.timing import PHASES, batch
     for var, value in (('ROS_HOSTNAME', 'localhost'), ('ROS_IP', '127.0.0.1')):
         os.environ.setdefault(var, value)
     base = args.keep or tempfile.mkdtemp(prefix='bench_evaluate_')
@@ -129,6 +141,8 @@ def main():
     print('%d runs of %s: %s' % (len(ids), args.suite, ' '.join(ids)), flush=True)
     settings, by_setting = [], {}
     modes = [('%d worker%s' % (w, '' if w == 1 else 's'), ['--workers', str(w)]) for w in args.workers]
+    counts = {name: w for (name, _), w in zip(modes, args.workers)}
+    counts['Dask cluster, 2 workers'] = 2
     if args.cluster:
         modes.append(('Dask cluster, 2 workers', None))
     for name, extra in modes:
@@ -140,7 +154,8 @@ def main():
             cluster = Cluster(out)
             extra = ['--scheduler', cluster.address]
         try:
-            rc, wall = evaluate([args.suite, '--out', out, '--only'] + ids + extra)
+            rc, wall = evaluate([args.suite, '--out', out, '--isolation', args.isolation, '--only']
+                                + ids + extra)
         finally:
             if cluster:
                 cluster.close()
@@ -152,11 +167,24 @@ def main():
              'wall_s': wall, 'missions_per_minute': 60.0 * len(res) / wall, 'outcomes': outcomes,
              'infrastructure_errors': sum(v for k, v in outcomes.items() if str(k).startswith('INFRA')),
              'leftover_processes': sum(r.get('leftover_processes') or 0 for r in res.values()),
-             'cpu_s_per_mission': sum(r.get('cpu_s') or 0 for r in res.values()) / max(1, len(res))}
+             'cpu_s_per_mission': sum(r.get('cpu_s') or 0 for r in res.values()) / max(1, len(res)),
+             'isolation': isolations(res.values()),
+             'time': batch(list(res.values()), wall, counts[name])}
         settings.append(s)
         by_setting[name] = res
-        print('%-26s exit %d  %d/%d results  %.0f s  %.2f missions/min  %s' % (
-            name, rc, len(res), len(ids), wall, s['missions_per_minute'], outcomes), flush=True)
+        print('%-26s exit %d  %d/%d results  %.0f s  %.2f missions/min  %s  isolation %s' % (
+            name, rc, len(res), len(ids), wall, s['missions_per_minute'], outcomes, s['isolation']),
+            flush=True)
+        t = s['time']
+        if t:
+            print('%-26s missions %.1f %% of the worker time (%.0f s = %.0f s x %d workers)' % (
+                '', 100 * (t['mission_share'] or 0), t['worker_time_s'], wall, counts[name]))
+            for k in PHASES:
+                p = t['phases'][k]
+                print('%-26s   %-9s wall %6.1f s (%4.1f %% of the runs\', median %5.2f s)  CPU %6.1f s '
+                      '(median %5.2f s)' % ('', k, p['wall_s'], 100 * (p['wall_share'] or 0),
+                                           p['median_wall_s'] or 0, p['cpu_s'] or 0,
+                                           p['median_cpu_s'] or 0), flush=True)
     ref_name = settings[0]['setting']
     ref = by_setting[ref_name]
     for s in settings[1:]:

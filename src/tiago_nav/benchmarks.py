@@ -613,6 +613,17 @@ def render_evaluate(d):
     out += ['', 'Best local setting: %s, %s× the 1-worker rate; every result equal in every '
             'setting: %s.' % (d.get('best_local'), _f(d.get('best_speedup_over_1_worker')),
                               _f(d.get('all_equal')))]
+    timed = [s for s in d.get('settings', []) if s.get('time')]
+    if timed:       # where the time goes: per phase, the median run's wall and CPU seconds
+        phases = ('startup', 'mission', 'teardown', 'judging')
+        rows = [(s.get('setting'), ', '.join('%s %d' % kv for kv in sorted((s.get('isolation') or {}).items())),
+                 _pct(s['time'].get('mission_share')))
+                + tuple('%s / %s' % (_f(s['time']['phases'][k].get('median_wall_s')),
+                                     _f(s['time']['phases'][k].get('median_cpu_s'))) for k in phases)
+                for s in timed]
+        out += ['', 'Where the time goes (median run, wall / CPU seconds; the missions\' share of '
+                'the worker time, wall time × workers):', '']
+        out += _table(('setting', 'isolation', 'in missions') + phases, rows)
     return out
 
 

@@ -96,3 +96,19 @@ def test_summary_shows_where_the_time_goes_and_the_isolation(tmp_path):
 def test_phases_and_isolation_are_wall_clock_fields():
     a = result('a', 4.0, 2.0, 1.8)
     assert run.differences(a, dict(result('a', 9.0, 1.0, 0.5), isolation='loopback')) == []
+
+
+def test_benchmarks_page_shows_where_the_time_goes():
+    from tiago_nav import benchmarks
+    rs = [result('a', 4.0, 2.0, 1.8), result('b', 3.8, 1.8, 2.0)]
+    setting = {'setting': '2 workers', 'runs': 2, 'results': 2, 'wall_s': 8.0, 'missions_per_minute': 15.0,
+               'outcomes': {'succeeded': 2}, 'isolation': report.isolations(rs),
+               'time': timing.batch(rs, 8.0, 2)}
+    text = '\n'.join(benchmarks.render_evaluate({'run_ids': ['a', 'b'], 'suite': 's.yaml',
+                                                 'settings': [setting]}))
+    assert 'Where the time goes' in text
+    assert '| 2 workers | netns 2 | 23.8 % | 3.9 / 3.51 | 1.9 / 2.85 | 1.9 / 0.1 | 0.2 / 0.2 |' in text
+    # results without the breakdown (older JSON): no such table
+    old = dict(setting)
+    del old['time']
+    assert 'Where the time goes' not in '\n'.join(benchmarks.render_evaluate({'settings': [old]}))
