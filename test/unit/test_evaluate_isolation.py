@@ -58,6 +58,9 @@ def test_a_process_in_the_run_namespace_listens_only_there():
         with socket.socket() as c:
             c.settimeout(2.0)
             assert c.connect_ex(('127.0.0.1', port)) != 0        # not reachable from outside
+        # another run's namespace has the same port free: no run meets another's master
+        same = ('import socket\ns = socket.socket()\ns.bind(("127.0.0.1", %d))\ns.listen(1)' % port)
+        assert subprocess.call(isolation.command('netns', [sys.executable, '-c', same]), timeout=30) == 0
     finally:
         p.kill()
         p.wait()

@@ -47,10 +47,13 @@ def tree_cpu(token, token_var):
 
 def mark(run_dir, stage, token=None, token_var=None):
     """Append ``stage``, the monotonic time and the run's CPU so far to ``RUN_DIR/stages``
-    (CPU -1 without a token)."""
+    (CPU -1 without a token; nothing when the file cannot be written)."""
     cpu = tree_cpu(token, token_var) if token and token_var else -1.0
-    with open(os.path.join(run_dir, STAGES_FILE), 'a') as f:
-        f.write('%s %.6f %.3f\n' % (stage, time.monotonic(), cpu))
+    try:        # a mark that cannot be written costs the breakdown, never the run
+        with open(os.path.join(run_dir, STAGES_FILE), 'a') as f:
+            f.write('%s %.6f %.3f\n' % (stage, time.monotonic(), cpu))
+    except OSError:
+        pass
 
 
 def read_marks(run_dir):
