@@ -74,3 +74,13 @@ def test_nested_namespaces():
     outer = isolation.unshare_prefixes()[0]
     assert subprocess.call(outer + [sys.executable, '-I', isolation.SCRIPT, '--', sys.executable, '-c', code],
                            timeout=60) == 0
+
+
+def test_evaluator_refuses_a_forced_netns_it_cannot_give(monkeypatch, tmp_path, capsys):
+    from tiago_nav.evaluate import cli
+    monkeypatch.setattr(isolation, '_PROBED', {'prefix': None, 'why': 'unshare -n: exit 1: Operation not permitted'})
+    rc = cli.main([os.path.join(ROOT, 'suites', 'smoke.yaml'), '--out', str(tmp_path / 'out'),
+                   '--isolation', 'netns'])
+    err = capsys.readouterr().err
+    assert rc == cli.EXIT_USAGE and 'Operation not permitted' in err and '--isolation loopback or auto' in err
+    assert not (tmp_path / 'out').exists()          # nothing started
