@@ -616,7 +616,8 @@ def render_evaluate(d):
     timed = [s for s in d.get('settings', []) if s.get('time')]
     if timed:       # where the time goes: per phase, the median run's wall and CPU seconds
         phases = ('startup', 'mission', 'teardown', 'judging')
-        rows = [(s.get('setting'), ', '.join('%s %d' % kv for kv in sorted((s.get('isolation') or {}).items())),
+        rows = [(s.get('setting'),
+                 ', '.join('%s %d' % kv for kv in sorted((s.get('isolation') or {}).items())),
                  _pct(s['time'].get('mission_share')))
                 + tuple('%s / %s' % (_f(s['time']['phases'][k].get('median_wall_s')),
                                      _f(s['time']['phases'][k].get('median_cpu_s'))) for k in phases)

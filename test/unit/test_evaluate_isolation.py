@@ -12,6 +12,7 @@ from conftest import ROOT
 from tiago_nav.evaluate import isolation
 
 SRC = os.path.join(ROOT, 'src')
+DENIED = 'unshare -n: exit 1: Operation not permitted'
 
 NETNS = isolation.probe()[0] is not None
 needs_netns = pytest.mark.skipif(not NETNS, reason='no network namespaces here: %s' % isolation.probe()[1])
@@ -26,7 +27,7 @@ def test_modes():
 
 
 def test_forced_netns_without_namespaces_is_a_clear_error(monkeypatch):
-    monkeypatch.setattr(isolation, '_PROBED', {'prefix': None, 'why': 'unshare -n: exit 1: Operation not permitted'})
+    monkeypatch.setattr(isolation, '_PROBED', {'prefix': None, 'why': DENIED})
     with pytest.raises(isolation.IsolationError, match='no network namespace here.*Operation not permitted'):
         isolation.resolve('netns')
     assert isolation.resolve('auto') == 'loopback'
@@ -78,7 +79,7 @@ def test_nested_namespaces():
 
 def test_evaluator_refuses_a_forced_netns_it_cannot_give(monkeypatch, tmp_path, capsys):
     from tiago_nav.evaluate import cli
-    monkeypatch.setattr(isolation, '_PROBED', {'prefix': None, 'why': 'unshare -n: exit 1: Operation not permitted'})
+    monkeypatch.setattr(isolation, '_PROBED', {'prefix': None, 'why': DENIED})
     rc = cli.main([os.path.join(ROOT, 'suites', 'smoke.yaml'), '--out', str(tmp_path / 'out'),
                    '--isolation', 'netns'])
     err = capsys.readouterr().err

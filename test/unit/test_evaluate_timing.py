@@ -87,7 +87,8 @@ def test_summary_shows_where_the_time_goes_and_the_isolation(tmp_path):
     md = (tmp_path / 'summary.md').read_text()
     assert 'Isolation: loopback (the host network' in md and 'netns (each run in a network namespace' in md
     assert '## Where the time goes' in md and 'Missions took 23.8 % of the batch' in md
-    assert '| mission | 3.8 |' in md and '| `a` | succeeded | 4.00 / 3.60 | 2.00 / 3.00 | 0.20 / 0.20 | 1.80 / 0.10 |' in md
+    assert '| mission | 3.8 |' in md
+    assert '| `a` | succeeded | 4.00 / 3.60 | 2.00 / 3.00 | 0.20 / 0.20 | 1.80 / 0.10 |' in md
     s = run.read_json(str(tmp_path / 'summary.json'))
     assert s['meta']['isolation'] == {'netns': 1, 'loopback': 1}
     assert s['meta']['time']['mission_share'] == pytest.approx(3.8 / 16.0)

@@ -1,5 +1,6 @@
 """``rosrun tiago_nav evaluate SUITE.yaml --out DIR [--workers N] [--scheduler ADDR] [--resume]
-[--dry-run] [--only ID ...] [--record] [--isolation auto|netns|loopback]``: the batch evaluator (docs/evaluation.md).
+[--dry-run] [--only ID ...] [--record] [--isolation auto|netns|loopback]``: the batch evaluator
+(docs/evaluation.md).
 
 Exit 0 when every run ended (whatever its outcome), 1 when a run has no result, 2 for a bad
 suite file or argument (the message names the file, the field and the reason).

@@ -165,8 +165,8 @@ def isolation_lines(meta):
         return []
     about = {'netns': 'each run in a network namespace of its own, only loopback up',
              'loopback': 'the host network, loopback addresses, one port per worker'}
-    return ['', 'Isolation: %s.' % '; '.join('%s (%s) for %d run%s' % (k, about.get(k, '?'), n, '' if n == 1 else 's')
-                                             for k, n in sorted(iso.items()))]
+    return ['', 'Isolation: %s.' % '; '.join(
+        '%s (%s) for %d run%s' % (k, about.get(k, '?'), n, '' if n == 1 else 's') for k, n in sorted(iso.items()))]
 
 
 def time_lines(results, meta):
