@@ -206,8 +206,8 @@ def main():
     with open(args.out, 'w') as f:
         json.dump(out, f, indent=2)
     plot(settings, os.path.splitext(args.out)[0] + '.png')
-    print('best: %s, %.2f x the 1-worker rate; every run equal in every setting: %s'
-          % (best['setting'], out['best_speedup_over_1_worker'] or 0, out['all_equal']))
+    print('best: %s, %.2f x the %s rate; every run equal in every setting: %s'
+          % (best['setting'], out['best_speedup_over_1_worker'] or 0, ref_name, out['all_equal']))
     print('wrote %s' % args.out)
     if not args.keep:
         shutil.rmtree(base, ignore_errors=True)
