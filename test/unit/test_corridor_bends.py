@@ -10,7 +10,7 @@ import pytest
 from tiago_nav import mission
 from tiago_nav.corridor import CorridorParams, Walls, stop_distance
 from tiago_nav.mission import SUCCEEDED, ABORTED, MissionRunner, Poll
-from tiago_nav.mission.runner import handoff_sentence
+from tiago_nav.mission.sentences import handoff_sentence
 from tiago_nav.geometry import wrap_angle
 from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.sim.simulator import SimConfig, Simulator

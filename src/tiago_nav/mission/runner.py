@@ -14,8 +14,8 @@ from typing import Any, List, Optional, Tuple
 from tiago_nav.geometry import wrap_angle
 from tiago_nav.mission.goals import GoalError, validate_goal
 from tiago_nav.mission.sentences import (corridor_done_sentence, corridor_sentence, fmt_pose,
-                                         goal_sentence, motion_sentence, plural,
-                                         remaining_path_length)
+                                         goal_sentence, handoff_sentence, motion_sentence,
+                                         plural, remaining_path_length)
 from tiago_nav.motion import MotionMonitor, wait_until_still
 from tiago_nav.params import param, validate
 
@@ -154,11 +154,6 @@ class _ServerAborted(StageError):
     def __init__(self, stage, what, status, reason):
         super().__init__(stage, '%s %s: %s' % (what, status, reason))
         self.server_reason = reason
-
-
-def handoff_sentence(reason):
-    """The NAVIGATING feedback when the corridor law gives up and move_base takes over."""
-    return 'the corridor law stopped (%s): move_base drives the rest of the way' % reason
 
 
 class _Preempted(Exception):

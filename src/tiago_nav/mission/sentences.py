@@ -39,6 +39,12 @@ def corridor_done_sentence(distance=None, reason=''):
     return s + '; navigating on to pose B'
 
 
+def handoff_sentence(reason):
+    """The NAVIGATING sentence when corridor_controller aborted (``reason``, its status text)
+    and move_base drives the rest of the way."""
+    return 'the corridor law stopped (%s): move_base drives the rest of the way' % reason
+
+
 def motion_sentence(moving, to_go):
     """``'moving, 3.2 m to go'`` / ``'stopped, 0.4 m to go'`` (``to_go`` [m] or None)."""
     word = 'moving' if moving else 'stopped'
