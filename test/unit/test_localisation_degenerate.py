@@ -210,29 +210,33 @@ def test_odometry_sigmas_are_validated(name):
         LocaliserConfig(**{name: -0.01})
 
 
-def test_the_axis_is_corrected_once_the_corridor_end_comes_into_view():
-    """Odometry over-reads by 5 % along a corridor whose end wall (x = 16) is out of the
-    localiser's 12 m range at first: the along-axis error grows as the odometry's, then the
-    first scans that reach the end wall correct it, although it is by then further off than
-    the Cauchy scale (the search along the unobservable axis finds it), and it never grows by a
-    step."""
-    end = 16.0
+def corridor_with_end(end):
+    """A 30 m corridor (as :func:`corridor`) closed by a wall across it at x = ``end``, and
+    exact scans there: ``(grid, scan(pose))``."""
     d = corridor_world(WIDTH, length=30.0, start=(-1.0, 0.0, 0.0))
     d['walls'].append({'x': end + 0.075, 'y': 0.0, 'length': WIDTH + 0.3, 'width': 0.15,
                        'yaw_deg': 90.0})
     grid = rasterise_world(World.from_dict(d))
 
     def scan(pose):
-        pts = corridor_scan(pose, max_range=30.0)
+        pts = corridor_scan(pose, max_range=40.0)
         lx = pose[0] + LASER_OFFSET
-        # beams that pass the side walls' x = end reach the end wall instead
         hit = pose[0] + pts[:, 0] > end
         out = pts.copy()
         t = (end - lx) / np.maximum(pts[hit, 0] - LASER_OFFSET, 1e-9)
         out[hit, 0] = LASER_OFFSET + t * (pts[hit, 0] - LASER_OFFSET)
         out[hit, 1] = t * pts[hit, 1]
         return out[np.hypot(out[:, 0] - LASER_OFFSET, out[:, 1]) <= 12.0]
+    return grid, scan
 
+
+def test_the_axis_is_corrected_once_the_corridor_end_comes_into_view():
+    """Odometry over-reads by 5 % along a corridor whose end wall (x = 16) is out of the
+    localiser's 12 m range at first: the along-axis error grows as the odometry's, then the
+    first scans that reach the end wall correct it, although it is by then further off than
+    the Cauchy scale (the search along the unobservable axis finds it), and it never grows by a
+    step."""
+    grid, scan = corridor_with_end(16.0)
     loc = Localiser(grid, (1.5, 0.0, 0.0), odom=(0.0, 0.0, 0.0))
     errors, published, weak = [], [], []
     for k in range(0, 86):                          # 8.5 m, to x = 10
@@ -256,26 +260,6 @@ def test_the_axis_is_corrected_once_the_corridor_end_comes_into_view():
     steps = np.abs(np.diff(published))
     assert np.max(steps) <= LocaliserConfig().max_correction_step + 0.006, steps
     assert abs(published[-1]) < 0.02
-
-
-def corridor_with_end(end):
-    """A 30 m corridor (as :func:`corridor`) closed by a wall across it at x = ``end``, and
-    exact scans there: ``(grid, scan(pose))``."""
-    d = corridor_world(WIDTH, length=30.0, start=(-1.0, 0.0, 0.0))
-    d['walls'].append({'x': end + 0.075, 'y': 0.0, 'length': WIDTH + 0.3, 'width': 0.15,
-                       'yaw_deg': 90.0})
-    grid = rasterise_world(World.from_dict(d))
-
-    def scan(pose):
-        pts = corridor_scan(pose, max_range=40.0)
-        lx = pose[0] + LASER_OFFSET
-        hit = pose[0] + pts[:, 0] > end
-        out = pts.copy()
-        t = (end - lx) / np.maximum(pts[hit, 0] - LASER_OFFSET, 1e-9)
-        out[hit, 0] = LASER_OFFSET + t * (pts[hit, 0] - LASER_OFFSET)
-        out[hit, 1] = t * pts[hit, 1]
-        return out[np.hypot(out[:, 0] - LASER_OFFSET, out[:, 1]) <= 12.0]
-    return grid, scan
 
 
 def test_a_27_cm_re_acquisition_reaches_the_published_estimate_in_bounded_steps():
