@@ -50,7 +50,6 @@ def judge_view(ranges, ids, angles, movable_ids):
     a = np.asarray(angles, dtype=float)
     window = np.abs(a) <= USABLE_ANGLE
     usable = window & (r <= MAX_RANGE)
-    n = len(r)
     in_view, glimpsed, beams, usable_beams = [], [], {}, {}
     for i, body in enumerate(movable_ids):
         hit = ids == body
@@ -60,14 +59,14 @@ def judge_view(ranges, ids, angles, movable_ids):
         beams[i] = k
         use = hit & usable
         usable_beams[i] = int(np.count_nonzero(use))
-        if usable_beams[i] >= MIN_BEAMS and _an_edge_is_seen(r, ids, window, hit, body, n):
+        if usable_beams[i] >= MIN_BEAMS and _an_edge_is_seen(r, ids, window, hit, body):
             in_view.append(i)
         else:
             glimpsed.append(i)
     return View(in_view, glimpsed, beams, usable_beams)
 
 
-def _an_edge_is_seen(r, ids, window, hit, body, n):
+def _an_edge_is_seen(r, ids, window, hit, body):
     """Whether the usable beam just beyond the obstacle's outermost hit on either side goes
     past it (see the module's doc)."""
     idx = np.flatnonzero(hit & window)
