@@ -53,7 +53,7 @@ from tiago_nav.sim.worlds import corridor_world  # noqa: E402
 from tiago_nav.testing.corridor import run_in_simulator  # noqa: E402
 from tiago_nav.testing.harness import free_port, stop_process  # noqa: E402
 from tiago_nav.sim.simulator import SimConfig, Simulator  # noqa: E402
-from tiago_nav.sim.world import World, load_world  # noqa: E402
+from tiago_nav.sim.world import World, clearance, load_world  # noqa: E402
 
 ROBOT_R = ROBOT_RADIUS
 SHIPPED = os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml')
@@ -92,20 +92,6 @@ def corridor_geometry(world):
             'end': float(first_end)}
 
 
-def wall_clearance(world, xy):
-    """Minimum over the points ``xy`` (N, 2) of the distance from the base's disc to any wall."""
-    best = np.inf
-    for w in world.walls:
-        c = w.corners()
-        for i in range(4):
-            a, b = c[i], c[(i + 1) % 4]
-            ab = b - a
-            t = np.clip(((xy - a) @ ab) / (ab @ ab), 0.0, 1.0)
-            d = np.hypot(*(xy - (a + t[:, None] * ab)).T)
-            best = min(best, float(d.min()))
-    return best - ROBOT_R
-
-
 def metrics(world, track, t0, duration, collisions, done):
     """Figures of a trajectory ``track`` (N, 4: t, x, y, yaw) in the map frame; ``t0`` is when
     the goal was sent, ``duration`` goal -> result [s]."""
@@ -128,7 +114,7 @@ def metrics(world, track, t0, duration, collisions, done):
             'time_to_result': round(float(duration), 2),
             'lateral_rms_after_1m': (round(float(np.sqrt(np.mean(across[sel] ** 2))), 4)
                                      if sel.any() else None),
-            'min_clearance': round(wall_clearance(world, track[:, 1:3]), 3),
+            'min_clearance': round(clearance(world, track[:, 1:3], ROBOT_R, cylinders=False), 3),
             'collisions': int(collisions),
             'final_along_past_end': round(float(final_along - g['end']), 3),
             'final_heading_error_deg': round(math.degrees(heading), 1)}
@@ -332,7 +318,6 @@ def pose_b_of(path):
 
 def bends(n_lib, seeds, use_ros):
     """Part 3 of the module docstring: ``{'worlds': {name: ...}, 'met': ...}``."""
-    from tiago_nav.testing.corridor import clearance
     out = {'definitions': {
         'law.stopped': 'the corridor goal\'s end: done (SUCCEEDED) or the reason it was not',
         'law.stop_before_corner': 'the final base centre along the first leg minus the inner '
@@ -340,12 +325,9 @@ def bends(n_lib, seeds, use_ros):
         'min_clearance': 'min distance from the base disc (r %g) to any wall or cylinder over the '
                          'run, exact from the ground-truth path [m]' % ROBOT_R,
         'inner_corner_clearance': 'min distance from the base disc to the bend\'s inner corner '
-                                  '(where the inner walls of the two legs meet) [m]',
-        'min_clearance_grid': 'the evaluator\'s min_clearance_m (distance field on the world\'s '
-                              '5 cm raster: up to ~4 cm lower than the exact figure) [m]'},
+                                  '(where the inner walls of the two legs meet) [m]'},
         'worlds': {}}
-    header = '%-18s %-8s %6s %10s %10s %12s' % ('bend world', 'run', 'ok', 'collisions',
-                                                 'clear min', 'grid min')
+    header = '%-18s %-8s %6s %10s %10s' % ('bend world', 'run', 'ok', 'collisions', 'clear min')
     print(header)
     for path in BEND_WORLDS:
         world = load_world(path)
@@ -362,7 +344,7 @@ def bends(n_lib, seeds, use_ros):
                 cmd, _ = run_in_simulator(sim, timeout=60.0,
                                           on_step=lambda q, c: track.append(tuple(q.pose)))
                 tr = np.array(track)
-                c = clearance(world, tr[:, :2])
+                c = clearance(world, tr[:, :2], ROBOT_R)
                 rows.append({'start': [round(v, 3) for v in s],
                              'stopped': 'done' if cmd.state == 'done' else cmd.reason,
                              'reason': cmd.reason, 'collisions': int(sim.collisions),
@@ -385,22 +367,20 @@ def bends(n_lib, seeds, use_ros):
                                               max(r['stop_before_corner'] for r in rows)],
                        'trials_detail': rows}}
         out['worlds'][name] = res
-        print('%-18s %-8s %6s %10d %10.3f %12s' % (name, 'law', '%d/%d' % (res['law']['success'], len(rows)),
-                                                   res['law']['collisions'], res['law']['min_clearance'],
-                                                   '-'), flush=True)
+        print('%-18s %-8s %6s %10d %10.3f' % (name, 'law', '%d/%d' % (res['law']['success'], len(rows)),
+                                             res['law']['collisions'], res['law']['min_clearance']),
+              flush=True)
     if use_ros:
         for name, rows in mission_trials(seeds).items():
             res = out['worlds'][name]
             res['missions'] = {'runs': len(rows), 'success': sum(r['success'] for r in rows),
                                'collisions': sum(r['collisions'] for r in rows),
                                'min_clearance': min(r['min_clearance'] for r in rows),
-                               'min_clearance_grid': min(r['min_clearance_grid'] for r in rows),
                                'inner_corner_clearance': min(r['inner_corner_clearance'] for r in rows),
                                'runs_detail': rows}
             m = res['missions']
-            print('%-18s %-8s %6s %10d %10.3f %12.3f' % (name, 'mission', '%d/%d' % (m['success'], m['runs']),
-                                                         m['collisions'], m['min_clearance'],
-                                                         m['min_clearance_grid']), flush=True)
+            print('%-18s %-8s %6s %10d %10.3f' % (name, 'mission', '%d/%d' % (m['success'], m['runs']),
+                                                 m['collisions'], m['min_clearance']), flush=True)
     ws = out['worlds'].values()
     out['met'] = {
         'law_stops_clear': all(w['law']['success'] == w['law']['trials'] for w in ws),
@@ -416,7 +396,6 @@ def bends(n_lib, seeds, use_ros):
 def mission_trials(seeds):
     """The missions of part 3 through the batch evaluator: ``{world name: [run, ...]}``."""
     import csv
-    from tiago_nav.testing.corridor import clearance
     tmp = tempfile.mkdtemp(prefix='bench_corridor_bends_')
     suite = {'name': 'corridor_bends',
              'defaults': {'real_time_factor': 0, 'sim_time_limit': 180, 'wall_time_limit': 300,
@@ -447,10 +426,9 @@ def mission_trials(seeds):
                 'run_id': r['run_id'], 'profile': r['profile'], 'seed': int(r['seed']),
                 'outcome': r['outcome'], 'reason': r['reason'],
                 'success': r['outcome'] == 'succeeded', 'collisions': int(r['collisions'] or 0),
-                'min_clearance': round(clearance(world, path), 3),
+                'min_clearance': round(float(r['min_clearance_m']), 3),
                 'inner_corner_clearance': round(corner_clearance(inner_corner(spec['world_path']),
                                                                  path), 3),
-                'min_clearance_grid': round(float(r['min_clearance_m']), 3),
                 'corridor_last': corridor[-1] if corridor else None,
                 'navigating_first': nav[0] if nav else None})
     return by_world

@@ -492,12 +492,12 @@ def render_corridor(d):
             rows.append((w, '%s°' % _f(v.get('bend_deg')), '%s/%s' % (law.get('success'), law.get('trials')),
                          law.get('min_clearance'), '%s–%s' % (_f(stop[0]), _f(stop[1])),
                          '%s/%s' % (m.get('success'), m.get('runs')) if m else None,
-                         m.get('collisions'), m.get('min_clearance'), m.get('min_clearance_grid'),
+                         m.get('collisions'), m.get('min_clearance'),
                          m.get('inner_corner_clearance')))
         out += ['', 'Bends:', '']
         out += _table(('world', 'bend', 'law stops clear', 'law min clearance [m]',
                        'law stops past the inner corner [m]', 'missions ok', 'mission collisions',
-                       'mission min clearance [m]', 'evaluator\'s grid clearance [m]',
+                       'mission min clearance [m]',
                        'mission inner-corner clearance [m]'), rows)
         if b.get('met'):
             out += ['', 'Targets met (bends): %s.' % ', '.join('%s %s' % (k, _f(v))

@@ -98,11 +98,12 @@ def test_shortest_path_and_clearance():
     # a cylinder on the line makes it longer
     w2 = _box_world([(3.0, 2.0, 0.3)])
     assert M.shortest_path_length(w2, (1.0, 2.0), (5.0, 2.0)) > 4.1
-    grid, dist = M.obstacle_distance_field(w)
     # the enclosure walls (0.15 thick, centred 0.15 inside the bounds): inner faces at y = 0.225 and
-    # 3.775, so a robot at y = 2 has 1.775 - 0.27 clear (to a cell)
-    assert M.min_clearance([(3.0, 2.0)], grid, dist) == pytest.approx(1.775 - 0.27, abs=0.06)
-    assert M.min_clearance([], grid, dist) is None
+    # 3.775, so a robot at y = 2 has 1.775 - 0.27 clear, exactly
+    assert M.min_clearance([(3.0, 2.0, 0.0)], w) == pytest.approx(1.775 - 0.27, abs=1e-9)
+    assert M.min_clearance([], w) is None
+    # a cylinder (3, 2, r 0.3) 0.8 m from the robot's centre: 0.5 - 0.27 clear
+    assert M.min_clearance([(3.0, 2.8)], w2) == pytest.approx(0.5 - 0.27, abs=1e-9)
 
 
 def test_same_and_differences():

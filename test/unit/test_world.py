@@ -99,3 +99,17 @@ def test_not_a_mapping(tmp_path):
 def test_from_dict_validates():
     with pytest.raises(WorldError, match='<test>: missing required field'):
         World.from_dict({'name': 'x'}, source='<test>')
+
+
+def test_clearance_is_exact_to_walls_and_cylinders():
+    from tiago_nav.sim.world import clearance
+    w = World.from_dict({'name': 'c', 'resolution': 0.05, 'bounds': [0, 0, 4, 4],
+                         'robot_start': [1, 1, 0],
+                         'walls': [{'x': 2.0, 'y': 0.0, 'length': 4.0, 'width': 0.2, 'yaw_deg': 0}],
+                         'movable_obstacles': [{'x': 3.0, 'y': 2.0, 'radius': 0.2}]})
+    # the wall's face is at y = 0.1; the cylinder's surface 0.8 m from (3, 3)
+    assert clearance(w, [(1.0, 1.0)]) == pytest.approx(0.9, abs=1e-12)
+    assert clearance(w, [(1.0, 1.0, 0.5), (3.0, 3.0, 0.0)], robot_radius=0.27) == pytest.approx(0.53)
+    assert clearance(w, [(3.0, 3.0)], cylinders=False) == pytest.approx(2.9)
+    assert clearance(w, [(3.0, 2.3)], robot_radius=0.27) < 0          # overlapping the cylinder
+    assert clearance(w, []) is None

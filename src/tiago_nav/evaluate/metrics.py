@@ -78,19 +78,12 @@ def obstacle_distance_field(world, include_movable=True):
     return grid, dist
 
 
-def min_clearance(points, grid, distance, robot_radius=ROBOT_RADIUS):
-    """Least gap [m] between the robot's footprint (a disc of ``robot_radius`` about each
-    pose of ``points``) and the nearest obstacle, from the distance field ``distance`` over
-    ``grid``'s cells; None without points inside the grid."""
-    p = np.asarray([q[:2] for q in points], dtype=float).reshape(-1, 2)
-    if not len(p):
-        return None
-    rc = grid.world_to_cell(p)
-    ok = grid.in_bounds(rc)
-    if not ok.any():
-        return None
-    rc = rc[ok]
-    return float(np.min(distance[rc[:, 0], rc[:, 1]]) - robot_radius)
+def min_clearance(points, world, robot_radius=ROBOT_RADIUS):
+    """Least gap [m] between the robot's footprint (a disc of ``robot_radius`` about each pose
+    of ``points``) and the nearest wall or cylinder of ``world``, exact
+    (:func:`tiago_nav.sim.world.clearance`); None without points."""
+    from tiago_nav.sim.world import clearance
+    return clearance(world, points, robot_radius)
 
 
 def shortest_path_length(world, start_xy, goal_xy, robot_radius=ROBOT_RADIUS):

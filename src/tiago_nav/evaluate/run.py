@@ -272,11 +272,10 @@ def judge(spec, raw):
     goal = spec['goal']
     shortest = M.shortest_path_length(world, start[:2], goal[:2])
     driven = M.path_length(path)
-    grid, dist = M.obstacle_distance_field(world)
     sim_t = raw.get('sim_s')
     m = {'time_s': sim_t, 'wall_s': raw.get('wall_s'), 'path_length_m': driven,
          'shortest_m': shortest, 'collisions': raw.get('collisions'),
-         'min_clearance_m': M.min_clearance(path, grid, dist),
+         'min_clearance_m': M.min_clearance(path, world),
          'sim_wall_ratio': M.ratio(sim_t, raw.get('wall_s')),
          'startup_wall_s': raw.get('startup_wall_s'),
          'final_pose': final, 'goal_error_m': math.hypot(final[0] - goal[0], final[1] - goal[1])

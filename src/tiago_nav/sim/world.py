@@ -11,6 +11,7 @@ import os
 from dataclasses import dataclass, field
 from typing import List, Optional, Tuple
 
+import numpy as np
 import yaml
 
 from tiago_nav.geometry import oriented_box_corners
@@ -97,6 +98,26 @@ class World:
 _TOP_KEYS = ('name', 'resolution', 'bounds', 'robot_start', 'walls', 'static_cylinders',
              'movable_obstacles', 'corridor', 'world_frame')
 
+
+def clearance(world, xy, robot_radius=0.0, cylinders=True):
+    """The smallest gap [m], exact, between a disc of ``robot_radius`` [m] centred on any of the
+    map positions ``xy`` ((N, 2), or poses whose first two entries are x, y) and the ``world``'s
+    walls (their boxes' edges) and, with ``cylinders``, its static and movable cylinders;
+    negative where they overlap; None without positions."""
+    p = np.asarray([q[:2] for q in xy], float).reshape(-1, 2)
+    if not len(p):
+        return None
+    best = np.inf
+    for w in world.walls:
+        c = w.corners()
+        for a, b in zip(c, np.roll(c, -1, axis=0)):
+            ab = b - a
+            t = np.clip(((p - a) @ ab) / max(float(ab @ ab), 1e-12), 0.0, 1.0)
+            best = min(best, float(np.hypot(*(p - (a + t[:, None] * ab)).T).min()))
+    if cylinders:
+        for cyl in list(world.static_cylinders) + list(world.movable_obstacles):
+            best = min(best, float(np.hypot(p[:, 0] - cyl.x, p[:, 1] - cyl.y).min()) - cyl.radius)
+    return best - robot_radius
 
 def load_world(path):
     """Load and validate the world file at ``path``; raise :class:`WorldError` on any problem."""

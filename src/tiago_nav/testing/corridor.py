@@ -69,13 +69,8 @@ def clearance(world, xy, robot_radius=None):
     the robot's) at the map positions ``xy`` (N, 2) to any wall or cylinder of ``world`` (a
     :class:`tiago_nav.sim.world.World`); negative when they overlap."""
     from tiago_nav.robot import ROBOT_RADIUS
-    r = ROBOT_RADIUS if robot_radius is None else robot_radius
-    seg = world_segments(world)
-    p = np.asarray(xy, float).reshape(-1, 2)[:, None, :]                     # (P, 1, 2)
-    a, e = seg[None, :, 0, :], (seg[:, 1, :] - seg[:, 0, :])[None, :, :]     # (1, N, 2)
-    t = np.clip(((p - a) * e).sum(-1) / np.maximum((e * e).sum(-1), 1e-12), 0.0, 1.0)
-    d = np.hypot(*np.moveaxis(p - (a + t[..., None] * e), -1, 0))
-    return float(d.min()) - r
+    from tiago_nav.sim.world import clearance as world_clearance
+    return world_clearance(world, xy, ROBOT_RADIUS if robot_radius is None else robot_radius)
 
 
 def ray_cast(origin, angles, segments, max_range):
