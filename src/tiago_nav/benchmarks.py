@@ -49,12 +49,26 @@ BENCHMARKS = (
         ('bench/bench_soak.py', ['soak.json'])]),
     ('evaluate', 'Batch evaluation', [
         ('bench/bench_evaluate.py', ['evaluate.json'])]),
+    ('suites', 'Shipped suites', [
+        ('bench/bench_suites.py', ['suites.json'])]),
 )
 NAMES = [b[0] for b in BENCHMARKS]
 
 # name -> what the benchmark measures, how it judges and its targets: shown under its title on
 # docs/benchmarks.md (the scripts' docstrings say the same at more length)
 ABOUT = {
+    'suites': (
+        'Every run of the shipped suites through `rosrun tiago_nav evaluate` (2 workers, '
+        'lockstep): `suites/course.yaml` (204 runs: the course world, its pose B and four sampled '
+        'ones, and twelve generated worlds of its class) and `suites/robustness.yaml` (96 runs: a '
+        'start inside a 1.1 m corridor, a 20 m featureless corridor, corridors bent by 30, 45, 60 '
+        'and 90°, a cluttered room), both sensing profiles, corridor law on and off, three seeds. '
+        'Judged as in docs/evaluation.md (`--from SUITE=DIR` judges an existing output folder '
+        'again with the current metrics). Per suite the success rate and its Wilson 95 % '
+        'interval, per world group, profile and corridor setting the least clearance (exact, '
+        'footprint to walls and cylinders along the true path), the worst localisation p95 and '
+        'centre RMS; every run that did not succeed, with its reason. Target: at least 99 % '
+        'success per suite.'),
     'evaluate': (
         'The batch evaluator as a user runs it (`rosrun tiago_nav evaluate`): `--runs` (20) rows '
         'spread evenly over `suites/course.yaml` (the course world and generated worlds, both '
@@ -628,7 +642,33 @@ def render_evaluate(d):
     return out
 
 
-RENDER = {'evaluate': render_evaluate, 'simulator': render_simulator, 'detection': render_detection,
+def render_suites(d):
+    out = []
+    for name, s in d.get('suites', {}).items():
+        lo, hi = s.get('wilson_95') or (None, None)
+        out += ['`%s`: %s runs, %s succeeded (%s, Wilson 95 %% %s–%s), %s collisions%s.'
+                % (s.get('suite'), s.get('runs'), s.get('succeeded'), _pct(s.get('rate')), _pct(lo),
+                   _pct(hi), s.get('collisions'),
+                   '' if not s.get('missions_per_minute') else
+                   ', %s missions per minute' % _f(s['missions_per_minute'])), '']
+        rows = [(g['group'], g['profile'], 'on' if g['corridor_law'] else 'off',
+                 '%d/%d' % (g['succeeded'], g['runs']), g['collisions'], g['min_clearance_m'],
+                 g['loc_error_p95_m_max'], g['rms_error_m_max']) for g in s.get('groups', [])]
+        out += _table(('world group', 'profile', 'corridor law', 'succeeded', 'collisions',
+                       'least clearance [m]', 'worst localisation p95 [m]',
+                       'worst centre RMS [m]'), rows)
+        fails = s.get('not_succeeded') or []
+        out += ['', 'Not succeeded: %s' % ('none.' if not fails else '')]
+        out += ['- `%s` %s, %s, law %s, seed %s: %s: %s' % (
+            f['run_id'], f['world'], f['profile'], 'on' if f['use_corridor_law'] else 'off',
+            f['seed'], f['outcome'], f['reason']) for f in fails]
+        out += ['']
+    out += ['Target (at least %s success per suite) met: %s.' % (
+        _pct(d.get('target_rate')), ', '.join('%s %s' % (k, _f(v)) for k, v in d.get('met', {}).items()))]
+    return out
+
+
+RENDER = {'suites': render_suites, 'evaluate': render_evaluate, 'simulator': render_simulator, 'detection': render_detection,
           'navigation': render_navigation, 'corridor': render_corridor,
           'mission': render_mission, 'demo': render_demo, 'lockstep': render_lockstep,
           'soak': render_soak, 'localisation': render_localisation}

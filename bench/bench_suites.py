@@ -1,0 +1,146 @@
+#!/usr/bin/python3
+"""Shipped suites benchmark: every run of ``suites/course.yaml`` (204 runs: the course world and
+twelve generated worlds of its class) and ``suites/robustness.yaml`` (96 runs: a start inside a
+corridor, a 20 m corridor, bends of 30 to 90 deg, a cluttered room) through ``rosrun tiago_nav
+evaluate`` as a user runs it, both sensing profiles, corridor law on and off, three seeds.
+Reports per suite the success rate (with its Wilson 95 % interval) against the target of at
+least 99 %, per world group, profile and corridor setting the successes, the least clearance, the
+worst localisation p95 and centre RMS, and every run that did not succeed with its reason.
+Writes bench/results/suites.json.
+
+``--from SUITE=DIR`` reads an evaluate output folder of that suite instead of running it: each
+run is judged again from its raw record (``runs/ID/raw.json``) with the current metrics
+(``tiago_nav.evaluate.run.judge``), as the evaluator would judge it now.
+
+Usage: bench/bench_suites.py [--suites suites/course.yaml suites/robustness.yaml] [--workers 2]
+                             [--from SUITE=DIR ...] [--keep DIR]
+"""
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+RESULTS = os.path.join(ROOT, 'bench', 'results')
+SUITES = ('suites/course.yaml', 'suites/robustness.yaml')
+TARGET = 0.99           # success rate per suite
+
+sys.path.insert(0, os.path.join(ROOT, 'src'))
+from tiago_nav.benchmarks import meta  # noqa: E402
+from tiago_nav.evaluate import metrics as M  # noqa: E402
+from tiago_nav.evaluate.run import judge  # noqa: E402
+
+
+def run_suite(suite, out, workers):
+    """``rosrun tiago_nav evaluate SUITE --out OUT --workers N``: wall seconds (raises when the
+    evaluator says a run has no result)."""
+    t0 = time.monotonic()
+    subprocess.run(['rosrun', 'tiago_nav', 'evaluate', suite, '--out', out, '--workers', str(workers)],
+                   cwd=ROOT, check=True)
+    return time.monotonic() - t0
+
+
+def judged(out):
+    """Every run of an evaluate output folder, judged from its spec and raw record with the
+    current metrics (its ``result.json`` where there is no raw record: an infrastructure error)."""
+    runs = os.path.join(out, 'runs')
+    res = []
+    for rid in sorted(os.listdir(runs)):
+        d = os.path.join(runs, rid)
+        try:
+            with open(os.path.join(d, 'spec.json')) as f:
+                spec = json.load(f)
+            with open(os.path.join(d, 'raw.json')) as f:
+                raw = json.load(f)
+            res.append(judge(spec, raw))
+        except (OSError, ValueError):
+            with open(os.path.join(d, 'result.json')) as f:
+                res.append(json.load(f))
+    return res
+
+
+def _worst(values, fn):
+    v = [x for x in values if x is not None]
+    return round(float(fn(v)), 4) if v else None
+
+
+def summarise(results):
+    """The figures of one suite's results (result dicts)."""
+    n = len(results)
+    ok = sum(1 for r in results if r['outcome'] == 'succeeded')
+    lo, hi = M.wilson(ok, n)
+    groups = {}
+    for r in results:
+        key = (r.get('world_group') or r['world'], r['profile'], bool(r['use_corridor_law']))
+        groups.setdefault(key, []).append(r)
+    rows = []
+    for (group, profile, law), rs in sorted(groups.items()):
+        rows.append({'group': group, 'profile': profile, 'corridor_law': law, 'runs': len(rs),
+                     'succeeded': sum(1 for r in rs if r['outcome'] == 'succeeded'),
+                     'collisions': sum(int(r.get('collisions') or 0) for r in rs),
+                     'min_clearance_m': _worst([r.get('min_clearance_m') for r in rs], min),
+                     'loc_error_p95_m_max': _worst([r.get('loc_error_p95_m') for r in rs], max),
+                     'rms_error_m_max': _worst([r.get('rms_error') for r in rs], max)})
+    failures = [{k: r.get(k) for k in ('run_id', 'world', 'world_group', 'profile',
+                                        'use_corridor_law', 'seed', 'goal', 'outcome', 'reason')}
+                for r in results if r['outcome'] != 'succeeded']
+    return {'runs': n, 'succeeded': ok, 'rate': round(ok / n, 4) if n else None,
+            'wilson_95': [round(lo, 4), round(hi, 4)],
+            'collisions': sum(int(r.get('collisions') or 0) for r in results),
+            'groups': rows, 'not_succeeded': failures}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument('--suites', nargs='+', default=list(SUITES))
+    ap.add_argument('--workers', type=int, default=2)
+    ap.add_argument('--from', dest='sources', nargs='+', default=[], metavar='SUITE=DIR',
+                    help='judge an existing evaluate output folder of SUITE instead of running it')
+    ap.add_argument('--keep', help='write the evaluate output folders here (default: a temporary '
+                                   'folder, removed)')
+    ap.add_argument('--out', default=os.path.join(RESULTS, 'suites.json'))
+    args = ap.parse_args()
+    sources = dict(s.split('=', 1) for s in args.sources)
+    tmp = args.keep or tempfile.mkdtemp(prefix='bench_suites_')
+    out = {'target_rate': TARGET, 'suites': {}}
+    try:
+        for suite in args.suites:
+            name = os.path.splitext(os.path.basename(suite))[0]
+            folder = sources.get(suite)
+            wall = None
+            if folder is None:
+                folder = os.path.join(tmp, name)
+                wall = run_suite(suite, folder, args.workers)
+            s = summarise(judged(folder))
+            s['suite'] = suite
+            s['wall_s'] = round(wall, 1) if wall is not None else None
+            s['missions_per_minute'] = round(60.0 * s['runs'] / wall, 2) if wall else None
+            out['suites'][name] = s
+            print('%s: %d runs, %d succeeded (%.1f %%, Wilson %.1f-%.1f %%), %d collisions'
+                  % (suite, s['runs'], s['succeeded'], 100 * s['rate'], 100 * s['wilson_95'][0],
+                     100 * s['wilson_95'][1], s['collisions']), flush=True)
+            for f in s['not_succeeded']:
+                print('  %s %s %s law %s seed %s: %s: %s' % (
+                    f['run_id'], f['world'], f['profile'], f['use_corridor_law'], f['seed'],
+                    f['outcome'], f['reason']), flush=True)
+    finally:
+        if not args.keep:
+            shutil.rmtree(tmp, ignore_errors=True)
+    out['met'] = {name: s['rate'] is not None and s['rate'] >= TARGET
+                  for name, s in out['suites'].items()}
+    out['meta'] = meta(vars(args), real_time_factor=0, laser_model='tiago and ideal',
+                       odometry_model='drift and ideal')
+    os.makedirs(os.path.dirname(args.out), exist_ok=True)
+    with open(args.out, 'w') as f:
+        json.dump(out, f, indent=1)
+    print('wrote %s; target (>= %.0f %% per suite) met: %s' % (args.out, 100 * TARGET, out['met']))
+    return 0 if all(out['met'].values()) else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())
