@@ -823,6 +823,7 @@ class Localiser:
         c = self.config
         beams = beam_directions(points, sensor)
         best, best_score = np.array(predicted, dtype=float), None
+        here = None         # the prediction's score, once a direction is searched
         for v in info.weak.T:
             d = v / np.array([1.0, 1.0, info.length])
             if math.hypot(d[0], d[1]) < 0.5:          # a heading: not searched
@@ -835,8 +836,9 @@ class Localiser:
             offsets = np.arange(-reach, reach + 1e-9, WEAK_SEARCH_STEP)
             cand = np.array(predicted, dtype=float)[None, :] + offsets[:, None] * d[None, :]
             scores = score(self.field, cand, points, beams, c.inlier_distance)
-            here = float(score(self.field, np.array([predicted]), points, beams,
-                               c.inlier_distance)[0])
+            if here is None:
+                here = float(score(self.field, np.array([predicted]), points, beams,
+                                   c.inlier_distance)[0])
             k = int(np.argmin(scores))
             if here - scores[k] >= WEAK_SEARCH_MARGIN * math.log1p(9.0) and \
                     (best_score is None or scores[k] < best_score):

@@ -214,8 +214,7 @@ def corridor_figures(result, axis=0.0):
         out['converge_estimates'] = 0
     both = weak[1:] & weak[:-1]
     if np.any(both):
-        moves = np.hypot(*np.diff(result.loc_err[:, :2], axis=0).T)
-        out['max_step_featureless_m'] = float(moves[both].max())
+        out['max_step_featureless_m'] = float(moves_all[both].max())
         out['lateral_p95_m'] = float(np.percentile(np.abs(result.loc_err[weak, :2] @ v), 95))
         # the longest unbroken run of featureless scans
         edges = np.flatnonzero(np.diff(np.concatenate(([0], weak.astype(int), [0]))))
