@@ -25,6 +25,7 @@ from nav_msgs.msg import MapMetaData, OccupancyGrid, Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String, UInt32
+from std_srvs.srv import Trigger, TriggerResponse
 from tf2_msgs.msg import TFMessage
 
 from tiago_nav.params import ParamError, nested, param, read_params, validate
@@ -42,6 +43,7 @@ BEHIND = 0.5            # [s wall] a run this far behind its real_time_factor re
 LOCKSTEP_START = 1.0    # [s sim] in lockstep simulated time starts here, not at 0: it may stand
                         # still at its start, and tf2 takes a stamp of 0 for "static" (a state
                         # stamped 0 could not be looked up in time)
+RESET_TIMEOUT = 10.0    # [s wall] the longest wait of the ~reset service for the step loop
 WARN_EVERY = 5.0        # [s sim] at most one warning about bad commands per this long
 
 
@@ -257,6 +259,9 @@ class SimulatorNode:
         self._warned_at = -math.inf
         self.lockstep = lockstep
         self.scan_stamp = self.odom_stamp = None     # of the newest /scan and odometry out
+        self._reset_to = None           # the Params of a reset :meth:`run` is asked to make
+        self._reset_done = threading.Event()
+        self._reset_error = None
 
     # --- inputs ---------------------------------------------------------------------------
     def on_cmd_vel(self, msg):
@@ -411,8 +416,68 @@ class SimulatorNode:
                 self.publish_scan(stamp)
             self.publish_collisions()
 
+    # --- reset ----------------------------------------------------------------------------
+    def reset(self, params):
+        """Back to a fresh start's state with ``params`` (e.g. the next evaluation row's seed):
+        a new physics scene with the robot at its start pose, the noise and drift streams
+        seeded from ``params.sim.seed``, no collision, no laser fault, simulated time back at
+        its start (/clock goes back: every other node must reset too), the lockstep schedule
+        empty (the expected participants are awaited again); then :meth:`start` publishes the
+        start state, latched, as a fresh simulator does. Call it from the thread that steps
+        (:meth:`run` does, on :meth:`request_reset`). Raises :class:`ParamError` when
+        ``params`` names another world or time source (a different stack), ValueError for a
+        start pose inside an obstacle (the old state is kept then)."""
+        fixed = ('world', 'real_time_factor', 'lockstep', 'lockstep_timeout', 'wait_for_work',
+                 'lockstep_expect', 'lockstep_expect_timeout')
+        for name in fixed:
+            if getattr(params, name) != getattr(self.params, name):
+                raise ParamError('a reset keeps %s (%r), got %r: start a new simulator'
+                                 % (name, getattr(self.params, name), getattr(params, name)), name)
+        if params.gui:
+            self.sim.close()            # pybullet has one window
+        sim = Simulator(self.world, params.sim, start_pose=params.start_pose, gui=params.gui)
+        with self.lock:
+            if not params.gui:
+                self.sim.close()
+            self.sim, self.params = sim, params
+            self.faults = LaserFaults(params.sim.laser.num_beams)
+            self.published_collisions = None
+            self._warned_at = -math.inf
+            self.scan_stamp = self.odom_stamp = None
+        if self.lockstep is not None:
+            self.lockstep.reset()
+        self.start()
+        x, y, yaw = self.sim.pose
+        self.log.loginfo('reset: seed %d, robot at (%.2f, %.2f, %.0f deg), t = %.3f s'
+                         % (params.sim.seed, x, y, math.degrees(yaw), self.sim.time))
+
+    def request_reset(self, params, timeout):
+        """From another thread (the reset service): asks :meth:`run` to :meth:`reset` with
+        ``params`` at its next step and waits up to ``timeout`` [s wall]. Returns None when
+        done, else what went wrong (a sentence)."""
+        self._reset_done.clear()
+        self._reset_error = None
+        self._reset_to = params
+        if self.lockstep is not None:
+            self.lockstep.interrupt()
+        if not self._reset_done.wait(timeout):
+            return 'the simulator did not reset within %g s of wall time' % timeout
+        return self._reset_error
+
+    def _take_reset(self):
+        params, self._reset_to = self._reset_to, None
+        try:
+            self.reset(params)
+        except (ParamError, WorldError, ValueError) as e:
+            self._reset_error = str(e)
+            if self.lockstep is not None:
+                self.lockstep.reset()
+                self.lockstep.interrupted.clear()
+        self._reset_done.set()
+
     def run(self, clock):
-        """:meth:`start`, then step paced by ``real_time_factor`` until ``clock.shutdown()``."""
+        """:meth:`start`, then step paced by ``real_time_factor`` until ``clock.shutdown()``;
+        a reset asked for (:meth:`request_reset`) is made between two steps."""
         self.start()
         p = self.params
         x, y, yaw = self.sim.pose
@@ -423,7 +488,14 @@ class SimulatorNode:
         pacer = Pacer(clock, p.sim.dt, p.real_time_factor, self.sim.steps)
         t0, steps0 = clock.wall(), self.sim.steps
         while not clock.shutdown():
+            if self._reset_to is not None:
+                self._take_reset()
+                pacer.restart(self.sim.steps)
+                t0, steps0 = clock.wall(), self.sim.steps
+                continue
             if not self.hold():
+                if self._reset_to is not None:
+                    continue
                 break
             self.step()
             pacer.pace(self.sim.steps)
@@ -502,6 +574,15 @@ def main():
         sys.exit(2)
     rospy.Subscriber(params.cmd_vel_topic, Twist, node.on_cmd_vel, queue_size=5)
     rospy.Subscriber(params.laser_fault_topic, String, node.on_laser_fault, queue_size=10)
+
+    def on_reset(_):
+        try:
+            new, _ = read_config()
+        except ParamError as e:
+            return TriggerResponse(False, str(e))
+        problem = node.request_reset(new, RESET_TIMEOUT)
+        return TriggerResponse(problem is None, problem or 'reset, seed %d' % new.sim.seed)
+    rospy.Service('~reset', Trigger, on_reset)
     try:
         node.run(RosClock())
     except rospy.ROSInterruptException:

@@ -144,8 +144,10 @@ class LockstepHost:
                  expect_timeout=60.0):
         self.clock_pub = clock_pub
         self.clock_stamp = None     # the newest /clock sent (rospy.Time)
-        self.gate = Gate(Schedule(rate, timeout, _log, wait_for_work, expected, expect_timeout),
-                         time.monotonic, rospy.is_shutdown)
+        self._settings = (rate, timeout, _log, wait_for_work, tuple(expected), expect_timeout)
+        self.interrupted = threading.Event()    # makes a waiting :meth:`hold` return None
+        self.gate = Gate(Schedule(*self._settings), time.monotonic,
+                         lambda: rospy.is_shutdown() or self.interrupted.is_set())
         self.pub = direct_publisher(TICK_TOPIC, LockstepTick)
         self.sub = rospy.Subscriber(ACK_TOPIC, LockstepAck, self.on_ack, queue_size=None,
                                     tcp_nodelay=True)
@@ -153,6 +155,23 @@ class LockstepHost:
     @property
     def schedule(self):
         return self.gate.schedule
+
+    def interrupt(self):
+        """Makes :meth:`hold` return None now (and at once until :meth:`reset`): the
+        simulator's step loop then takes a reset."""
+        self.interrupted.set()
+        with self.gate.cond:
+            self.gate.cond.notify_all()
+
+    def reset(self):
+        """As at a fresh start: no participant, the expected ones awaited again, no pending
+        command, no statistics; the next /clock is sent whatever its stamp. Participants that
+        took part before must join again (each node's reset makes a new participant)."""
+        with self.gate.cond:
+            self.gate.schedule = Schedule(*self._settings)
+            self.gate._held = None
+            self.interrupted.clear()
+        self.clock_stamp = None
 
     def on_ack(self, msg):
         self.gate.receive(ack_from_msg(msg))
