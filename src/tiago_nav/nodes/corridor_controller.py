@@ -37,6 +37,7 @@ from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepPa
                                     ScanCache, goal_since, lookup_at)
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.tcpros import concurrent_handshakes
+from tiago_nav.ros.reset import NodeReset, adopt, persistent
 from tiago_nav.ros.topics import Subscription
 
 NODE = 'corridor_controller'
@@ -334,22 +335,38 @@ class RosIO:
         return pose_from_transform(tf.transform)
 
 
-def main():
-    concurrent_handshakes()
-    rospy.init_node(NODE)
-    params = read_or_exit(Params, NODE)
+def build(params, server=None):
+    """The node's state (a participant, the scan and tf inputs, the execute loop), ready as at
+    start, serving goals through ``server`` (an earlier state's, kept by a reset) or a new
+    action server. Raises RuntimeError when the inputs do not come within ``startup_timeout``."""
     participant = LockstepParticipant(1.0 / params.control_rate)
     io, clock = RosIO(params, participant), RosClock()
     participant.inputs = lambda: not missing_inputs(params, io)
     missing = wait_ready(params, clock, io, params.startup_timeout)
     if missing:
-        rospy.logfatal('%s: %s; not starting the action server', NODE, missing)
-        sys.exit(1)
+        raise RuntimeError(missing)
     participant.wait_joined(params.startup_timeout)
     cmd_pub = rospy.Publisher(params.cmd_vel_topic, Twist, queue_size=1)
     node = CorridorServer(params, clock, None, cmd_pub, io, participant)
-    node.server = ClaimingActionServer(NODE, CorridorAction, node.execute, participant)
-    node.server.start()
+    if server is None:
+        with persistent():
+            server = ClaimingActionServer(NODE, CorridorAction, node.execute, participant)
+        server.start()
+    node.server = adopt(server, node.execute, participant)
+    return node
+
+
+def main():
+    concurrent_handshakes()
+    rospy.init_node(NODE)
+    params = read_or_exit(Params, NODE)
+    try:
+        reset = NodeReset(lambda: build(params))
+    except RuntimeError as e:
+        rospy.logfatal('%s: %s; not starting the action server', NODE, e)
+        sys.exit(1)
+    server = reset.state.server
+    reset.build = lambda: build(read_or_exit(Params, NODE), server)
     rospy.loginfo('%s ready (max_speed %.2f m/s, look-ahead %.1f m)', NODE,
                   params.law.max_speed, params.law.look_ahead)
     rospy.spin()

@@ -35,6 +35,7 @@ from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as rosparams
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.lockstep import CYCLE_WAIT, STARTUP_WAIT, LockstepParticipant, lookup_at
+from tiago_nav.ros.reset import NodeReset
 from tiago_nav.ros.conversions import (gridmap_from_msg, pose_from_msg, pose_from_transform,
                                        pose_msg, transform_stamped)
 from tiago_nav.ros.tcpros import concurrent_handshakes
@@ -299,7 +300,10 @@ class LocalisationNode:
         self.pub_tf.publish(TFMessage([transform_stamped(m2o, self.p.map_frame, self.p.odom_frame, t)
                                        for t in stamps]))
 
-    def run(self):
+    def run(self, current=None):
+        """Until shutdown; ``current()`` gives the node's state now (a reset replaces it; None
+        between a reset's stop and start)."""
+        current = current or (lambda: self)
         ticker = Ticker(RosClock(), 1.0 / self.p.republish_rate)
         if self.lockstep.enabled:
             rospy.spin()            # republishes happen at the ticks
@@ -309,14 +313,16 @@ class LocalisationNode:
                 # offset off the scans' stamps: tf keeps the first transform of a stamp, and a
                 # republish must not take the stamp a scan being processed needs for its newer
                 # estimate
-                self.send_transform(rospy.Time.now() + REPUBLISH_OFFSET)
+                node = current()
+                if node is not None:
+                    node.send_transform(rospy.Time.now() + REPUBLISH_OFFSET)
 
 
 def main():
     concurrent_handshakes()
     rospy.init_node('localisation')
     try:
-        node = LocalisationNode(rosparams.read(Params))
+        reset = NodeReset(lambda: LocalisationNode(rosparams.read(Params)), stop=None)
     except ParamError as e:
         named = str(e).startswith('parameter ') or not e.name
         rospy.logfatal('localisation: %s', e if named else 'parameter %s: %s'
@@ -325,7 +331,21 @@ def main():
     except WorldError as e:
         rospy.logfatal('localisation: parameter %s: %s', rospy.resolve_name('~world'), e)
         sys.exit(2)
+    reset.build = started
     try:
-        node.run()
+        reset.state.run(lambda: reset.state)
     except rospy.ROSInterruptException:
         pass
+
+
+def started():
+    """A reset's new state (``~reset/start``): as at start, and once it has sent its first
+    ``map → odom`` (latched), so that the nodes reset after it get that one, not the last
+    run's."""
+    node = LocalisationNode(rosparams.read(Params))
+    end = time.monotonic() + STARTUP_WAIT
+    while not node.sent:
+        if time.monotonic() > end or rospy.is_shutdown():
+            raise RuntimeError('no map -> odom within %g s of the reset' % STARTUP_WAIT)
+        time.sleep(0.01)
+    return node

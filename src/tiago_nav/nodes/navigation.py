@@ -38,6 +38,7 @@ from tiago_nav.ros.lockstep import (CYCLE_WAIT, STARTUP_WAIT, ClaimingActionServ
                                     wait_for_transform)
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.tcpros import concurrent_handshakes
+from tiago_nav.ros.reset import NodeReset, adopt, persistent
 from tiago_nav.ros.topics import Subscription, wait_for_message
 from tiago_nav.scan import FrozenScanCheck
 
@@ -124,7 +125,9 @@ class ActionIO:
 class MoveBase:
     """The node: waits for what it needs, then advertises its action, topic and services."""
 
-    def __init__(self, p):
+    def __init__(self, p, server=None):
+        """``server``: the action server of an earlier state (a reset keeps it, with its
+        clients' connections); None: make one."""
         self.p = p
         self.clock = RosClock()
         self.lock = threading.Lock()
@@ -158,8 +161,12 @@ class MoveBase:
                    % (self.map_frame, p.robot_base_frame, p.ready_timeout))
         # goals only once the simulator holds for this node (a goal begun before runs free)
         self.lockstep.wait_joined(p.ready_timeout)
-        self.server = ClaimingActionServer('move_base', MoveBaseAction, self.execute,
-                                           self.lockstep)
+        fresh = server is None
+        if fresh:
+            with persistent():
+                server = ClaimingActionServer('move_base', MoveBaseAction, self.execute,
+                                              self.lockstep)
+        self.server = adopt(server, self.execute, self.lockstep)
         io = ActionIO(self.server, self.cmd_pub, self.plan_pub, self.clock, self.cycle_pose,
                       self.to_map, self.map_frame, self.lockstep, self.sense)
         self.runner = GoalRunner(self.nav, io, 1.0 / p.controller_frequency, self.lock, self._log,
@@ -168,7 +175,8 @@ class MoveBase:
         rospy.Subscriber('move_base_simple/goal', PoseStamped, self.on_simple_goal, queue_size=1)
         rospy.Service('~make_plan', GetPlan, self.on_make_plan)
         rospy.Service('~clear_costmaps', Empty, self.on_clear)
-        self.server.start()
+        if fresh:
+            self.server.start()
         rospy.loginfo('move_base: ready (map %dx%d, %.2f m)', msg.info.width, msg.info.height,
                       msg.info.resolution)
 
@@ -354,6 +362,11 @@ class MoveBase:
     def stop(self):
         self.cmd_pub.publish(Twist())
 
+    def retire(self):
+        """A reset's stop: a goal that comes before the next state is built is aborted."""
+        self.server.execute_callback = lambda goal: self.server.set_aborted(
+            MoveBaseResult(), 'move_base is being reset')
+
     # --- the action -------------------------------------------------------------------------
     def execute(self, goal):
         p = goal.target_pose
@@ -380,9 +393,13 @@ def main():
     rospy.init_node('move_base')
     params = read_or_exit(Params, 'move_base')
     try:
-        node = MoveBase(params)
+        reset = NodeReset(lambda: MoveBase(params))
     except (NotReady, ValueError) as e:
         rospy.logfatal('move_base: not starting: %s', e)
         sys.exit(1)
-    rospy.on_shutdown(node.stop)
+    server = reset.state.server
+    # a reset: the parameters as they are now, the same action server
+    reset.build = lambda: MoveBase(read_or_exit(Params, 'move_base'), server)
+    reset.stop_fn = lambda node: node.retire()
+    rospy.on_shutdown(lambda: reset.state is not None and reset.state.stop())
     rospy.spin()

@@ -34,6 +34,7 @@ from tiago_nav.ros.lockstep import lookup_at
 from tiago_nav.ros.markers import obstacle_markers
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros.tcpros import concurrent_handshakes
+from tiago_nav.ros.reset import NodeReset
 from tiago_nav.ros.topics import Subscription
 from tiago_nav.srv import DetectObstacles, DetectObstaclesResponse
 
@@ -181,16 +182,23 @@ class DetectionNode:
             self.logic.map_unusable(str(e))
             rospy.logerr('obstacle_detection: %s', self.logic.map_error)
 
-    def advertise_when_ready(self):
-        """Wait up to ``~map_timeout`` (wall) for a usable map, then advertise the service.
-        Returns False, without advertising, when none came in time or on shutdown."""
+    def wait_for_map(self):
+        """Wait up to ``~map_timeout`` (wall) for a usable map: False when none came in time or
+        on shutdown."""
         deadline = time.monotonic() + self.params.map_timeout
         while not rospy.is_shutdown() and time.monotonic() < deadline:
             if self.map_ready.wait(min(0.1, max(deadline - time.monotonic(), 0.0))):
-                self.service = rospy.Service('obstacle_detection', DetectObstacles, self.handle)
-                rospy.loginfo('obstacle_detection: ready')
                 return True
         return False
+
+    def advertise_when_ready(self, handle=None):
+        """:meth:`wait_for_map`, then advertise the service (answered by ``handle``, default
+        this state's :meth:`handle`). Returns False, without advertising, when no map came."""
+        if not self.wait_for_map():
+            return False
+        self.service = rospy.Service('obstacle_detection', DetectObstacles, handle or self.handle)
+        rospy.loginfo('obstacle_detection: ready')
+        return True
 
     def handle(self, req):
         answer = self.logic.handle(req.method, req.scan_minus_map_threshold,
@@ -209,12 +217,30 @@ class DetectionNode:
 def main():
     concurrent_handshakes()
     rospy.init_node('obstacle_detection')
-    node = DetectionNode(read_or_exit(Params, 'obstacle_detection'))
-    if not node.advertise_when_ready():
+    params = read_or_exit(Params, 'obstacle_detection')
+    reset = NodeReset(lambda: DetectionNode(params))
+    node = reset.state
+
+    def handle(req):        # the service outlives resets: the current state answers
+        state = reset.state
+        if state is None:
+            raise rospy.ServiceException('obstacle_detection is being reset')
+        return state.handle(req)
+    if not node.advertise_when_ready(handle):
         if rospy.is_shutdown():
             return
         rospy.logfatal('obstacle_detection: no usable map on %s within ~map_timeout = %.1f s '
                        '(%s): the service is not advertised', node.params.map_topic,
                        node.params.map_timeout, node.logic.map_error)
         sys.exit(1)
+    reset.build = rebuilt
     rospy.spin()
+
+
+def rebuilt():
+    """A reset's new state: as at start (no scan held), once it has the map."""
+    node = DetectionNode(read_or_exit(Params, 'obstacle_detection'))
+    if not node.wait_for_map():
+        raise RuntimeError('no usable map on %s within %g s (%s)' % (
+            node.params.map_topic, node.params.map_timeout, node.logic.map_error))
+    return node

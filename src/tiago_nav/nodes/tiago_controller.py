@@ -39,6 +39,7 @@ from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant, Peers,
                                     ScanCache, goal_since, lookup_at)
 from tiago_nav.ros.markers import obstacle_markers
+from tiago_nav.ros.reset import NodeReset, adopt, persistent
 from tiago_nav.ros.tcpros import concurrent_handshakes
 from tiago_nav.scan import scan_to_points, usable_ranges
 from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
@@ -476,20 +477,28 @@ class RosBackend:
 class TiagoController:
     """The node: the TiagoTask action server around a :class:`MissionRunner`."""
 
-    def __init__(self, params):
+    def __init__(self, params, server=None):
+        """``server``: the action server of an earlier state (a reset keeps it, with its
+        clients' connections); None: make one."""
         self.p = params
         self.backend = RosBackend(params)
         self.runner = MissionRunner(self.backend, params.mission, log=rospy.loginfo)
         self.markers = rospy.Publisher('~obstacle_markers', MarkerArray, queue_size=1, latch=True)
         self.goal_pose = rospy.Publisher('~goal_pose', PoseStamped, queue_size=1, latch=True)
         # (the proxy claims its cycles itself, once the servers it needs are there: begin())
-        self.server = ClaimingActionServer(params.action_name, TiagoTaskAction, self.execute, None)
+        fresh = server is None
+        if fresh:
+            with persistent():
+                server = ClaimingActionServer(params.action_name, TiagoTaskAction, self.execute,
+                                              None)
+        self.server = adopt(server, self.execute, None)
         self.backend.server = self.server
         rospy.on_shutdown(self.on_shutdown)
         # missions only once the simulator holds for the proxy: one begun before would decide
         # its stages in wall time
         self.backend.lockstep.wait_joined(params.mission.server_timeout)
-        self.server.start()
+        if fresh:
+            self.server.start()
         rospy.loginfo('tiago_controller: serving %s (corridor %s, move_base %s, detection %s)',
                       rospy.resolve_name(params.action_name),
                       rospy.resolve_name(params.corridor_action),
@@ -564,5 +573,8 @@ def _service_registered(name):
 def main():
     concurrent_handshakes()
     rospy.init_node('tiago_controller')
-    TiagoController(ros_params.read_or_exit(Params, 'tiago_controller'))
+    reset = NodeReset(lambda: TiagoController(ros_params.read_or_exit(Params, 'tiago_controller')))
+    server = reset.state.server
+    reset.build = lambda: TiagoController(ros_params.read_or_exit(Params, 'tiago_controller'),
+                                          server)
     rospy.spin()

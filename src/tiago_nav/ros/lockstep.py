@@ -23,6 +23,7 @@ from tiago_nav.clock import NAP, STALL, Ticker
 from tiago_nav.lockstep import EPS, Ack, Gate, ParticipantCore, Schedule, Tick
 from tiago_nav.msg import LockstepAck, LockstepTick
 from tiago_nav.ros.clock import RosClock
+from tiago_nav.ros.reset import track
 from tiago_nav.ros.topics import Subscription, connected_publishers, connected_subscribers
 
 ACK_TOPIC = '/sim/lockstep/ack'
@@ -358,8 +359,10 @@ class LockstepParticipant:
         # /clock connection, after rospy has set the time)
         self.clock_sub = rospy.Subscriber('/clock', Clock, self._on_clock, queue_size=None) \
             if rospy.get_param('/use_sim_time', False) else None
+        self._closed = False
         rospy.on_shutdown(self.leave)
         threading.Thread(target=self._join_when_ready, name='lockstep join', daemon=True).start()
+        track(self)     # a node's reset closes it (tiago_nav.ros.reset)
 
     def inputs_ready(self):
         """True once the simulator's ticks reach this participant, the simulator has subscribed
@@ -398,7 +401,7 @@ class LockstepParticipant:
         return True
 
     def _join_when_ready(self):
-        while not rospy.is_shutdown():
+        while not rospy.is_shutdown() and not self._closed:
             if self.inputs_ready():
                 self.joined.set()
                 self.pub.publish(self.join_msg())
@@ -588,6 +591,7 @@ class LockstepParticipant:
         the simulator a message), e.g. a client that took part only to place its goal on a
         cycle. The participant cannot take part again."""
         if self.ticker is None:
+            self._closed = True
             self.leave()
             self.sub.unregister()
             if self.clock_sub is not None:

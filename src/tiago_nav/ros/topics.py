@@ -17,6 +17,8 @@ import time
 import rosgraph
 import rospy
 
+from tiago_nav.ros.reset import track
+
 CHECK_PERIOD = 1.0      # [s wall] how often a subscription without a connection asks the master
 GRACE = 3               # checks in a row that must find it orphaned: a connection still being made
 #                         (slow under load) is not a missed publisher
@@ -80,6 +82,7 @@ class Subscription:
         self.sub = self._make()
         self._stop = threading.Event()
         threading.Thread(target=self._watch, name='subscription ' + self.name, daemon=True).start()
+        track(self)     # a node's reset unregisters it (tiago_nav.ros.reset)
 
     def check(self, publishers=None):
         """Subscribe again if the subscriber has been orphaned for ``grace`` checks in a row.
