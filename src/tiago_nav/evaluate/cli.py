@@ -1,6 +1,6 @@
 """``rosrun tiago_nav evaluate SUITE.yaml --out DIR [--workers N] [--scheduler ADDR] [--resume]
-[--dry-run] [--only ID ...] [--record] [--isolation auto|netns|loopback]``: the batch evaluator
-(docs/evaluation.md).
+[--dry-run] [--only ID ...] [--record] [--isolation auto|netns|loopback] [--warm [--verify-reset K]]``:
+the batch evaluator (docs/evaluation.md).
 
 Exit 0 when every run ended (whatever its outcome), 1 when a run has no result, 2 for a bad
 suite file or argument (the message names the file, the field and the reason).
@@ -36,9 +36,19 @@ def parse_args(argv):
                     help='netns: each run in a network namespace of its own with only loopback; '
                          'loopback: the host network, loopback addresses and a port per worker; '
                          'auto (default): netns where the machine allows it')
+    ap.add_argument('--warm', action='store_true',
+                    help='run the rows that share world, profile, corridor law and candidate on '
+                         'one stack per worker, reset between rows')
+    ap.add_argument('--verify-reset', type=int, default=0, metavar='K',
+                    help='with --warm: run every K-th reset row again on a fresh stack and report '
+                         'a difference as an infrastructure error (INFRA_RESET)')
     a = ap.parse_args(argv)
     if a.workers is not None and a.workers < 1:
         ap.error('--workers: must be >= 1, got %d' % a.workers)
+    if a.verify_reset < 0:
+        ap.error('--verify-reset: must be >= 0, got %d' % a.verify_reset)
+    if a.verify_reset and not a.warm:
+        ap.error('--verify-reset needs --warm')
     if a.scheduler and a.workers is not None:
         ap.error('--workers and --scheduler exclude each other (the cluster has its workers)')
     return a
@@ -115,7 +125,8 @@ def main(argv=None):
     if todo:
         from tiago_nav.evaluate.engine import run_all
         run_all([dict(r, isolation=isolation) for r in todo], out, workers=a.workers,
-                scheduler=a.scheduler, record=a.record, progress=progress)
+                scheduler=a.scheduler, record=a.record, progress=progress, warm=a.warm,
+                verify_reset=a.verify_reset)
     results, missing = [], []
     for r in runs:
         res = read_json(os.path.join(out, 'runs', r['id'], 'result.json'))

@@ -16,6 +16,11 @@ def _task(spec, out_dir, record):
     return execute_with_retry(spec, out_dir, record)
 
 
+def _warm_task(specs, out_dir, record, verify_reset):
+    from tiago_nav.evaluate.warm import run_group
+    return run_group(specs, out_dir, record, verify_reset)
+
+
 def _skipped(spec, first, out_dir):
     from tiago_nav.evaluate.run import SCHEMA, write_json
     r = {'schema': SCHEMA, 'run_id': spec['id'], 'pair': spec.get('pair'),
@@ -31,8 +36,12 @@ def _skipped(spec, first, out_dir):
     return r
 
 
-def run_all(specs, out_dir, workers=None, scheduler=None, record=False, progress=None):
-    """Run ``specs`` on Dask; ``progress(result)`` after each. Returns the results."""
+def run_all(specs, out_dir, workers=None, scheduler=None, record=False, progress=None,
+            warm=False, verify_reset=0):
+    """Run ``specs`` on Dask; ``progress(result)`` after each. Returns the results. ``warm``:
+    the rows that can share a stack go to one worker together and run on one stack, reset
+    between them (:mod:`tiago_nav.evaluate.warm`; ``verify_reset`` k: every k-th reset row is
+    checked against a fresh stack)."""
     from dask.distributed import Client, LocalCluster, as_completed
     if scheduler:
         client, cluster = Client(scheduler), None
@@ -59,13 +68,36 @@ def run_all(specs, out_dir, workers=None, scheduler=None, record=False, progress
                               pure=False, retries=0)
             by_key[f.key] = s
             return f
+
+        def submit_group(group):
+            f = client.submit(_warm_task, group, out_dir, record, verify_reset,
+                              key='stack-%s-%d' % (group[0]['id'], time.time_ns()),
+                              pure=False, retries=0)
+            by_key[f.key] = group
+            return f
         pending = [submit(s) for s in firsts]
         # the rest waits behind the candidates' first runs only where it is theirs
         held = {c: [s for s in rest if s['candidate'] == c] for c in seen}
-        pending += [submit(s) for s in rest if s['candidate'] not in seen]
+        free = [s for s in rest if s['candidate'] not in seen]
+        if warm:
+            from tiago_nav.evaluate.warm import group_by_stack
+            pending += [submit_group(g) for g in group_by_stack(free)]
+        else:
+            pending += [submit(s) for s in free]
         ac = as_completed(pending)
         for f in ac:
             s = by_key[f.key]
+            if isinstance(s, list):         # a warm stack's rows
+                try:
+                    rs = f.result()
+                except Exception as e:      # noqa: BLE001  (the rows have no result)
+                    rs = [{'run_id': x['id'], 'candidate': x['candidate'], 'outcome': None,
+                           'reason': 'task failed: %s: %s' % (type(e).__name__, e)} for x in s]
+                for r in rs:
+                    results.append(r)
+                    if progress:
+                        progress(r)
+                continue
             try:
                 r = f.result()
             except Exception as e:      # noqa: BLE001  (a task that raised: the run has no result)

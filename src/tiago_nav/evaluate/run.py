@@ -29,12 +29,13 @@ SCHEMA = 1
 BASE_PORT = 12000
 PORT_STEP = 10
 MAX_SLOTS = 100                 # ports 12000..12990
-INFRA = ('INFRA_LAUNCH', 'INFRA_NODE_DIED', 'INFRA_SCENARIO', 'INFRA_CONTRACT')
+INFRA = ('INFRA_LAUNCH', 'INFRA_NODE_DIED', 'INFRA_SCENARIO', 'INFRA_CONTRACT', 'INFRA_RESET')
 OUTCOMES = ('succeeded', 'aborted', 'collision', 'timeout', 'detection_failure') + INFRA
 TOKEN_VAR = 'TIAGO_NAV_EVAL_TOKEN'
 # result.json fields that follow the wall clock or the worker, not the run's row
 WALL_CLOCK_FIELDS = ('cpu_s', 'wall_s', 'run_wall_s', 'startup_wall_s', 'sim_wall_ratio', 'host',
-                     'port', 'slot', 'attempt', 'first_attempt', 'phases', 'isolation')
+                     'port', 'slot', 'attempt', 'first_attempt', 'phases', 'isolation',
+                     'leftover_processes', 'stack', 'reset_failed', 'verified')
 _SLOT = {}                      # this process's claimed slot: {'slot', 'fd'}
 
 

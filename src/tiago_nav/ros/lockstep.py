@@ -23,7 +23,7 @@ from tiago_nav.clock import NAP, STALL, Ticker
 from tiago_nav.lockstep import EPS, Ack, Gate, ParticipantCore, Schedule, Tick
 from tiago_nav.msg import LockstepAck, LockstepTick
 from tiago_nav.ros.clock import RosClock
-from tiago_nav.ros.reset import track
+from tiago_nav.ros.reset import keep_status_timer, persistent, track
 from tiago_nav.ros.topics import Subscription, connected_publishers, connected_subscribers
 
 ACK_TOPIC = '/sim/lockstep/ack'
@@ -683,8 +683,10 @@ class ClaimingActionServer(actionlib.SimpleActionServer):
         """Starts the server; each new subscriber of its status then gets the status at once.
         actionlib publishes it on a timer in ROS time, which stands still while the simulator
         waits for work, and a client waits for a status before it sends a goal."""
-        super().start()
+        with persistent():          # a node's reset keeps its server (tiago_nav.ros.reset)
+            super().start()
         self.action_server.status_pub.impl.add_subscriber_listener(_StatusOnConnect(self))
+        keep_status_timer(self)     # its status goes on after ROS time went back (a reset)
 
 
 class _StatusOnConnect(rospy.SubscribeListener):

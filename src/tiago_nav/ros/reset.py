@@ -67,12 +67,25 @@ class persistent:
         return False
 
 
+def keep_status_timer(server):
+    """actionlib publishes a server's status from a rospy.Timer that dies when ROS time goes
+    back (a reset simulator): its clients would then take the server for gone. Replaces it
+    with one that starts again from the new time (``reset=True``)."""
+    a = server.action_server
+    timer = getattr(a, 'status_timer', None)
+    if timer is None or getattr(timer, '_reset', False):
+        return
+    timer.shutdown()
+    a.status_timer = rospy.Timer(timer._period, a.publish_status_async, reset=True)
+
+
 def adopt(server, execute, participant):
     """An action server that outlives resets serves the new state: ``execute`` is its execute
     callback, ``participant`` the lockstep participant that claims its goals
     (:class:`tiago_nav.ros.lockstep.ClaimingActionServer`), and its goal bookkeeping is a
     fresh server's (:func:`forget_goals`)."""
     forget_goals(server)
+    keep_status_timer(server)
     server.execute_callback = execute
     if hasattr(server, 'participant'):
         server.participant = participant

@@ -1,0 +1,269 @@
+"""Warm stacks: one worker runs the rows that share a stack key on one stack, reset between
+rows (no ROS in this process).
+
+A stack is a :mod:`tiago_nav.nodes.evaluate_warm` supervisor (roscore, demo.launch) on the
+worker's slot, in a session of its own, tagged with a token as a run's processes are
+(:mod:`tiago_nav.evaluate.run`). :func:`stack_key` says which rows may share one: the same
+world, sensing profile, corridor law, candidate and launch arguments. Rows of the package's own
+nodes only: a candidate's outside nodes offer no reset, so their rows get a fresh stack each
+(:func:`tiago_nav.evaluate.run.execute`), and so do rows recorded with ``--record`` (a bag per
+run). A different key, a failed reset, an infrastructure error or a dead stack ends the stack;
+a row whose reset failed is run again on a fresh stack, and its result says so
+(``reset_failed``).
+
+``verify_reset`` k: every k-th row run after a reset is run again on a fresh stack
+(``DIR/verify/ID/``) and the two results compared (:func:`tiago_nav.evaluate.run.differences`);
+a difference makes the row an ``INFRA_RESET`` (an infrastructure error naming the fields).
+"""
+import json
+import os
+import select
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+from tiago_nav.evaluate import run as R
+
+_WORKER = {'stack': None, 'count': 0, 'reset_runs': 0}   # this worker process's stack
+
+
+def stack_key(spec):
+    """The rows that may share a stack: those with equal keys (world file or generated world,
+    sensing profile, corridor law, candidate, launch arguments, time limits). None for rows
+    that always get a fresh stack (a candidate's, recorded ones)."""
+    if spec.get('candidate', 'own') != 'own' or spec.get('record'):
+        return None
+    return json.dumps([spec['world'], spec.get('world_file'), spec['profile'],
+                       spec['use_corridor_law'], spec['candidate'], spec['launch_args'],
+                       spec['limits']], sort_keys=True)
+
+
+def tree_cpu(token):
+    """[s] CPU time of the live processes carrying ``token`` and of their reaped children."""
+    tck = os.sysconf('SC_CLK_TCK')
+    total = 0
+    for pid in R.tagged_pids(token):
+        try:
+            with open('/proc/%d/stat' % pid) as f:
+                fields = f.read().rsplit(')', 1)[1].split()
+        except OSError:
+            continue
+        total += sum(int(v) for v in fields[11:15])     # utime stime cutime cstime
+    return total / tck
+
+
+class Stack:
+    """One warm stack on this worker's slot: its supervisor process, fed run folders."""
+
+    def __init__(self, key, out_dir, first_spec):
+        self.key = key
+        self.slot = R.claim_slot()
+        self.port = R.port_of(self.slot)
+        _WORKER['count'] += 1
+        self.dir = os.path.join(out_dir, 'stacks', 'slot%02d-%d-%d' % (self.slot, os.getpid(),
+                                                                          _WORKER['count']))
+        shutil.rmtree(self.dir, ignore_errors=True)
+        os.makedirs(os.path.join(self.dir, 'logs'))
+        os.makedirs(os.path.join(self.dir, 'ros_home'))
+        R.write_json(os.path.join(self.dir, 'spec.json'), first_spec)
+        self.token = 'stack.%d.%d' % (os.getpid(), _WORKER['count'])
+        env = R.run_env(self.dir, self.port, self.token)
+        self.log = open(os.path.join(self.dir, 'supervisor.log'), 'w')
+        self.proc = subprocess.Popen([sys.executable, '-m', 'tiago_nav.nodes.evaluate_warm', self.dir],
+                                     env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     stderr=self.log, start_new_session=True)
+        self.runs = 0
+
+    def alive(self):
+        return self.proc.poll() is None
+
+    def send(self, run_dir, timeout):
+        """Hands ``run_dir`` to the supervisor; its answer (dict), or None when none came
+        within ``timeout`` [s wall] or the supervisor ended."""
+        try:
+            self.proc.stdin.write((run_dir + '\n').encode())
+            self.proc.stdin.flush()
+        except OSError:
+            return None
+        end = time.monotonic() + timeout
+        fd = self.proc.stdout
+        while True:
+            left = end - time.monotonic()
+            if left <= 0:
+                return None
+            ready, _, _ = select.select([fd], [], [], min(left, 1.0))
+            if ready:
+                line = fd.readline()
+                if not line:
+                    return None
+                try:
+                    return json.loads(line.decode())
+                except ValueError:
+                    continue
+            elif not self.alive():
+                return None
+
+    def close(self):
+        """Stops the stack: EOF to its supervisor (which stops roscore and the launch), then
+        whatever is left of it killed. Returns how many processes had to be killed."""
+        try:
+            self.proc.stdin.close()
+        except OSError:
+            pass
+        try:
+            self.proc.wait(40.0)
+        except subprocess.TimeoutExpired:
+            pass
+        left = R.kill_tree(self.proc.pid, self.token)
+        self.proc.wait()
+        self.log.close()
+        return left
+
+
+def close_stack():
+    """Ends this worker's stack, if any."""
+    stack, _WORKER['stack'] = _WORKER['stack'], None
+    if stack is not None:
+        stack.close()
+
+
+def execute_warm(spec, out_dir, record=False, attempt=1, verify_reset=0):
+    """:func:`tiago_nav.evaluate.run.execute` on this worker's warm stack (a fresh stack when
+    the row's key differs from the stack's, or when the row gets one always: see
+    :func:`stack_key`). Returns the judged result (also written to ``runs/ID/result.json``)."""
+    key = stack_key(dict(spec, record=record))
+    if key is None:
+        close_stack()
+        return R.execute(spec, out_dir, record, attempt)
+    stack = _WORKER['stack']
+    if stack is not None and (stack.key != key or not stack.alive()):
+        close_stack()
+        stack = None
+    run_dir = os.path.join(out_dir, 'runs', spec['id'])
+    shutil.rmtree(run_dir, ignore_errors=True)
+    os.makedirs(run_dir)
+    full = dict(spec, record=record, world_path=R.world_path(spec, out_dir))
+    R.write_json(os.path.join(run_dir, 'spec.json'), full)
+    if stack is None:
+        stack = _WORKER['stack'] = Stack(key, out_dir, full)
+    lim = spec['limits']
+    wall_limit = lim['startup_timeout'] + lim['wall_time_limit'] + 30.0
+    cpu0, w0 = tree_cpu(stack.token), time.monotonic()
+    answer = stack.send(run_dir, wall_limit)
+    wall = time.monotonic() - w0
+    cpu = tree_cpu(stack.token) - cpu0
+    stack.runs += 1
+    if answer is None or answer.get('failed') == 'reset':
+        # no answer (the watchdog, or a dead stack) or a failed reset: the stack is done
+        close_stack()
+        if answer is not None or not os.path.exists(os.path.join(run_dir, 'raw.json')):
+            stage = _read(os.path.join(run_dir, 'stage'))
+            if answer is None and stage == 'mission':
+                raw = {'timed_out': True, 'watchdog': True,
+                       'reason': 'wall-clock watchdog: no result within %.0f s' % wall_limit}
+                return _finish(spec, full, raw, out_dir, attempt, stack, wall, cpu, 'warm')
+            # the reset failed, or the stack died before the mission: a fresh stack runs the row
+            why = answer.get('reason') if answer else 'the warm stack stopped (stage %s)' % stage
+            result = R.execute(spec, out_dir, record, attempt)
+            result['reset_failed'] = why
+            R.write_json(os.path.join(run_dir, 'result.json'), result)
+            return result
+    if answer is not None and answer.get('failed'):
+        close_stack()
+    raw = R.read_json(os.path.join(run_dir, 'raw.json')) or {
+        'infra': 'INFRA_LAUNCH', 'reason': 'no result from the warm stack (see %s)' % stack.dir}
+    result = _finish(spec, full, raw, out_dir, attempt, stack, wall, cpu,
+                     answer.get('reset', 'fresh') if answer else 'fresh')
+    if result.get('stack') == 'reset':
+        _WORKER['reset_runs'] += 1
+        if verify_reset and _WORKER['reset_runs'] % verify_reset == 0:
+            result = verify(spec, out_dir, result, record)
+    return result
+
+
+def _read(path):
+    try:
+        with open(path) as f:
+            return f.read().strip()
+    except OSError:
+        return 'none'
+
+
+def _finish(spec, full, raw, out_dir, attempt, stack, wall, cpu, how):
+    result = R.judge(full, raw)
+    result.update(attempt=attempt, slot=stack.slot, port=stack.port, run_wall_s=wall, cpu_s=cpu,
+                  leftover_processes=0, host=socket.gethostname(), stack=how)
+    R.write_json(os.path.join(out_dir, 'runs', spec['id'], 'result.json'), result)
+    return result
+
+
+def verify(spec, out_dir, warm, record=False):
+    """Runs ``spec`` again on a fresh stack (under ``DIR/verify``) and compares: ``warm`` with
+    ``verified: true`` when equal, else an ``INFRA_RESET`` naming the fields that differ (the
+    warm stack is ended: its next row starts a fresh one)."""
+    close_stack()
+    vdir = os.path.join(out_dir, 'verify')
+    os.makedirs(vdir, exist_ok=True)
+    wdir = os.path.join(out_dir, 'worlds')
+    if os.path.isdir(wdir) and not os.path.exists(os.path.join(vdir, 'worlds')):
+        os.symlink(wdir, os.path.join(vdir, 'worlds'))
+    fresh = R.execute(spec, vdir, record)
+    diff = R.differences(warm, fresh)
+    if not diff:
+        warm['verified'] = True
+    else:
+        warm = dict(warm, outcome='INFRA_RESET', verified=False,
+                    reason='after a reset the run differs from a fresh stack\'s in %s (fresh: '
+                           'DIR/verify/runs/%s)' % (', '.join(diff), spec['id']),
+                    reset_outcome=warm['outcome'])
+    R.write_json(os.path.join(out_dir, 'runs', spec['id'], 'result.json'), warm)
+    return warm
+
+
+def group_by_stack(specs):
+    """``specs`` in chunks that one worker runs on one stack, in order: consecutive rows with
+    the same :func:`stack_key` (rows without one alone)."""
+    groups, index = [], {}
+    for s in specs:
+        k = stack_key(s)
+        if k is None:
+            groups.append([s])
+        elif k in index:
+            groups[index[k]].append(s)
+        else:
+            index[k] = len(groups)
+            groups.append([s])
+    return groups
+
+
+def run_group(specs, out_dir, record=False, verify_reset=0):
+    """Runs ``specs`` (one :func:`group_by_stack` chunk) in order on this worker's warm stack,
+    each retried once after an infrastructure error (on a fresh stack: the error ended the
+    stack), as :func:`tiago_nav.evaluate.run.execute_with_retry`. Returns their results."""
+    results = []
+    try:
+        for s in specs:
+            r = execute_warm(s, out_dir, record, 1, verify_reset)
+            if r['outcome'] in R.INFRA:
+                first = {'outcome': r['outcome'], 'reason': r['reason']}
+                close_stack()
+                r = execute_warm(s, out_dir, record, 2, verify_reset)
+                r['first_attempt'] = first
+                R.write_json(os.path.join(out_dir, 'runs', s['id'], 'result.json'), r)
+            results.append(r)
+    finally:
+        close_stack()
+    return results
+
+
+def terminate(*_):
+    """A worker that is told to stop ends its stack first."""
+    close_stack()
+    sys.exit(1)
+
+
+def install_handlers():
+    signal.signal(signal.SIGTERM, terminate)
