@@ -140,6 +140,10 @@ def main(argv=None):
     summary = report.write_all(out, runs, results, wall_s=time.monotonic() - state['t0'],
                                workers=a.workers, scheduler=a.scheduler)
     print(summary)
+    refreshed = [r['run_id'] for r in results if r.get('reset_failed')]
+    if refreshed:
+        print('evaluate: %d run(s) ran on a fresh stack after their warm stack\'s reset failed: %s'
+              % (len(refreshed), ' '.join(refreshed)))
     if missing:
         print('evaluate: %d run(s) without a result: %s' % (len(missing), ' '.join(missing)))
         return EXIT_MISSING

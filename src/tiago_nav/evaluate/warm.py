@@ -168,7 +168,7 @@ def execute_warm(spec, out_dir, record=False, attempt=1, verify_reset=0):
             # the reset failed, or the stack died before the mission: a fresh stack runs the row
             why = answer.get('reason') if answer else 'the warm stack stopped (stage %s)' % stage
             result = R.execute(spec, out_dir, record, attempt)
-            result['reset_failed'] = why
+            result.update(reset_failed=why, stack='fresh')
             R.write_json(os.path.join(run_dir, 'result.json'), result)
             return result
     if answer is not None and answer.get('failed'):

@@ -10,8 +10,8 @@ one JSON line on stdout once the run's ``raw.json`` is written:
 The first run starts the stack as :class:`~tiago_nav.nodes.evaluate_run.Supervisor` does; each
 later one resets it (:meth:`WarmSupervisor.reset`): every node's ``~reset/stop``, the row's seed
 on the simulator's parameter and ``/simulator/reset`` (simulated time goes back to its start),
-then every node's ``~reset/start`` in the order a start needs (the localisation's first
-``map → odom`` before the nodes that read it), and the checks of a fresh start (``/clock`` at
+then ``~reset/start`` on the localisation (its first ``map → odom``, latched, must be out
+before the nodes that read it subscribe to tf) and on the other nodes together, and the checks of a fresh start (``/clock`` at
 the start, the robot at the world's start, no contact). A reset that fails ends the stack
 (answer ``failed: "reset"``, no ``raw.json``): the worker runs that row on a fresh stack. An
 infrastructure error in a run ends the stack too (``failed: "infra"``). EOF on stdin, or the
@@ -27,6 +27,7 @@ from tiago_nav.nodes.evaluate_run import Infra, Supervisor, watch_parent, write_
 # the nodes of demo.launch that reset, in the order their ~reset/start must come
 RESET_ORDER = ('localisation', 'move_base', 'corridor_controller', 'obstacle_detection',
                'tiago_controller')
+FIRST = ('localisation',)   # started before the others (they read its map -> odom)
 SIMULATOR = 'simulator'
 RESET_TIMEOUT = 60.0        # [s wall] the longest a whole reset may take
 START_TIME = 1.0            # [s sim] simulated time at a (reset) start in lockstep
@@ -84,6 +85,7 @@ class WarmSupervisor(Supervisor):
     def _call(self, service, timeout):
         import rospy
         from std_srvs.srv import Trigger
+        t0 = time.monotonic()
         try:
             rospy.wait_for_service(service, timeout)
             answer = rospy.ServiceProxy(service, Trigger)()
@@ -91,27 +93,52 @@ class WarmSupervisor(Supervisor):
             raise ResetFailed('%s: %s' % (service, e)) from None
         if not answer.success:
             raise ResetFailed('%s: %s' % (service, answer.message))
+        self.timings.append((service, time.monotonic() - t0))
+
+    def _call_all(self, services, timeout):
+        """:meth:`_call` on each of ``services`` at once; the first failure is raised."""
+        import threading
+        failed = []
+
+        def call(service):
+            try:
+                self._call(service, timeout)
+            except ResetFailed as e:
+                failed.append(e)
+        threads = [threading.Thread(target=call, args=(s,), daemon=True) for s in services]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(timeout + 5.0)
+        if failed:
+            raise failed[0]
+        if any(t.is_alive() for t in threads):
+            raise ResetFailed('a ~reset/start did not answer within %g s' % timeout)
 
     def reset(self):
         """The stack back to a fresh start's state for the current spec (its seed); raises
         :class:`ResetFailed`."""
         import rospy
         t0 = time.monotonic()
+        self.timings = []
         self.check_alive_reset()
         nodes = self.resettable()
         for n in nodes:
-            self._call('/%s/reset/stop' % n, 10.0)
+            self._call('/%s/reset/stop' % n, 5.0)
         with self.lock:
             self.truth = self.truth_msg = None
             self.clock = None
             self.collisions = None
         rospy.set_param('/%s/seed' % SIMULATOR, int(self.spec['seed']))
         self._call('/%s/reset' % SIMULATOR, 20.0)
-        for n in nodes:
+        # the localisation first (its first map -> odom, latched, before anyone subscribes to
+        # tf again), then the others together: a fresh start's order is any order
+        first = [n for n in nodes if n in FIRST]
+        for group in (first, [n for n in nodes if n not in FIRST]):
             left = RESET_TIMEOUT - (time.monotonic() - t0)
             if left <= 0:
                 raise ResetFailed('the reset took more than %g s' % RESET_TIMEOUT)
-            self._call('/%s/reset/start' % n, left)
+            self._call_all(['/%s/reset/start' % n for n in group], left)
         # the fresh start's state, as the supervisor sees it
         end = t0 + RESET_TIMEOUT
         while True:
@@ -120,6 +147,8 @@ class WarmSupervisor(Supervisor):
                     and abs(self.truth[0].to_sec() - START_TIME) < 1e-9
                 clock = self.clock
             if ok and abs(clock - START_TIME) < 1e-9:
+                sys.stderr.write('%s: reset in %.2f s (%s)\n' % (self.spec['id'], time.monotonic() - t0, ', '.join(
+                    '%s %.2f' % (name, dt) for name, dt in self.timings)))
                 return
             if time.monotonic() > end:
                 raise ResetFailed('after the reset: /clock %s, ground truth %s, contacts %s '
