@@ -92,3 +92,24 @@ def test_forget_goals_and_the_status_timer():
         reset.rospy.Timer = real
     assert old.stopped and a.status_timer is made[1] and a.status_timer._reset
     assert len(made) == 2 and a.status_timer._period == rospy.Duration(0.2)
+
+
+def test_a_shutdown_hook_does_not_keep_a_dropped_state_alive(monkeypatch):
+    import gc
+    import weakref
+    hooks, called = [], []
+    monkeypatch.setattr(reset.rospy, 'on_shutdown', hooks.append)
+
+    class State:
+        def stop(self):
+            called.append(self)
+    kept, dropped = State(), State()
+    reset.on_shutdown(kept.stop)
+    reset.on_shutdown(dropped.stop)
+    gone = weakref.ref(dropped)
+    del dropped
+    gc.collect()
+    assert gone() is None
+    for h in hooks:
+        h()
+    assert called == [kept]

@@ -39,7 +39,7 @@ from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant, Peers,
                                     ScanCache, goal_since, lookup_at)
 from tiago_nav.ros.markers import obstacle_markers
-from tiago_nav.ros.reset import NodeReset, adopt, persistent
+from tiago_nav.ros.reset import NodeReset, adopt, on_shutdown, persistent
 from tiago_nav.ros.tcpros import concurrent_handshakes
 from tiago_nav.scan import scan_to_points, usable_ranges
 from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
@@ -493,7 +493,7 @@ class TiagoController:
                                               None)
         self.server = adopt(server, self.execute, None)
         self.backend.server = self.server
-        rospy.on_shutdown(self.on_shutdown)
+        on_shutdown(self.on_shutdown)       # (held weakly: a reset drops this state)
         # missions only once the simulator holds for the proxy: one begun before would decide
         # its stages in wall time
         self.backend.lockstep.wait_joined(params.mission.server_timeout)

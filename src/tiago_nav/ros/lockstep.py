@@ -23,7 +23,7 @@ from tiago_nav.clock import NAP, STALL, Ticker
 from tiago_nav.lockstep import EPS, Ack, Gate, ParticipantCore, Schedule, Tick
 from tiago_nav.msg import LockstepAck, LockstepTick
 from tiago_nav.ros.clock import RosClock
-from tiago_nav.ros.reset import keep_status_timer, persistent, track
+from tiago_nav.ros.reset import keep_status_timer, on_shutdown, persistent, track
 from tiago_nav.ros.topics import Subscription, connected_publishers, connected_subscribers
 
 ACK_TOPIC = '/sim/lockstep/ack'
@@ -360,7 +360,7 @@ class LockstepParticipant:
         self.clock_sub = rospy.Subscriber('/clock', Clock, self._on_clock, queue_size=None) \
             if rospy.get_param('/use_sim_time', False) else None
         self._closed = False
-        rospy.on_shutdown(self.leave)
+        on_shutdown(self.leave)
         threading.Thread(target=self._join_when_ready, name='lockstep join', daemon=True).start()
         track(self)     # a node's reset closes it (tiago_nav.ros.reset)
 

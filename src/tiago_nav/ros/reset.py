@@ -24,6 +24,7 @@ publishers outlive resets (their clients stay connected); :func:`forget_goals` c
 server's goal bookkeeping as a fresh server's.
 """
 import threading
+import weakref
 
 import rospy
 
@@ -90,6 +91,19 @@ def adopt(server, execute, participant):
     if hasattr(server, 'participant'):
         server.participant = participant
     return server
+
+
+def on_shutdown(method):
+    """``rospy.on_shutdown`` for a bound ``method`` of a node's state, holding it weakly: rospy
+    keeps its hooks for the process's life, and a reset state's hook would otherwise keep that
+    whole state (maps, costmaps) alive after every reset."""
+    ref = weakref.WeakMethod(method)
+
+    def hook(*_):
+        m = ref()
+        if m is not None:
+            m()
+    rospy.on_shutdown(hook)
 
 
 def track(obj):
