@@ -31,10 +31,23 @@ _TICK = ('/sim/lockstep/tick', 'tiago_nav/LockstepTick',
 _ACK = ('/sim/lockstep/ack', 'tiago_nav/LockstepAck',
         'with /use_lockstep: this node\'s answer for each cycle, carrying its command')
 _CLOCK = ('/clock', 'rosgraph_msgs/Clock', 'simulated time (with /use_sim_time)')
+# a node's reset (tiago_nav.ros.reset; docs/interfaces.md#resetting-a-running-stack)
+_RESET = [('~reset/stop', 'std_srvs/Trigger',
+           'a reset\'s first half: take the node\'s state down (leave the lockstep, unsubscribe, '
+           'forget goals)'),
+          ('~reset/start', 'std_srvs/Trigger',
+           'a reset\'s second half: build the state anew from the parameters and the latched '
+           'topics, as at start; answers once ready')]
 
 NODES = (
     {
         'node': 'simulator',
+        'services_provided': [
+            ('~reset', 'std_srvs/Trigger',
+             'back to the start with the parameters as they are now (a new `~seed`): robot, '
+             'noise and drift streams, contacts, faults, simulated time and the lockstep '
+             'schedule as at start; the start state published again'),
+        ],
         'executable': 'simulator',
         'params': 'tiago_nav.nodes.simulator',
         'launch': 'sim.launch',
@@ -115,7 +128,7 @@ NODES = (
         'services_provided': [
             ('~make_plan', 'nav_msgs/GetPlan', 'a plan between two poses, without moving'),
             ('~clear_costmaps', 'std_srvs/Empty', 'forget the obstacle layer'),
-        ],
+        ] + _RESET,
         'tf_required': [
             ('{global_frame}', '{odom_frame}', 'localisation (the newest)'),
             ('{odom_frame}', '{robot_base_frame}', 'odometry, at each scan\'s and cycle\'s stamp'),
@@ -124,6 +137,7 @@ NODES = (
     },
     {
         'node': 'corridor_controller',
+        'services_provided': _RESET,
         'executable': 'corridor_controller',
         'params': 'tiago_nav.nodes.corridor_controller',
         'launch': 'navigation.launch',
@@ -177,7 +191,7 @@ NODES = (
              'response `success`, the obstacles (centres in `~map_frame` and `~robot_frame`), '
              'a message (why, when `success` is false), and the pose correction applied '
              '(`pose_correction`, `pose_corrected`)'),
-        ],
+        ] + _RESET,
         'tf_required': [
             ('{map_frame}', '<scan frame>', 'at the scan\'s stamp'),
             ('{robot_frame}', '<scan frame>', 'at the scan\'s stamp'),
@@ -188,6 +202,7 @@ NODES = (
     },
     {
         'node': 'tiago_controller',
+        'services_provided': _RESET,
         'executable': 'tiago_controller',
         'params': 'tiago_nav.nodes.tiago_controller',
         'launch': 'demo.launch',
@@ -228,6 +243,7 @@ NODES = (
     },
     {
         'node': 'localisation',
+        'services_provided': _RESET,
         'executable': 'localisation',
         'params': 'tiago_nav.nodes.localisation',
         'launch': 'localisation.launch',
