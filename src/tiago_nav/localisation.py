@@ -630,6 +630,8 @@ class Localiser:
         config: :class:`LocaliserConfig`.
         odom: base_footprint in odom ``(x, y, yaw)`` when the robot was at ``pose`` (the first
             update predicts the motion since); None: at the first update's time.
+        field: ``grid``'s :class:`DistanceField` when already built (it is read only); None:
+            built here.
 
     Attributes: ``pose``, the registered pose (the filter's state: predictions, registrations
     and the gate start from it); :attr:`estimate`, the published one (``pose`` plus what a
@@ -637,9 +639,9 @@ class Localiser:
     :attr:`map_to_odom` and every :class:`Update` give.
     """
 
-    def __init__(self, grid, pose, config=LocaliserConfig(), odom=None):
+    def __init__(self, grid, pose, config=LocaliserConfig(), odom=None, field=None):
         self.config = config
-        self.field = DistanceField(grid)
+        self.field = DistanceField(grid) if field is None else field
         self.reset(pose)
         self._odom = None if odom is None else tuple(odom)
 

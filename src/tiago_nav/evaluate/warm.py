@@ -107,15 +107,13 @@ class Stack:
                 return None
 
     def close(self):
-        """Stops the stack: EOF to its supervisor (which stops roscore and the launch), then
-        whatever is left of it killed. Returns how many processes had to be killed."""
+        """Stops the stack at once: every row's results are written when it answered, so its
+        processes are killed (the supervisor's group and everything carrying the stack's token)
+        rather than shut down one by one, which takes roslaunch seconds. Returns how many
+        processes were killed after the group."""
         try:
             self.proc.stdin.close()
         except OSError:
-            pass
-        try:
-            self.proc.wait(40.0)
-        except subprocess.TimeoutExpired:
             pass
         left = R.kill_tree(self.proc.pid, self.token)
         self.proc.wait()

@@ -30,7 +30,7 @@ from tf2_msgs.msg import TFMessage
 
 from tiago_nav.clock import Ticker
 from tiago_nav.geometry import compose
-from tiago_nav.localisation import Localiser, LocaliserConfig
+from tiago_nav.localisation import DistanceField, Localiser, LocaliserConfig
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as rosparams
 from tiago_nav.ros.clock import RosClock
@@ -110,6 +110,19 @@ def covariance_6x6(cov3):
     return out.ravel().tolist()
 
 
+_FIELD = []     # [(map key, DistanceField)]: the last map's field
+
+
+def distance_field(grid):
+    """``grid``'s :class:`tiago_nav.localisation.DistanceField`, built once per map: a reset
+    builds the node's state again for the same map, and the field (read only; 23 MB and a
+    fifth of a second for the course world) is the same."""
+    key = (grid.data.tobytes(), grid.resolution, tuple(grid.origin))
+    if not _FIELD or _FIELD[0][0] != key:
+        _FIELD[:] = [(key, DistanceField(grid))]
+    return _FIELD[0][1]
+
+
 def reaches_past(sent, stamp):
     """True when one of the ``map → odom`` stamps ``sent`` (rospy.Time) lies after ``stamp``:
     tf then gives ``map → odom`` at ``stamp`` without a re-send."""
@@ -159,7 +172,7 @@ class LocalisationNode:
             # so motion before the first scan taken in is predicted, not assumed zero
             pose, odom = (self.localiser.pose, self.localiser.odom) if self.localiser is not None \
                 else (self.pose, (0.0, 0.0, 0.0))
-            self.localiser = Localiser(grid, pose, self.p.localiser, odom)
+            self.localiser = Localiser(grid, pose, self.p.localiser, odom, distance_field(grid))
         self.map_ready.set()
         rospy.loginfo('localisation: map %dx%d at %.3f m; starting at (%.2f, %.2f, %.1f deg)',
                       msg.info.width, msg.info.height, msg.info.resolution, pose[0], pose[1],
@@ -300,22 +313,25 @@ class LocalisationNode:
         self.pub_tf.publish(TFMessage([transform_stamped(m2o, self.p.map_frame, self.p.odom_frame, t)
                                        for t in stamps]))
 
-    def run(self, current=None):
-        """Until shutdown; ``current()`` gives the node's state now (a reset replaces it; None
-        between a reset's stop and start)."""
-        current = current or (lambda: self)
-        ticker = Ticker(RosClock(), 1.0 / self.p.republish_rate)
-        if self.lockstep.enabled:
-            rospy.spin()            # republishes happen at the ticks
-            return
-        while not rospy.is_shutdown():
-            if ticker.tick():
-                # offset off the scans' stamps: tf keeps the first transform of a stamp, and a
-                # republish must not take the stamp a scan being processed needs for its newer
-                # estimate
-                node = current()
-                if node is not None:
-                    node.send_transform(rospy.Time.now() + REPUBLISH_OFFSET)
+    def run(self):
+        run(lambda: self, self.lockstep.enabled, self.p.republish_rate)
+
+
+def run(current, lockstep, republish_rate):
+    """The node's loop until shutdown; ``current()`` gives its state now (a reset replaces it;
+    None between a reset's stop and start). In lockstep the republishes happen at the ticks."""
+    ticker = Ticker(RosClock(), 1.0 / republish_rate)
+    if lockstep:
+        rospy.spin()
+        return
+    while not rospy.is_shutdown():
+        if ticker.tick():
+            # offset off the scans' stamps: tf keeps the first transform of a stamp, and a
+            # republish must not take the stamp a scan being processed needs for its newer
+            # estimate
+            node = current()
+            if node is not None:
+                node.send_transform(rospy.Time.now() + REPUBLISH_OFFSET)
 
 
 def main():
@@ -332,8 +348,11 @@ def main():
         rospy.logfatal('localisation: parameter %s: %s', rospy.resolve_name('~world'), e)
         sys.exit(2)
     reset.build = started
+    first = reset.state         # (not kept in this frame: a reset frees it)
+    lockstep, rate = first.lockstep.enabled, first.p.republish_rate
+    del first
     try:
-        reset.state.run(lambda: reset.state)
+        run(lambda: reset.state, lockstep, rate)
     except rospy.ROSInterruptException:
         pass
 

@@ -234,6 +234,7 @@ def main():
                        node.params.map_timeout, node.logic.map_error)
         sys.exit(1)
     reset.build = rebuilt
+    del node                    # (not kept in this frame: a reset frees it)
     rospy.spin()
 
 

@@ -197,6 +197,7 @@ class NodeReset:
             if state is not None and self.stop_fn is not None:
                 self.stop_fn(state)
             self.generation.close()
+            self.generation = Generation()      # (the closed one keeps nothing alive)
 
     def start(self):
         with self.lock:
@@ -205,7 +206,7 @@ class NodeReset:
             self.generation = Generation()
             with self.generation:
                 self.state = self.build()
-            return self.state
+        return self.state
 
     def on_stop(self, _):
         from std_srvs.srv import TriggerResponse
