@@ -96,6 +96,7 @@ class FakeStack:
         self.key, self.slot, self.port, self.token, self.runs = key, 0, 12000, 'fake', 0
         self.dir = out_dir
         self.closed = False
+        self.isolation, self.last = 'loopback', None
 
     def alive(self):
         return not self.closed
@@ -123,6 +124,83 @@ def test_a_row_whose_reset_failed_runs_on_a_fresh_stack_and_says_so(tmp_path, mo
     assert r['reset_failed'] == '/move_base/reset/start: start failed: no map'
     assert W._WORKER['stack'] is None           # the stack was ended
     assert 'reset_failed' in R.WALL_CLOCK_FIELDS
+
+
+class AnsweringStack(FakeStack):
+    """Answers like a stack that ran the row: its stage marks (the time, the stack's CPU so
+    far) and raw.json written, the stack's CPU at 10 s before the row and 16 s after."""
+
+    def send(self, run_dir, timeout):
+        import time
+        t = time.monotonic()
+        with open(os.path.join(run_dir, 'stages'), 'w') as f:
+            f.write('reset %.6f 10.5\nmission %.6f 12.0\nteardown %.6f 15.0\ndone %.6f 15.5\n'
+                    % (t, t + 0.2, t + 0.9, t + 1.0))
+        with open(os.path.join(run_dir, 'raw.json'), 'w') as f:
+            json.dump({'schema': 1, 'id': os.path.basename(run_dir)}, f)
+        CPU['now'] = 16.0
+        return {'run_dir': run_dir, 'reset': 'reset', 'failed': None}
+
+
+CPU = {'now': 10.0}
+
+
+def test_a_warm_row_has_its_isolation_and_phases_counted_from_its_start(tmp_path, monkeypatch):
+    monkeypatch.setattr(W, 'Stack', AnsweringStack)
+    CPU['now'] = 10.0
+    monkeypatch.setattr(W, 'tree_cpu', lambda token: CPU['now'])
+    monkeypatch.setattr(R, 'judge', lambda full, raw: {'run_id': full['id'], 'outcome': 'succeeded'})
+    W._WORKER['stack'] = AnsweringStack(W.stack_key(spec('a1')), str(tmp_path), None)
+    W._WORKER['stack'].isolation = 'netns'
+    r = W.execute_warm(spec('a2', seed=2), str(tmp_path))
+    assert r['isolation'] == 'netns' and r['stack'] == 'reset' and r['cpu_s'] == 6.0
+    p = r['phases']
+    # CPU from the row's start (10 s): to the mission 2 s, the mission 3 s, after it 1 s
+    assert (p['startup']['cpu_s'], p['mission']['cpu_s'], p['teardown']['cpu_s']) == (2.0, 3.0, 1.0)
+    assert p['mission']['wall_s'] == pytest.approx(0.7, abs=1e-3)
+    assert p['judging']['wall_s'] >= 0
+    # ending the stack counts in the teardown of the last row it answered, on disk too
+    before = p['teardown']['wall_s']
+    monkeypatch.setattr(AnsweringStack, 'close', lambda self: __import__('time').sleep(0.2))
+    W.close_stack()
+    on_disk = json.loads((tmp_path / 'runs' / 'a2' / 'result.json').read_text())
+    assert on_disk['phases']['teardown']['wall_s'] == pytest.approx(before + 0.2, abs=0.1)
+    assert on_disk['phases']['teardown']['wall_s'] >= before + 0.2
+
+
+def test_a_new_stack_is_isolated_as_a_fresh_run(tmp_path, monkeypatch):
+    from tiago_nav.evaluate import isolation as iso
+    started = []
+
+    class Proc:
+        pid = 1
+
+    monkeypatch.setattr(W.subprocess, 'Popen', lambda cmd, **kw: started.append(cmd) or Proc())
+    monkeypatch.setattr(iso, '_PROBED', {'prefix': ['unshare', '-n'], 'why': ''})
+    monkeypatch.setattr(R, 'claim_slot', lambda: 3)
+    st = W.Stack('k', str(tmp_path), dict(spec('a1'), isolation='netns'))
+    assert st.isolation == 'netns' and started[-1][:2] == ['unshare', '-n']
+    assert started[-1][-2:] == ['tiago_nav.nodes.evaluate_warm', st.dir]
+    st = W.Stack('k', str(tmp_path), dict(spec('a1'), isolation='loopback'))
+    assert st.isolation == 'loopback' and started[-1][0] == sys.executable
+
+
+def test_the_summary_says_how_the_warm_runs_got_their_stack(tmp_path):
+    from tiago_nav.evaluate import report
+    ph = {k: {'wall_s': 1.0, 'cpu_s': 1.0} for k in ('startup', 'mission', 'teardown', 'judging')}
+    rs = [{'run_id': 'a', 'stack': 'fresh', 'isolation': 'netns', 'phases': dict(ph, startup={'wall_s': 4.0, 'cpu_s': 3.0})},
+          {'run_id': 'b', 'stack': 'reset', 'isolation': 'netns', 'phases': ph, 'verified': True},
+          {'run_id': 'c', 'stack': 'fresh', 'isolation': 'netns', 'phases': ph, 'reset_failed': 'x'}]
+    w = report.stacks(rs)
+    assert (w['fresh'], w['reset'], w['reset_failed'], w['verified']) == (2, 1, 1, 1)
+    assert w['startup_reset_s'] == 1.0 and w['startup_fresh_s'] == 2.5
+    assert report.stacks([{'run_id': 'a'}]) is None
+    meta = {'isolation': report.isolations(rs), 'stacks': w,
+            'time': __import__('tiago_nav.evaluate.timing', fromlist=['batch']).batch(rs, 10.0, 1)}
+    text = '\n'.join(report.isolation_lines(meta) + report.time_lines(rs, meta))
+    assert 'each stack (master and nodes) in a network namespace of its own' in text
+    assert 'Warm stacks: 1 run after a reset (median start-up 1.00 s), 2 on a stack' in text
+    assert '1 rerun on a fresh stack after a failed reset' in text
 
 
 def test_tree_cpu_counts_the_processes_carrying_the_token():

@@ -159,14 +159,51 @@ def isolations(results):
     return out
 
 
+def stacks(results):
+    """How the runs of a ``--warm`` batch got their stack: ``{'fresh': runs on a stack started
+    for them, 'reset': runs after a reset, 'reset_failed': runs rerun on a fresh stack after a
+    failed reset, 'verified': reset runs checked equal to a fresh stack's, 'startup_fresh_s',
+    'startup_reset_s': the median start-up wall time of each}``; None when no run was warm."""
+    warm = [r for r in results if r.get('stack')]
+    if not warm:
+        return None
+
+    def startup(kind):
+        return M.median([((r.get('phases') or {}).get('startup') or {}).get('wall_s')
+                         for r in warm if r['stack'] == kind and isinstance(r.get('phases'), dict)])
+    return {'fresh': sum(r['stack'] != 'reset' for r in warm),
+            'reset': sum(r['stack'] == 'reset' for r in warm),
+            'reset_failed': sum(bool(r.get('reset_failed')) for r in warm),
+            'verified': sum(r.get('verified') is True for r in warm),
+            'startup_fresh_s': startup('fresh'), 'startup_reset_s': startup('reset')}
+
+
 def isolation_lines(meta):
     iso = meta.get('isolation') or {}
     if not iso:
         return []
+    warm = meta.get('stacks')
     about = {'netns': 'each run in a network namespace of its own, only loopback up',
              'loopback': 'the host network, loopback addresses, one port per worker'}
+    if warm:
+        about = {'netns': 'each stack (master and nodes) in a network namespace of its own, only '
+                          'loopback up; a warm stack\'s rows share its namespace, no two stacks '
+                          'share one',
+                 'loopback': 'the host network, loopback addresses, one port per worker'}
     return ['', 'Isolation: %s.' % '; '.join(
         '%s (%s) for %d run%s' % (k, about.get(k, '?'), n, '' if n == 1 else 's') for k, n in sorted(iso.items()))]
+
+
+def stack_lines(meta):
+    w = meta.get('stacks')
+    if not w:
+        return []
+    return ['', 'Warm stacks: %d run%s after a reset (median start-up %s s), %d on a stack started '
+            'for them (median start-up %s s); %d rerun on a fresh stack after a failed reset; %d '
+            'reset run%s checked equal to a fresh stack\'s.' % (
+                w['reset'], '' if w['reset'] == 1 else 's', _f(w['startup_reset_s'], '%.2f'),
+                w['fresh'], _f(w['startup_fresh_s'], '%.2f'), w['reset_failed'], w['verified'],
+                '' if w['verified'] == 1 else 's')]
 
 
 def time_lines(results, meta):
@@ -181,6 +218,7 @@ def time_lines(results, meta):
                 'wall time when the worker count is unknown'), '',
              '| phase | wall [s] | share of run wall | median wall [s] | CPU [s] | median CPU [s] |',
              '|---|---|---|---|---|---|']
+    lines[4:4] = stack_lines(meta)        # (after the missions' share)
     for k in timing.PHASES:
         p = t['phases'][k]
         lines.append('| %s | %.1f | %s | %s | %s | %s |' % (
@@ -299,6 +337,7 @@ def write_all(out, runs, results, wall_s, workers=None, scheduler=None):
     # a local cluster has workers or the number of cores; a scheduler's count is not known here
     meta['workers_effective'] = None if scheduler else (workers or os.cpu_count() or 1)
     meta['isolation'] = isolations(results)
+    meta['stacks'] = stacks(results)
     meta['time'] = timing.batch(results, wall_s, meta['workers_effective'])
     write_csv(os.path.join(out, 'results.csv'), results)
     summary = summarise(results)

@@ -3,7 +3,9 @@ rows (no ROS in this process).
 
 A stack is a :mod:`tiago_nav.nodes.evaluate_warm` supervisor (roscore, demo.launch) on the
 worker's slot, in a session of its own, tagged with a token as a run's processes are
-(:mod:`tiago_nav.evaluate.run`). :func:`stack_key` says which rows may share one: the same
+(:mod:`tiago_nav.evaluate.run`), isolated as a fresh run is (:mod:`tiago_nav.evaluate.isolation`:
+in ``netns`` mode the stack's supervisor, master and nodes live in a network namespace of their
+own with only loopback, for all the rows the stack runs; the result's ``isolation`` says which). :func:`stack_key` says which rows may share one: the same
 world, sensing profile, corridor law, candidate and launch arguments. Rows of the package's own
 nodes only: a candidate's outside nodes offer no reset, so their rows get a fresh stack each
 (:func:`tiago_nav.evaluate.run.execute`), and so do rows recorded with ``--record`` (a bag per
@@ -14,6 +16,12 @@ a row whose reset failed is run again on a fresh stack, and its result says so
 ``verify_reset`` k: every k-th row run after a reset is run again on a fresh stack
 (``DIR/verify/ID/``) and the two results compared (:func:`tiago_nav.evaluate.run.differences`);
 a difference makes the row an ``INFRA_RESET`` (an infrastructure error naming the fields).
+
+Each row's ``phases`` (:mod:`tiago_nav.evaluate.timing`) are those of a fresh run, measured on
+the stack: ``startup`` from handing the row to the stack to the goal about to be sent (a new
+stack's start, or the reset, and the scenario check), ``mission``, ``teardown`` (the mission
+client unsubscribing, the answer; for the last row a stack answered, also the stack's end) and
+``judging``; CPU is the stack's processes' during the row.
 """
 import json
 import os
@@ -25,7 +33,9 @@ import subprocess
 import sys
 import time
 
+from tiago_nav.evaluate import isolation as iso
 from tiago_nav.evaluate import run as R
+from tiago_nav.evaluate import timing
 
 _WORKER = {'stack': None, 'count': 0, 'reset_runs': 0}   # this worker process's stack
 
@@ -71,11 +81,16 @@ class Stack:
         R.write_json(os.path.join(self.dir, 'spec.json'), first_spec)
         self.token = 'stack.%d.%d' % (os.getpid(), _WORKER['count'])
         env = R.run_env(self.dir, self.port, self.token)
+        # the stack's isolation, as a fresh run's (its spec's, else the command line's)
+        self.isolation = iso.resolve(first_spec.get('isolation')
+                                     or os.environ.get(iso.MODE_VAR, 'auto'))
+        cmd = iso.command(self.isolation,
+                          [sys.executable, '-m', 'tiago_nav.nodes.evaluate_warm', self.dir])
         self.log = open(os.path.join(self.dir, 'supervisor.log'), 'w')
-        self.proc = subprocess.Popen([sys.executable, '-m', 'tiago_nav.nodes.evaluate_warm', self.dir],
-                                     env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+        self.proc = subprocess.Popen(cmd, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                      stderr=self.log, start_new_session=True)
         self.runs = 0
+        self.last = None        # (result, path) of the last row the stack answered
 
     def alive(self):
         return self.proc.poll() is None
@@ -122,10 +137,20 @@ class Stack:
 
 
 def close_stack():
-    """Ends this worker's stack, if any."""
+    """Ends this worker's stack, if any; its end's wall time is counted in the ``teardown`` of
+    the last row it answered (whose ``result.json`` is written again)."""
     stack, _WORKER['stack'] = _WORKER['stack'], None
-    if stack is not None:
-        stack.close()
+    if stack is None:
+        return
+    t0 = time.monotonic()
+    stack.close()
+    dt = time.monotonic() - t0
+    if stack.last is not None:
+        result, path = stack.last
+        down = (result.get('phases') or {}).get('teardown')
+        if down is not None:
+            down['wall_s'] = (down.get('wall_s') or 0.0) + dt
+            R.write_json(path, result)
 
 
 def execute_warm(spec, out_dir, record=False, attempt=1, verify_reset=0):
@@ -145,11 +170,14 @@ def execute_warm(spec, out_dir, record=False, attempt=1, verify_reset=0):
     os.makedirs(run_dir)
     full = dict(spec, record=record, world_path=R.world_path(spec, out_dir))
     R.write_json(os.path.join(run_dir, 'spec.json'), full)
-    if stack is None:
-        stack = _WORKER['stack'] = Stack(key, out_dir, full)
     lim = spec['limits']
     wall_limit = lim['startup_timeout'] + lim['wall_time_limit'] + 30.0
-    cpu0, w0 = tree_cpu(stack.token), time.monotonic()
+    w0 = time.monotonic()
+    if stack is None:
+        stack = _WORKER['stack'] = Stack(key, out_dir, full)
+        cpu0 = 0.0
+    else:
+        cpu0 = tree_cpu(stack.token)
     answer = stack.send(run_dir, wall_limit)
     wall = time.monotonic() - w0
     cpu = tree_cpu(stack.token) - cpu0
@@ -162,11 +190,16 @@ def execute_warm(spec, out_dir, record=False, attempt=1, verify_reset=0):
             if answer is None and stage == 'mission':
                 raw = {'timed_out': True, 'watchdog': True,
                        'reason': 'wall-clock watchdog: no result within %.0f s' % wall_limit}
-                return _finish(spec, full, raw, out_dir, attempt, stack, wall, cpu, 'warm')
+                return _finish(spec, full, raw, out_dir, attempt, stack, wall, cpu, 'warm',
+                               (w0, cpu0))
             # the reset failed, or the stack died before the mission: a fresh stack runs the row
             why = answer.get('reason') if answer else 'the warm stack stopped (stage %s)' % stage
             result = R.execute(spec, out_dir, record, attempt)
             result.update(reset_failed=why, stack='fresh')
+            # the failed reset was part of the row's start-up
+            up = (result.get('phases') or {}).get('startup')
+            if up is not None:
+                up['wall_s'] = (up.get('wall_s') or 0.0) + wall
             R.write_json(os.path.join(run_dir, 'result.json'), result)
             return result
     if answer is not None and answer.get('failed'):
@@ -174,7 +207,7 @@ def execute_warm(spec, out_dir, record=False, attempt=1, verify_reset=0):
     raw = R.read_json(os.path.join(run_dir, 'raw.json')) or {
         'infra': 'INFRA_LAUNCH', 'reason': 'no result from the warm stack (see %s)' % stack.dir}
     result = _finish(spec, full, raw, out_dir, attempt, stack, wall, cpu,
-                     answer.get('reset', 'fresh') if answer else 'fresh')
+                     answer.get('reset', 'fresh') if answer else 'fresh', (w0, cpu0))
     if result.get('stack') == 'reset':
         _WORKER['reset_runs'] += 1
         if verify_reset and _WORKER['reset_runs'] % verify_reset == 0:
@@ -190,11 +223,25 @@ def _read(path):
         return 'none'
 
 
-def _finish(spec, full, raw, out_dir, attempt, stack, wall, cpu, how):
+def row_marks(run_dir, cpu0):
+    """:func:`tiago_nav.evaluate.timing.read_marks` of a row run on a stack, its CPU counted
+    from ``cpu0`` (the stack's processes' CPU when the row was handed over)."""
+    return {k: (t, c - cpu0 if c >= 0 else c) for k, (t, c) in timing.read_marks(run_dir).items()}
+
+
+def _finish(spec, full, raw, out_dir, attempt, stack, wall, cpu, how, began):
+    w0, cpu0 = began
+    run_dir = os.path.join(out_dir, 'runs', spec['id'])
+    j0, jc0 = time.monotonic(), time.process_time()
     result = R.judge(full, raw)
     result.update(attempt=attempt, slot=stack.slot, port=stack.port, run_wall_s=wall, cpu_s=cpu,
-                  leftover_processes=0, host=socket.gethostname(), stack=how)
-    R.write_json(os.path.join(out_dir, 'runs', spec['id'], 'result.json'), result)
+                  leftover_processes=0, host=socket.gethostname(), stack=how,
+                  isolation=stack.isolation,
+                  phases=timing.phases(row_marks(run_dir, cpu0), w0, w0 + wall, cpu,
+                                       time.monotonic() - j0, time.process_time() - jc0))
+    path = os.path.join(run_dir, 'result.json')
+    R.write_json(path, result)
+    stack.last = (result, path)
     return result
 
 

@@ -175,6 +175,7 @@ class WarmSupervisor(Supervisor):
             with gen:
                 return self.mission()
         finally:
+            self.stage('teardown')      # (the run's end on the stack, for its time breakdown)
             gen.close()
 
     # --- one run -----------------------------------------------------------------------------
