@@ -8,11 +8,19 @@ simulated/wall ratio, start-up time, the worker's host, slot and port).
 Per setting it also reports where the time goes (``tiago_nav.evaluate.timing``): the runs'
 start-up, mission, teardown and judging wall time and CPU (totals and medians) and the share
 of the setting's worker time (wall time x workers) spent in missions; and the runs' isolation.
+``--warm``: each worker count runs the same rows a second time right after, with warm stacks
+(``evaluate --warm``: one stack per worker for the rows that share world, profile, corridor law
+and candidate, reset between rows), and the report adds per worker count the warm rate over the
+fresh one, whether every row's warm result equals its fresh result (all fields but the
+wall-clock ones), the missions' share of the worker time in both, and how many rows ran after a
+reset. The rows are then picked in whole stack groups (every row of a key, the keys spread over
+the suite; ``--per-stack N``: at most N rows of each), since rows spread one per key would each
+start a stack of their own. ``--runs`` at least the suite's size takes every row.
 Writes bench/results/evaluate.json and evaluate.png.
 
 Usage: bench/bench_evaluate.py [--suite suites/course.yaml] [--runs 20] [--workers 1 2 3]
                                [--no-cluster] [--keep DIR] [--isolation auto|netns|loopback]
-                               [--quick] [--out JSON]
+                               [--warm [--per-stack N]] [--quick] [--out JSON]
 """
 import argparse
 import json
@@ -43,6 +51,29 @@ def pick(suite, n):
            and not line.endswith(' runs')]
     step = max(1, len(ids) // n)
     return ids[::step][:n]
+
+
+def pick_stacks(suite, n, per=None):
+    """``n`` run ids in whole stack groups (:func:`tiago_nav.evaluate.warm.group_by_stack` of the
+    suite's rows, each cut to its first ``per`` rows when given), the groups taken at an even
+    stride over the suite so that the picked rows span its worlds, profiles and corridor
+    settings; every row when ``n`` is at least the suite's size."""
+    from tiago_nav.evaluate import suite as S
+    from tiago_nav.evaluate.warm import group_by_stack
+    data, base = S.load(suite)
+    runs, _ = S.expand(data, suite, base)
+    if n >= len(runs):
+        return [r['id'] for r in runs]
+    groups = [g[:per] if per else g for g in group_by_stack(runs)]
+    mean = sum(len(g) for g in groups) / float(len(groups))
+    stride = max(1, int(len(groups) / max(1.0, n / mean)))
+    order = groups[::stride] + [g for i, g in enumerate(groups) if i % stride]
+    ids = []
+    for g in order:
+        ids += [r['id'] for r in g][:n - len(ids)]
+        if len(ids) >= n:
+            break
+    return ids
 
 
 def results(out):
@@ -123,25 +154,42 @@ def main():
     ap.add_argument('--isolation', choices=('auto', 'netns', 'loopback'), default='auto',
                     help="the evaluator's --isolation")
     ap.add_argument('--quick', action='store_true',
-                    help='4 runs, 2 workers, no separate cluster (a quick look; overrides those options)')
+                    help='4 runs, 2 workers, no separate cluster (a quick look; overrides those '
+                         'options; with --warm: 2 rows of each of 2 stack keys)')
+    ap.add_argument('--warm', action='store_true',
+                    help='each worker count also with warm stacks (evaluate --warm), on the same '
+                         'rows picked in whole stack groups')
+    ap.add_argument('--per-stack', type=int, default=None, metavar='N',
+                    help='with --warm: at most N rows of each stack key')
     args = ap.parse_args()
     if args.quick:
         args.runs, args.workers, args.cluster = 4, [2], False
+        if args.warm and args.per_stack is None:
+            args.per_stack = 2
+    if args.per_stack is not None and args.per_stack < 1:
+        ap.error('--per-stack: must be >= 1')
     if os.path.join(ROOT, 'src') not in sys.path:
         sys.path.append(os.path.join(ROOT, 'src'))
     from tiago_nav.benchmarks import meta
     from tiago_nav.evaluate.run import WALL_CLOCK_FIELDS, differences
-    from tiago_nav.evaluate.report import isolations
+    from tiago_nav.evaluate.report import isolations, stacks
     from tiago_nav.evaluate.timing import PHASES, batch
     for var, value in (('ROS_HOSTNAME', 'localhost'), ('ROS_IP', '127.0.0.1')):
         os.environ.setdefault(var, value)
     base = args.keep or tempfile.mkdtemp(prefix='bench_evaluate_')
     os.makedirs(base, exist_ok=True)
-    ids = pick(args.suite, args.runs)
+    ids = pick_stacks(args.suite, args.runs, args.per_stack) if args.warm else pick(args.suite, args.runs)
     print('%d runs of %s: %s' % (len(ids), args.suite, ' '.join(ids)), flush=True)
     settings, by_setting = [], {}
-    modes = [('%d worker%s' % (w, '' if w == 1 else 's'), ['--workers', str(w)]) for w in args.workers]
-    counts = {name: w for (name, _), w in zip(modes, args.workers)}
+    modes, counts, fresh_of = [], {}, {}
+    for w in args.workers:      # each worker count fresh, then (--warm) warm in the same hour
+        name = '%d worker%s' % (w, '' if w == 1 else 's')
+        modes.append((name, ['--workers', str(w)]))
+        counts[name] = w
+        if args.warm:
+            modes.append((name + ', warm', ['--workers', str(w), '--warm']))
+            counts[name + ', warm'] = w
+            fresh_of[name + ', warm'] = name
     counts['Dask cluster, 2 workers'] = 2
     if args.cluster:
         modes.append(('Dask cluster, 2 workers', None))
@@ -170,6 +218,8 @@ def main():
              'cpu_s_per_mission': sum(r.get('cpu_s') or 0 for r in res.values()) / max(1, len(res)),
              'isolation': isolations(res.values()),
              'time': batch(list(res.values()), wall, counts[name])}
+        if name in fresh_of:
+            s['stacks'] = stacks(list(res.values()))
         settings.append(s)
         by_setting[name] = res
         print('%-26s exit %d  %d/%d results  %.0f s  %.2f missions/min  %s  isolation %s' % (
@@ -192,14 +242,42 @@ def main():
         diff = {rid: differences(ref[rid], other[rid]) for rid in ids if rid in ref and rid in other}
         s['runs_differing_from_' + ref_name.replace(' ', '_')] = {k: v for k, v in diff.items() if v}
         s['runs_compared'] = len(diff)
+    warm = []
+    for s in settings:      # each warm setting against the fresh one with its worker count
+        if s['setting'] not in fresh_of:
+            continue
+        fresh = next(f for f in settings if f['setting'] == fresh_of[s['setting']])
+        a, b = by_setting[fresh['setting']], by_setting[s['setting']]
+        diff = {rid: differences(a[rid], b[rid]) for rid in ids if rid in a and rid in b}
+        w = {'workers': counts[s['setting']], 'fresh': fresh['setting'], 'warm': s['setting'],
+             'fresh_missions_per_minute': fresh['missions_per_minute'],
+             'warm_missions_per_minute': s['missions_per_minute'],
+             'speedup': s['missions_per_minute'] / fresh['missions_per_minute']
+             if fresh['missions_per_minute'] else None,
+             'runs_compared': len(diff), 'runs_differing': {k: v for k, v in diff.items() if v},
+             'all_equal': len(diff) == len(ids) and not any(diff.values()),
+             'infrastructure_errors': s['infrastructure_errors'],
+             'fresh_mission_share': (fresh.get('time') or {}).get('mission_share'),
+             'warm_mission_share': (s.get('time') or {}).get('mission_share'),
+             'stacks': s.get('stacks')}
+        warm.append(w)
+        print('%s: %.2f x the fresh rate (%.2f vs %.2f missions/min); every row equal to its fresh '
+              'result: %s (%d compared); missions %.1f %% of the worker time (fresh %.1f %%); %s' % (
+                  s['setting'], w['speedup'] or 0, w['warm_missions_per_minute'],
+                  w['fresh_missions_per_minute'], w['all_equal'], w['runs_compared'],
+                  100 * (w['warm_mission_share'] or 0), 100 * (w['fresh_mission_share'] or 0),
+                  'stacks %s' % w['stacks']), flush=True)
     first = settings[0]['missions_per_minute']
-    local = [s for s in settings if s['setting'] != 'Dask cluster, 2 workers']
+    local = [s for s in settings if s['setting'] != 'Dask cluster, 2 workers'
+             and s['setting'] not in fresh_of]
     best = max(local, key=lambda s: s['missions_per_minute'])
     out = {'suite': args.suite, 'run_ids': ids, 'wall_clock_fields': list(WALL_CLOCK_FIELDS),
            'settings': settings, 'best_local': best['setting'],
            'best_speedup_over_1_worker': best['missions_per_minute'] / first if first else None,
            'all_equal': all(not s.get('runs_differing_from_' + ref_name.replace(' ', '_'))
                             and s['results'] == len(ids) for s in settings)}
+    if warm:
+        out['warm'] = warm
     out['meta'] = meta(vars(args), real_time_factor=0.0, laser_model='per suite profile',
                        odometry_model='per suite profile')
     os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)

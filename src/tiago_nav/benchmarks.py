@@ -78,7 +78,12 @@ ABOUT = {
         'time, start-up and teardown included), outcomes, infrastructure errors, processes left '
         'behind; and the rows whose result differs from the 1-worker one in any field but the '
         'wall-clock ones. Target: the best local setting at least 1.25× the 1-worker rate, '
-        'every result equal.'),
+        'every result equal. With `--warm` each worker count also runs the same rows on warm '
+        'stacks (reset between the rows that share world, profile, corridor law and candidate; '
+        'the rows are then picked in whole stack groups): the warm rate over the fresh one, '
+        'every row\'s warm result against its fresh one, the missions\' share of the worker '
+        'time in both. Target for the whole course suite: warm at least 2.5× fresh, every row '
+        'equal, missions at least 60 % of the worker time.'),
     'simulator': (
         'How much faster than real time the mock TIAGo runs at `real_time_factor:=0` with the '
         'full laser (666 beams at 15 Hz) and 60 Hz physics, the base driving in circles, in both '
@@ -639,6 +644,19 @@ def render_evaluate(d):
         out += ['', 'Where the time goes (median run, wall / CPU seconds; the missions\' share of '
                 'the worker time, wall time × workers):', '']
         out += _table(('setting', 'isolation', 'in missions') + phases, rows)
+    warm = d.get('warm') or []
+    if warm:        # warm stacks against fresh ones, same rows, same worker count
+        rows = [(w.get('workers'), _f(w.get('fresh_missions_per_minute')),
+                 _f(w.get('warm_missions_per_minute')), _f(w.get('speedup')),
+                 '%d of %d' % (w.get('runs_compared', 0) - len(w.get('runs_differing') or {}),
+                               w.get('runs_compared', 0)),
+                 w.get('infrastructure_errors'), _pct(w.get('fresh_mission_share')),
+                 _pct(w.get('warm_mission_share')), (w.get('stacks') or {}).get('reset'))
+                for w in warm]
+        out += ['', 'Warm stacks (`evaluate --warm`) against fresh ones on the same rows:', '']
+        out += _table(('workers', 'fresh missions/min', 'warm missions/min', 'speed-up',
+                       'rows equal to fresh', 'infrastructure errors', 'in missions, fresh',
+                       'in missions, warm', 'rows after a reset'), rows)
     return out
 
 

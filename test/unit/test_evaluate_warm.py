@@ -217,3 +217,41 @@ def test_tree_cpu_counts_the_processes_carrying_the_token():
     finally:
         p.kill()
         p.wait()
+
+
+def test_benchmarks_page_shows_warm_against_fresh():
+    from tiago_nav import benchmarks
+    w = {'workers': 2, 'fresh': '2 workers', 'warm': '2 workers, warm',
+         'fresh_missions_per_minute': 12.5, 'warm_missions_per_minute': 31.0, 'speedup': 2.48,
+         'runs_compared': 4, 'runs_differing': {'x': ['path']}, 'all_equal': False,
+         'infrastructure_errors': 0, 'fresh_mission_share': 0.2, 'warm_mission_share': 0.61,
+         'stacks': {'reset': 2}}
+    text = '\n'.join(benchmarks.render_evaluate({'run_ids': ['a'], 'suite': 's.yaml', 'settings': [],
+                                                 'warm': [w]}))
+    assert 'Warm stacks (`evaluate --warm`) against fresh ones on the same rows' in text
+    assert '| 2 | 12.5 | 31 | 2.48 | 3 of 4 | 0 | 20.0 % | 61.0 % | 2 |' in text, text
+    assert 'Warm stacks' not in '\n'.join(benchmarks.render_evaluate({'settings': []}))
+
+
+def test_bench_picks_rows_in_whole_stack_groups():
+    import importlib.util
+    from conftest import ROOT
+    from tiago_nav.evaluate import suite
+    path = os.path.join(ROOT, 'bench', 'bench_evaluate.py')
+    spec_ = importlib.util.spec_from_file_location('bench_evaluate', path)
+    B = importlib.util.module_from_spec(spec_)
+    spec_.loader.exec_module(B)
+    course = os.path.join(ROOT, 'suites', 'course.yaml')
+    data, base = suite.load(course)
+    runs, _ = suite.expand(data, course, base)
+    key = {r['id']: W.stack_key(r) for r in runs}
+    ids = B.pick_stacks(course, 4, 2)
+    assert len(set(ids)) == 4 and sorted(collections_count(key[i] for i in ids)) == [2, 2]
+    assert B.pick_stacks(course, len(runs)) == [r['id'] for r in runs]
+    ids = B.pick_stacks(course, 20, 3)
+    assert len(set(ids)) == 20 and len({key[i] for i in ids}) == 7     # 3 rows a key, 7 keys
+
+
+def collections_count(values):
+    import collections
+    return list(collections.Counter(values).values())
