@@ -9,8 +9,8 @@ Per setting it also reports where the time goes (``tiago_nav.evaluate.timing``):
 start-up, mission, teardown and judging wall time and CPU (totals and medians) and the share
 of the setting's worker time (wall time x workers) spent in missions; and the runs' isolation.
 ``--warm``: each worker count runs the same rows a second time right after, with warm stacks
-(``evaluate --warm``: one stack per worker for the rows that share world, profile, corridor law
-and candidate, reset between rows), and the report adds per worker count the warm rate over the
+(``evaluate --warm``: one stack per worker for the rows that share world, profile and candidate,
+reset between rows), and the report adds per worker count the warm rate over the
 fresh one, whether every row's warm result equals its fresh result (all fields but the
 wall-clock ones), the missions' share of the worker time in both, and how many rows ran after a
 reset. The rows are then picked in whole stack groups (every row of a key, the keys spread over

@@ -79,7 +79,7 @@ ABOUT = {
         'behind; and the rows whose result differs from the 1-worker one in any field but the '
         'wall-clock ones. Target: the best local setting at least 1.25× the 1-worker rate, '
         'every result equal. With `--warm` each worker count also runs the same rows on warm '
-        'stacks (reset between the rows that share world, profile, corridor law and candidate; '
+        'stacks (reset between the rows that share world, profile and candidate; '
         'the rows are then picked in whole stack groups): the warm rate over the fresh one, '
         'every row\'s warm result against its fresh one, the missions\' share of the worker '
         'time in both. Target for the whole course suite: warm at least 2.5× fresh, every row '

@@ -2,7 +2,8 @@
 """Rostest: a row run on a warm stack after other rows gives the result a fresh stack gives.
 
 Three rows of the course world that share a stack key (the ``tiago`` sensing profile, with
-the scan-matching localisation; the corridor law on) but differ in seed and pose B run on one
+the scan-matching localisation) but differ in seed, pose B and corridor law (on, off, on: a
+row after one with the other setting) run on one
 warm stack (:func:`tiago_nav.evaluate.warm.run_group`): the first on a fresh stack, the two
 others after a reset. Each then runs on a fresh stack of its own
 (:func:`tiago_nav.evaluate.run.execute`). :func:`tiago_nav.evaluate.run.differences` between
@@ -29,15 +30,18 @@ SUITE = {
                                          [8.39, -3.77, 128.1]]}],
     'profiles': {'tiago': {'laser_model': 'tiago', 'odometry_model': 'drift',
                            'localisation': 'scan_matching', 'laser_noise': 0.01}},
-    'corridor_law': [True],
+    'corridor_law': [True, False],
     'seeds': [1, 2, 3],
 }
 
 
 def rows():
-    """(pose B 1, seed 1), (pose B 2, seed 2), (pose B 3, seed 3)."""
+    """(pose B 1, seed 1, law on), (pose B 2, seed 2, law off), (pose B 3, seed 3, law on)."""
     runs, _ = expand(SUITE, '<warm_reset>', os.path.dirname(WORLD))
-    return [runs[0], runs[4], runs[8]]
+    pick = {(tuple(r['goal']), r['seed'], r['use_corridor_law']): r for r in runs}
+    poses = SUITE['worlds'][0]['poses']
+    return [pick[(tuple(poses[0]), 1, True)], pick[(tuple(poses[1]), 2, False)],
+            pick[(tuple(poses[2]), 3, True)]]
 
 
 class WarmReset(unittest.TestCase):
@@ -52,6 +56,7 @@ class WarmReset(unittest.TestCase):
         specs = rows()
         self.assertEqual(len({stack_key(s) for s in specs}), 1)
         self.assertEqual(len({(s['seed'], tuple(s['goal'])) for s in specs}), 3)
+        self.assertEqual([s['use_corridor_law'] for s in specs], [True, False, True])
         warm_dir, fresh_dir = os.path.join(self.out, 'warm'), os.path.join(self.out, 'fresh')
         warm = run_group(specs, warm_dir)
         self.assertEqual([r.get('stack') for r in warm], ['fresh', 'reset', 'reset'],
@@ -61,6 +66,8 @@ class WarmReset(unittest.TestCase):
             self.assertEqual((w['outcome'], f['outcome']), ('succeeded', 'succeeded'),
                              (w.get('reason'), f.get('reason')))
             self.assertEqual(w['collisions'], 0)
+            self.assertEqual(w['isolation'], f['isolation'])
+            self.assertGreater(w['phases']['mission']['wall_s'], 0)
             self.assertGreater(w['loc_samples'], 50)
             self.assertEqual(R.differences(w, f), [], 'row %s (seed %d, B %s)'
                              % (s['id'], s['seed'], s['goal']))

@@ -22,18 +22,20 @@ def spec(run_id, world='w', profile='tiago', law=True, seed=1, goal=(1.0, 0.0, 0
             'candidate_spec': None if candidate == 'own' else {'replaces': ['detection']}}
 
 
-def test_rows_share_a_stack_when_only_seed_and_pose_differ():
+def test_rows_share_a_stack_when_only_seed_pose_and_corridor_law_differ():
     a = spec('a', seed=1, goal=(1, 0, 0))
     assert W.stack_key(a) == W.stack_key(spec('b', seed=2, goal=(3, 1, 90)))
-    for other in (spec('c', world='v'), spec('d', profile='ideal'), spec('e', law=False)):
+    assert W.stack_key(a) == W.stack_key(spec('e', law=False))     # a goal field, not the stack's
+    for other in (spec('c', world='v'), spec('d', profile='ideal')):
         assert W.stack_key(other) != W.stack_key(a)
     assert W.stack_key(spec('f', candidate='centroid')) is None     # outside nodes: no reset
     assert W.stack_key(dict(a, record=True)) is None                # a bag per run
 
 
 def test_groups_keep_the_suite_order_within_a_key():
-    specs = [spec('a1'), spec('b1', law=False), spec('a2', seed=2), spec('c', candidate='x'),
-             spec('b2', law=False, seed=2), spec('a3', seed=3), spec('d', candidate='x')]
+    specs = [spec('a1'), spec('b1', profile='ideal'), spec('a2', seed=2, law=False),
+             spec('c', candidate='x'), spec('b2', profile='ideal', seed=2), spec('a3', seed=3),
+             spec('d', candidate='x')]
     groups = [[s['id'] for s in g] for g in W.group_by_stack(specs)]
     assert groups == [['a1', 'a2', 'a3'], ['b1', 'b2'], ['c'], ['d']]
 
@@ -52,7 +54,8 @@ def test_the_engine_sends_each_group_to_one_worker_in_order(tmp_path, monkeypatc
     cluster = LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
                            dashboard_address=None, silence_logs=40)
     try:
-        specs = [spec('a1'), spec('b1', law=False), spec('a2', seed=2), spec('b2', law=False, seed=2)]
+        specs = [spec('a1'), spec('b1', profile='ideal'), spec('a2', seed=2),
+                 spec('b2', profile='ideal', seed=2)]
         seen = []
         results = engine.run_all(specs, str(tmp_path), scheduler=cluster.scheduler_address,
                                  progress=seen.append, warm=True, verify_reset=3)

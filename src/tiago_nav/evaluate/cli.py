@@ -37,7 +37,7 @@ def parse_args(argv):
                          'loopback: the host network, loopback addresses and a port per worker; '
                          'auto (default): netns where the machine allows it')
     ap.add_argument('--warm', action='store_true',
-                    help='run the rows that share world, profile, corridor law and candidate on '
+                    help='run the rows that share world, profile and candidate on '
                          'one stack per worker, reset between rows')
     ap.add_argument('--verify-reset', type=int, default=0, metavar='K',
                     help='with --warm: run every K-th reset row again on a fresh stack and report '

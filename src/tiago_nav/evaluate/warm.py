@@ -6,7 +6,9 @@ worker's slot, in a session of its own, tagged with a token as a run's processes
 (:mod:`tiago_nav.evaluate.run`), isolated as a fresh run is (:mod:`tiago_nav.evaluate.isolation`:
 in ``netns`` mode the stack's supervisor, master and nodes live in a network namespace of their
 own with only loopback, for all the rows the stack runs; the result's ``isolation`` says which). :func:`stack_key` says which rows may share one: the same
-world, sensing profile, corridor law, candidate and launch arguments. Rows of the package's own
+world, sensing profile, candidate and launch arguments. The corridor law is not part of it: it
+is a field of the mission's goal, the stack is the same with it on or off, and a reset rebuilds
+every node's state whichever the last row used. Rows of the package's own
 nodes only: a candidate's outside nodes offer no reset, so their rows get a fresh stack each
 (:func:`tiago_nav.evaluate.run.execute`), and so do rows recorded with ``--record`` (a bag per
 run). A different key, a failed reset, an infrastructure error or a dead stack ends the stack;
@@ -42,12 +44,12 @@ _WORKER = {'stack': None, 'count': 0, 'reset_runs': 0}   # this worker process's
 
 def stack_key(spec):
     """The rows that may share a stack: those with equal keys (world file or generated world,
-    sensing profile, corridor law, candidate, launch arguments, time limits). None for rows
-    that always get a fresh stack (a candidate's, recorded ones)."""
+    sensing profile, candidate, launch arguments, time limits; not the corridor law, a field of
+    the goal). None for rows that always get a fresh stack (a candidate's, recorded ones)."""
     if spec.get('candidate', 'own') != 'own' or spec.get('record'):
         return None
     return json.dumps([spec['world'], spec.get('world_file'), spec['profile'],
-                       spec['use_corridor_law'], spec['candidate'], spec['launch_args'],
+                       spec['candidate'], spec['launch_args'],
                        spec['limits']], sort_keys=True)
 
 

@@ -2,7 +2,7 @@
 
 Started by :mod:`tiago_nav.evaluate.warm` with the worker slot's environment (as
 :mod:`tiago_nav.nodes.evaluate_run`). It keeps one stack (roscore, demo.launch) for rows that
-share world, sensing profile, corridor law and candidate, and runs them one after the other.
+share world, sensing profile and candidate (the corridor law is a goal field), and runs them one after the other.
 It reads one run folder per line on stdin (each holds its ``spec.json``) and answers each with
 one JSON line on stdout once the run's ``raw.json`` is written:
 ``{"run_dir": ..., "reset": "fresh" | "reset", "failed": null | "reset" | "infra"}``.
