@@ -5,11 +5,12 @@ A stack is a :mod:`tiago_nav.nodes.evaluate_warm` supervisor (roscore, demo.laun
 worker's slot, in a session of its own, tagged with a token as a run's processes are
 (:mod:`tiago_nav.evaluate.run`), isolated as a fresh run is (:mod:`tiago_nav.evaluate.isolation`:
 in ``netns`` mode the stack's supervisor, master and nodes live in a network namespace of their
-own with only loopback, for all the rows the stack runs; the result's ``isolation`` says which). :func:`stack_key` says which rows may share one: the same
-world, sensing profile, candidate and launch arguments. The corridor law is not part of it: it
-is a field of the mission's goal, the stack is the same with it on or off, and a reset rebuilds
-every node's state whichever the last row used. Rows of the package's own
-nodes only: a candidate's outside nodes offer no reset, so their rows get a fresh stack each
+own with only loopback, for all the rows the stack runs; the result's ``isolation`` says
+which). :func:`stack_key` says which rows may share one: the same world, sensing profile,
+candidate and launch arguments. The corridor law is not part of it: it is a field of the
+mission's goal, the stack is the same with it on or off, and a reset rebuilds every node's
+state whichever the last row used. Rows of the package's own nodes only: a candidate's outside
+nodes offer no reset, so their rows get a fresh stack each
 (:func:`tiago_nav.evaluate.run.execute`), and so do rows recorded with ``--record`` (a bag per
 run). A different key, a failed reset, an infrastructure error or a dead stack ends the stack;
 a row whose reset failed is run again on a fresh stack, and its result says so
@@ -192,8 +193,9 @@ def execute_warm(spec, out_dir, record=False, attempt=1, verify_reset=0):
             if answer is None and stage == 'mission':
                 raw = {'timed_out': True, 'watchdog': True,
                        'reason': 'wall-clock watchdog: no result within %.0f s' % wall_limit}
-                return _finish(spec, full, raw, out_dir, attempt, stack, wall, cpu, 'warm',
-                               (w0, cpu0))
+                # (the row's stack was started for it, or reset for it: it ran before)
+                return _finish(spec, full, raw, out_dir, attempt, stack, wall, cpu,
+                               'reset' if stack.runs > 1 else 'fresh', (w0, cpu0))
             # the reset failed, or the stack died before the mission: a fresh stack runs the row
             why = answer.get('reason') if answer else 'the warm stack stopped (stage %s)' % stage
             result = R.execute(spec, out_dir, record, attempt)
