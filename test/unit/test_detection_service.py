@@ -376,3 +376,24 @@ def test_the_nodes_tf_wait_is_counted_in_wall_time():
     assert time.monotonic() - t0 >= 0.3
     threading.Timer(0.2, Buffer.arrived.set).start()
     assert sensors.transform('map', 'base_laser_link', stamp, 2.0) == pytest.approx((1.5, 0, 0))
+
+
+def test_a_reset_reuses_the_maps_detector_and_answers_as_a_new_one(clean, grid):
+    """The node keeps one ObstacleDetector per map and detection parameters
+    (``detector_for``): a reset's new state gets the same object for the same map, another map
+    or other parameters a new one; the answer with the kept detector equals a new one's."""
+    from tiago_nav.nodes.obstacle_detection import detector_for
+    p = Params()
+    d = detector_for(grid, p.detection)
+    same = GridMap(grid.data.copy(), grid.resolution, tuple(grid.origin))
+    assert detector_for(same, p.detection) is d
+    other = GridMap(grid.data.copy(), grid.resolution, (grid.origin[0] + 0.05, grid.origin[1]))
+    assert detector_for(other, p.detection) is not d
+    assert detector_for(grid, replace(p.detection, cluster_threshold=p.detection.cluster_threshold * 2)) \
+        is not detector_for(grid, p.detection)
+    ranges, _ = clean
+    kept = DetectionService(p)
+    kept.set_map(grid, detector_for(grid, p.detection))
+    a = kept.handle('', 0.0, 0.0, FakeSensors(ranges))
+    b = service(grid).handle('', 0.0, 0.0, FakeSensors(ranges))
+    assert a.success and a == b

@@ -153,9 +153,12 @@ class DetectionService:
         self.map_error = 'no %s received yet' % params.map_topic
         self.elapsed_ms = None      # [ms] of the pipeline in the last successful call
 
-    def set_map(self, grid):
-        """Use the :class:`tiago_nav.gridmap.GridMap` ``grid`` from now on."""
-        self.detector = ObstacleDetector(grid, self.params.detection)
+    def set_map(self, grid, detector=None):
+        """Use the :class:`tiago_nav.gridmap.GridMap` ``grid`` from now on (``detector``: its
+        :class:`ObstacleDetector` with ``params.detection`` when already built; it holds only
+        what the map and those parameters determine)."""
+        self.detector = ObstacleDetector(grid, self.params.detection) if detector is None \
+            else detector
         self.map_error = None
 
     def map_unusable(self, reason):

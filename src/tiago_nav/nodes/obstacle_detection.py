@@ -26,6 +26,7 @@ from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
 from tiago_nav.detection import METHODS, DetectionParams
+from tiago_nav.detection.pipeline import ObstacleDetector
 from tiago_nav.detection.service import DetectionService, Failure, Scan
 from tiago_nav.msg import Obstacle
 from tiago_nav.params import nested, param, validate
@@ -159,6 +160,20 @@ def _plain_scan(msg):
                 msg.header.stamp, msg.header.frame_id)
 
 
+_DETECTOR = []      # [(map and parameters key, ObstacleDetector)]: the last map's
+
+
+def detector_for(grid, params):
+    """``grid``'s :class:`tiago_nav.detection.pipeline.ObstacleDetector` with the detection
+    parameters ``params``, built once per map and parameters: a reset builds the node's state
+    again for the same map, and the detector's distance transform and field (read only,
+    determined by the map and ``params``) take most of a reset's time to build."""
+    key = (grid.data.tobytes(), grid.resolution, tuple(grid.origin), repr(params))
+    if not _DETECTOR or _DETECTOR[0][0] != key:
+        _DETECTOR[:] = [(key, ObstacleDetector(grid, params))]
+    return _DETECTOR[0][1]
+
+
 class DetectionNode:
     """Subscribes to the map, serves ``obstacle_detection``, draws each answer on
     ``~obstacles`` (visualization_msgs/MarkerArray in the map frame)."""
@@ -174,7 +189,8 @@ class DetectionNode:
 
     def on_map(self, msg):
         try:
-            self.logic.set_map(gridmap_from_msg(msg))
+            grid = gridmap_from_msg(msg)
+            self.logic.set_map(grid, detector_for(grid, self.params.detection))
             self.map_ready.set()
             rospy.loginfo('obstacle_detection: map %dx%d at %.3f m', msg.info.width,
                           msg.info.height, msg.info.resolution)
