@@ -48,7 +48,9 @@ BENCHMARKS = (
     ('soak', 'Soak', [
         ('bench/bench_soak.py', ['soak.json'])]),
     ('evaluate', 'Batch evaluation', [
-        ('bench/bench_evaluate.py', ['evaluate.json'])]),
+        ('bench/bench_evaluate.py', ['evaluate.json']),
+        ('bench/bench_evaluate.py --runs 204 --workers 2 --no-cluster --warm '
+         '--out bench/results/evaluate_warm.json', ['evaluate_warm.json'])]),
     ('suites', 'Shipped suites', [
         ('bench/bench_suites.py', ['suites.json'])]),
 )
@@ -78,12 +80,14 @@ ABOUT = {
         'time, start-up and teardown included), outcomes, infrastructure errors, processes left '
         'behind; and the rows whose result differs from the 1-worker one in any field but the '
         'wall-clock ones. Target: the best local setting at least 1.25× the 1-worker rate, '
-        'every result equal. With `--warm` each worker count also runs the same rows on warm '
-        'stacks (reset between the rows that share world, profile and candidate; '
-        'the rows are then picked in whole stack groups): the warm rate over the fresh one, '
-        'every row\'s warm result against its fresh one, the missions\' share of the worker '
-        'time in both. Target for the whole course suite: warm at least 2.5× fresh, every row '
-        'equal, missions at least 60 % of the worker time.'),
+        'every result equal. Each setting also shows where the time goes: the median run\'s '
+        'start-up, mission, teardown and judging, and the missions\' share of the worker time. '
+        '`evaluate_warm.json`: every row of the suite with 2 workers, on fresh stacks and then '
+        '(`--warm`) on warm ones, reset between the rows that share world, profile and '
+        'candidate: the warm rate over the fresh one, every row\'s warm result against its '
+        'fresh one, the missions\' share of the worker time in both. Target: warm at least 2.5× '
+        'fresh, every row equal, 0 infrastructure errors, missions at least 60 % of the worker '
+        'time.'),
     'simulator': (
         'How much faster than real time the mock TIAGo runs at `real_time_factor:=0` with the '
         'full laser (666 beams at 15 Hz) and 60 Hz physics, the base driving in circles, in both '
@@ -619,19 +623,24 @@ def render_soak(d):
 
 
 def render_evaluate(d):
-    key = 'runs_differing_from_1_worker'
+    settings = d.get('settings', [])
+    ref = settings[0].get('setting') if settings else '1 worker'    # what the others are held to
+    key = 'runs_differing_from_' + ref.replace(' ', '_')
     rows = [(s.get('setting'), '%d/%d' % (s.get('results', 0), s.get('runs', 0)), s.get('wall_s'),
              s.get('missions_per_minute'),
              ', '.join('%s %d' % kv for kv in sorted((s.get('outcomes') or {}).items())),
              s.get('infrastructure_errors'), s.get('leftover_processes'),
              '–' if key not in s else '%d of %d' % (len(s[key]), s.get('runs_compared', 0)))
-            for s in d.get('settings', [])]
+            for s in settings]
     out = ['%s rows of `%s`.' % (_f(len(d.get('run_ids', []))), d.get('suite')), '']
     out += _table(('setting', 'results', 'wall [s]', 'missions per minute', 'outcomes',
-                   'infrastructure errors', 'processes left', 'rows differing from 1 worker'), rows)
-    out += ['', 'Best local setting: %s, %s× the 1-worker rate; every result equal in every '
-            'setting: %s.' % (d.get('best_local'), _f(d.get('best_speedup_over_1_worker')),
-                              _f(d.get('all_equal')))]
+                   'infrastructure errors', 'processes left', 'rows differing from %s' % ref), rows)
+    fresh_local = [s for s in settings if s.get('setting') != 'Dask cluster, 2 workers'
+                   and not s.get('setting', '').endswith(', warm')]
+    if len(fresh_local) > 1:
+        out += ['', 'Best local setting: %s, %s× the %s rate; every result equal in every '
+                'setting: %s.' % (d.get('best_local'), _f(d.get('best_speedup_over_1_worker')),
+                                  ref, _f(d.get('all_equal')))]
     timed = [s for s in d.get('settings', []) if s.get('time')]
     if timed:       # where the time goes: per phase, the median run's wall and CPU seconds
         phases = ('startup', 'mission', 'teardown', 'judging')

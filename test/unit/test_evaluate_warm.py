@@ -236,6 +236,20 @@ def test_benchmarks_page_shows_warm_against_fresh():
     assert 'Warm stacks' not in '\n'.join(benchmarks.render_evaluate({'settings': []}))
 
 
+def test_benchmarks_page_holds_each_setting_to_the_first():
+    """A warm-only run of the benchmark (2 workers fresh, then warm) compares with its first
+    setting, not with a 1-worker one it did not run, and claims no best local setting."""
+    from tiago_nav import benchmarks
+    s = [{'setting': '2 workers', 'results': 3, 'runs': 3},
+         {'setting': '2 workers, warm', 'results': 3, 'runs': 3, 'runs_compared': 3,
+          'runs_differing_from_2_workers': {'b': ['path']}}]
+    text = '\n'.join(benchmarks.render_evaluate({'run_ids': ['a', 'b', 'c'], 'suite': 's.yaml',
+                                                 'settings': s}))
+    assert '| rows differing from 2 workers |' in text, text
+    assert '| 2 workers, warm | 3/3 |' in text and '| 1 of 3 |' in text, text
+    assert 'Best local setting' not in text
+
+
 def test_bench_picks_rows_in_whole_stack_groups():
     import importlib.util
     from conftest import ROOT
