@@ -113,3 +113,46 @@ def test_a_shutdown_hook_does_not_keep_a_dropped_state_alive(monkeypatch):
     for h in hooks:
         h()
     assert called == [kept]
+
+
+def test_a_latched_publisher_of_a_state_forgets_its_message_and_stays_registered():
+    """A new state's subscriber must not get the last run's latched message (move_base's plan
+    was read as the next run's), and the publisher is not unregistered."""
+    import rospy
+    from std_msgs.msg import String
+    gen = reset.Generation()
+    with gen:
+        latched = rospy.Publisher('/reset_test/latched', String, queue_size=1, latch=True)
+        rospy.Publisher('/reset_test/plain', String, queue_size=1)
+    latched.impl.latch = String('the last run')     # (as publish() leaves it)
+    gen.close()
+    assert [type(o).__name__ for o in gen.objects] == ['Latched']
+    assert latched.impl is not None and not latched.impl.closed and latched.impl.latch is None
+
+
+def test_a_reset_start_waits_for_its_subscriptions_connections(monkeypatch):
+    """wait_connected returns once every recorded Subscriber is connected to each publisher the
+    master lists (its own node aside), and names the topics still waiting at the timeout."""
+    import rosgraph
+    import rospy
+    from tiago_nav.ros import topics
+    connected = {'/plan': set(), '/tf': {'/simulator'}}
+
+    class Master:
+        def __init__(self, _name):
+            pass
+
+        def getSystemState(self):
+            return ([['/plan', ['/move_base']], ['/tf', ['/simulator', '/me']]], [], [])
+    monkeypatch.setattr(rosgraph, 'Master', Master)
+    monkeypatch.setattr(rospy, 'get_name', lambda: '/me')
+    monkeypatch.setattr(topics, 'connected_publishers', lambda s: connected[s.resolved_name])
+    gen = reset.Generation()
+    for name in ('/plan', '/tf'):
+        sub = object.__new__(rospy.topics.Subscriber)
+        sub.resolved_name = name
+        gen.objects.append(sub)
+    with pytest.raises(RuntimeError, match=r'publishers of /plan$'):
+        reset.wait_connected(gen, timeout=0.05)
+    threading.Timer(0.05, lambda: connected['/plan'].add('/move_base')).start()
+    reset.wait_connected(gen, timeout=5.0)

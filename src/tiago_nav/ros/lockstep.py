@@ -351,7 +351,8 @@ class LockstepParticipant:
         self._left = False
         self._busy = False       # what the last answer sent said of work (Ack.busy)
         self.joined = threading.Event()     # registered: the inputs flow (see ``inputs``)
-        self.pub = direct_publisher(ACK_TOPIC, LockstepAck, subscriber_listener=_Join(self))
+        self._join = _Join(self)
+        self.pub = direct_publisher(ACK_TOPIC, LockstepAck, subscriber_listener=self._join)
         self.sub = Subscription(TICK_TOPIC, LockstepTick, self.on_tick, queue_size=10,
                                 tcp_nodelay=True)
         # a cycle waits for ROS time too (a tick counts once its /clock has come; running free,
@@ -596,7 +597,14 @@ class LockstepParticipant:
             self.sub.unregister()
             if self.clock_sub is not None:
                 self.clock_sub.unregister()
-            self.pub.unregister()
+            # the answers' publisher stays registered (rospy shares one per topic in a
+            # process): a node that takes part again (a reset's new participant) would
+            # otherwise register it anew, and a simulator connecting in between fails its
+            # handshake; rospy's retries back off, and the node's answers went unheard for
+            # longer than the lockstep waits
+            listeners = self.pub.impl.subscriber_listeners if self.pub.impl else None
+            if listeners is not None:
+                listeners[:] = [l for l in listeners if getattr(l, 'then', None) is not self._join]
 
 
 class Peers:

@@ -24,10 +24,12 @@ publishers outlive resets (their clients stay connected); :func:`forget_goals` c
 server's goal bookkeeping as a fresh server's.
 """
 import threading
+import time
 import weakref
 
 import rospy
 
+CONNECT_TIMEOUT = 10.0      # [s wall] the longest a reset's start waits for its subscriptions
 _local = threading.local()
 _patched = []
 
@@ -36,21 +38,45 @@ def _building():
     return getattr(_local, 'generation', None)
 
 
+class Latched:
+    """A latched publisher made by a node's state: a reset's stop forgets its last message, so
+    that a new subscriber gets nothing from it until the new state publishes, as from a fresh
+    node (the publisher itself stays registered: see :func:`_patch`)."""
+
+    def __init__(self, pub):
+        self.pub = pub
+
+    def close(self):
+        impl = self.pub.impl
+        if impl is not None:
+            impl.latch = None
+
+
 def _patch():
-    """Record each rospy Subscriber and Service made in a thread that builds a
-    :class:`Generation` (installed once; a no-op in other threads)."""
+    """Record what a thread that builds a :class:`Generation` makes (installed once; a no-op
+    in other threads): each rospy Subscriber and Service (taken down by the stop), and each
+    latched Publisher as :class:`Latched`. Publishers are not unregistered: a node that
+    unregisters a topic's publisher and registers it again makes a subscriber that connects in
+    between fail its handshake, and rospy's retries back off for seconds; a publisher stays
+    for the process's life, shared by the states (rospy shares one per topic in a
+    process)."""
     if _patched:
         return
     from rospy.impl.tcpros_service import Service
-    for cls in (rospy.topics.Subscriber, Service):
+
+    def tracked(cls, what):
         init = cls.__init__
 
-        def wrapped(self, *args, _init=init, **kwargs):
-            _init(self, *args, **kwargs)
+        def wrapped(self, *args, **kwargs):
+            init(self, *args, **kwargs)
             gen = _building()
-            if gen is not None:
-                gen.track(self)
+            obj = what(self) if gen is not None else None
+            if obj is not None:
+                gen.track(obj)
         cls.__init__ = wrapped
+    tracked(rospy.topics.Subscriber, lambda sub: sub)
+    tracked(Service, lambda srv: srv)
+    tracked(rospy.topics.Publisher, lambda pub: Latched(pub) if pub.impl.is_latch else None)
     _patched.append(True)
 
 
@@ -173,6 +199,34 @@ def forget_goals(server):
         server.new_goal_preempt_request = False
 
 
+def wait_connected(generation, timeout=CONNECT_TIMEOUT):
+    """Waits until each rospy Subscriber ``generation`` recorded has completed its handshake
+    with every publisher the master lists for its topic (other than this node). A fresh
+    start's subscriptions are connected seconds before the first goal; after a reset the next
+    row's goal follows at once, and a message sent before its subscriber's connection is lost
+    (move_base's first plan, read by the proxy on its next cycle). Raises RuntimeError naming
+    the topics still waiting after ``timeout`` [s wall]."""
+    import rosgraph
+    from tiago_nav.ros.topics import connected_publishers
+    me = rospy.get_name()
+    subs = [o for o in generation.objects if isinstance(o, rospy.topics.Subscriber)]
+    master = rosgraph.Master(me)
+    end = time.monotonic() + timeout
+    while True:
+        try:
+            listed = dict(master.getSystemState()[0])
+        except (rosgraph.MasterError, OSError):
+            listed = None
+        waiting = sorted({s.resolved_name for s in subs if listed is not None and
+                          set(listed.get(s.resolved_name, ())) - {me} - connected_publishers(s)})
+        if listed is not None and not waiting:
+            return
+        if time.monotonic() > end or rospy.is_shutdown():
+            raise RuntimeError('no connection within %g s to the publishers of %s' % (
+                timeout, ', '.join(waiting) if listed is not None else '(the master is gone)'))
+        time.sleep(0.02)
+
+
 class NodeReset:
     """``~reset/stop`` and ``~reset/start`` (std_srvs/Trigger) for a node whose state is made
     by ``build()`` (returns the state; raises to refuse) and taken down by ``stop(state)``
@@ -206,6 +260,7 @@ class NodeReset:
             self.generation = Generation()
             with self.generation:
                 self.state = self.build()
+            wait_connected(self.generation)
         return self.state
 
     def on_stop(self, _):
