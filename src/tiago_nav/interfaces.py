@@ -34,10 +34,10 @@ _CLOCK = ('/clock', 'rosgraph_msgs/Clock', 'simulated time (with /use_sim_time)'
 # a node's reset (tiago_nav.ros.reset; docs/interfaces.md#resetting-a-running-stack)
 _RESET = [('~reset/stop', 'std_srvs/Trigger',
            'a reset\'s first half: take the node\'s state down (leave the lockstep, unsubscribe, '
-           'forget goals)'),
+           'forget goals and what its latched topics last sent)'),
           ('~reset/start', 'std_srvs/Trigger',
            'a reset\'s second half: build the state anew from the parameters and the latched '
-           'topics, as at start; answers once ready')]
+           'topics, as at start; answers once ready and its subscriptions are connected')]
 
 NODES = (
     {

@@ -7,21 +7,23 @@ Every other node of the package offers two std_srvs/Trigger services (docs/inter
 ``~reset/stop``
     takes the node's state down: it leaves the lockstep (its participant closes), stops
     taking in messages (every subscriber, tf listener and service its state made is
-    unregistered) and forgets its goal bookkeeping. Called on every node before the
-    simulator's reset, so that no node takes in the reset simulator's messages with its
-    old state.
+    unregistered), forgets its goal bookkeeping and what its latched publishers last sent.
+    Called on every node before the simulator's reset, so that no node takes in the reset
+    simulator's messages with its old state.
 ``~reset/start``
     builds the state anew from the node's parameters as they are now, exactly as at start:
     new subscriptions receive the latched topics (the reset simulator's start state, the map,
     the localisation's first ``map → odom``) as a starting node would, a new participant joins
     the lockstep. It answers once the node is as ready as at start (e.g. move_base serves
-    goals).
+    goals) and each new subscription is connected to the publishers the master lists
+    (:func:`wait_connected`).
 
 :class:`Generation` records what a node's state makes while it is built (``with gen:``), so
 that ``stop`` can take it all down without a list kept by hand; :class:`NodeReset` offers the
 two services for a node made by a ``build()`` function. Action servers and the node's
-publishers outlive resets (their clients stay connected); :func:`forget_goals` clears a
-server's goal bookkeeping as a fresh server's.
+publishers outlive resets (their clients stay connected; a latched one forgets its message,
+:class:`Latched`); :func:`forget_goals` clears a server's goal bookkeeping as a fresh
+server's.
 """
 import threading
 import time
