@@ -639,7 +639,7 @@ def render_evaluate(d):
     fresh_local = [s for s in settings if s.get('setting') != 'Dask cluster, 2 workers'
                    and not s.get('setting', '').endswith(', warm')]
     if len(fresh_local) > 1:
-        out += ['', 'Best local setting: %s, %s× the %s rate; every result equal in every '
+        out += ['', 'Best local setting: %s, %s× the rate of %s; every result equal in every '
                 'setting: %s.' % (d.get('best_local'), _f(d.get('best_speedup_over_1_worker')),
                                   ref, _f(d.get('all_equal')))]
     timed = [s for s in d.get('settings', []) if s.get('time')]
