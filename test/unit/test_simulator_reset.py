@@ -14,21 +14,9 @@ from tiago_nav.params import ParamError, read_params
 from tiago_nav.testing.fakes import FakePublisher
 
 from tiago_nav.nodes.simulator import Outputs, Params, SimulatorNode
+from test_simulator_node import BOX, Log
 
 pytestmark = pytest.mark.ros
-
-BOX = os.path.join(ROOT, 'test', 'worlds', 'sim_box.yaml')   # robot at (1, 1.5) facing the wall x = 2.5
-
-
-class Log:
-    def __init__(self):
-        self.warnings, self.infos = [], []
-
-    def logwarn(self, text):
-        self.warnings.append(text)
-
-    def loginfo(self, text):
-        self.infos.append(text)
 
 
 def params(**kw):
