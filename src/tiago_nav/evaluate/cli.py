@@ -122,9 +122,10 @@ def main(argv=None):
         n = state['done']
         el = time.monotonic() - state['t0']
         eta = el / n * (len(todo) - n)
-        print('[%d/%d] done %d, not succeeded %d, remaining %d, ETA %.0f s | %s %s %s' % (
+        print('[%d/%d] done %d, not succeeded %d, remaining %d, ETA %.0f s | %s %s%s %s' % (
             n, len(todo), n, state['failed'], len(todo) - n, eta, res.get('run_id'),
-            res.get('outcome'), (res.get('reason') or '')[:100]), flush=True)
+            res.get('outcome'), ' (reset diverged)' if res.get('diverged') else '',
+            (res.get('reason') or '')[:100]), flush=True)
     if todo:
         from tiago_nav.evaluate.engine import run_all
         run_all([dict(r, isolation=isolation) for r in todo], out, workers=a.workers,
