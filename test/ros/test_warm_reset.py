@@ -1,21 +1,34 @@
 #!/usr/bin/python3
-"""Rostest: a row run on a warm stack after other rows gives the result a fresh stack gives.
+"""Rostest: a row run on a warm stack after other rows gives the result a fresh stack gives,
+and a reset that does not (a planted fault) is reported.
 
 Three rows of the course world that share a stack key (the ``tiago`` sensing profile, with
 the scan-matching localisation) but differ in seed, pose B and corridor law (on, off, on: a
-row after one with the other setting) run on one
-warm stack (:func:`tiago_nav.evaluate.warm.run_group`): the first on a fresh stack, the two
-others after a reset. Each then runs on a fresh stack of its own
-(:func:`tiago_nav.evaluate.run.execute`). :func:`tiago_nav.evaluate.run.differences` between
-the two results of each row (every field but :data:`~tiago_nav.evaluate.run.WALL_CLOCK_FIELDS`:
-outcome, path, feedback with its stamps, final pose, obstacles, localisation errors ...) must
-be empty, and the missions must have done what the course asks (succeeded, no contact)."""
+row after one with the other setting) run on one warm stack with every reset verified
+(:func:`tiago_nav.evaluate.warm.run_group`, ``verify_reset`` 1): the first on a fresh stack, the
+two others after a reset, each of those two run again on a fresh stack of its own while the
+warm stack stays up (:func:`tiago_nav.evaluate.warm.verify`). Both must come out equal
+(:func:`tiago_nav.evaluate.run.differences`: every field but
+:data:`~tiago_nav.evaluate.run.WALL_CLOCK_FIELDS`: outcome, path, feedback with its stamps, final
+pose, every field of the obstacles found with their uncertainties, the localisation's
+covariance, ...), and the missions must have done what the course asks (succeeded, no contact).
+
+Then ``evaluate --warm --verify-reset 1`` on two rows with a fault planted in the simulator's
+reset (``TIAGO_NAV_TEST_RESET_LEAK=laser_noise``: its laser noise goes on from the last run's
+generator instead of starting from the seed): the reset row must be counted as diverged in
+``summary.json`` and ``summary.md``, keep that verdict (no retry: its first attempt) and make the
+command exit with status 3."""
+import json
+import math
 import os
 import shutil
+import subprocess
+import sys
 import tempfile
 import unittest
 
 import rostest
+import yaml
 
 from tiago_nav.evaluate import run as R
 from tiago_nav.evaluate.suite import expand
@@ -23,15 +36,25 @@ from tiago_nav.evaluate.warm import run_group, stack_key
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 WORLD = os.path.join(os.path.dirname(os.path.dirname(HERE)), 'worlds', 'ias_lab_room_full.yaml')
+PROFILES = {'tiago': {'laser_model': 'tiago', 'odometry_model': 'drift',
+                      'localisation': 'scan_matching', 'laser_noise': 0.01}}
 SUITE = {
     'name': 'warm_reset',
     'defaults': {'real_time_factor': 0, 'sim_time_limit': 120, 'wall_time_limit': 240},
     'worlds': [{'file': WORLD, 'poses': [[11.0, 0.0, -45.0], [12.895, -3.725, 94.5],
                                          [8.39, -3.77, 128.1]]}],
-    'profiles': {'tiago': {'laser_model': 'tiago', 'odometry_model': 'drift',
-                           'localisation': 'scan_matching', 'laser_noise': 0.01}},
+    'profiles': PROFILES,
     'corridor_law': [True, False],
     'seeds': [1, 2, 3],
+}
+# two rows on one stack: the second after a reset
+LEAK_SUITE = {
+    'name': 'warm_reset_leak',
+    'defaults': {'real_time_factor': 0, 'sim_time_limit': 120, 'wall_time_limit': 240},
+    'worlds': [{'file': WORLD, 'poses': [[12.895, -3.725, 94.5]]}],
+    'profiles': PROFILES,
+    'corridor_law': [False],
+    'seeds': [1, 2],
 }
 
 
@@ -57,20 +80,62 @@ class WarmReset(unittest.TestCase):
         self.assertEqual(len({stack_key(s) for s in specs}), 1)
         self.assertEqual(len({(s['seed'], tuple(s['goal'])) for s in specs}), 3)
         self.assertEqual([s['use_corridor_law'] for s in specs], [True, False, True])
-        warm_dir, fresh_dir = os.path.join(self.out, 'warm'), os.path.join(self.out, 'fresh')
-        warm = run_group(specs, warm_dir)
-        self.assertEqual([r.get('stack') for r in warm], ['fresh', 'reset', 'reset'],
-                         [(r['outcome'], r.get('reason'), r.get('reset_failed')) for r in warm])
+        warm = run_group(specs, self.out, verify_reset=1)
+        why = [(r['outcome'], r.get('reason'), r.get('reset_failed'), r.get('diverged'),
+                r.get('verify_error')) for r in warm]
+        self.assertEqual([r.get('stack') for r in warm], ['fresh', 'reset', 'reset'], why)
+        self.assertEqual([r.get('verified') for r in warm], [None, True, True], why)
         for s, w in zip(specs, warm):
-            f = R.execute(s, fresh_dir)
-            self.assertEqual((w['outcome'], f['outcome']), ('succeeded', 'succeeded'),
-                             (w.get('reason'), f.get('reason')))
+            self.assertEqual(w['outcome'], 'succeeded', w.get('reason'))
             self.assertEqual(w['collisions'], 0)
-            self.assertEqual(w['isolation'], f['isolation'])
             self.assertGreater(w['phases']['mission']['wall_s'], 0)
             self.assertGreater(w['loc_samples'], 50)
+            # what the comparison covers is there: the obstacles' uncertainty and the
+            # localisation's covariance along the mission
+            self.assertTrue(w['found_detail'], s['id'])
+            for o in w['found_detail']:
+                self.assertTrue(math.isfinite(o['center_std']) and o['center_std'] > 0, o)
+                self.assertEqual(len(o['center_covariance']), 4)
+                self.assertIn('center_robot', o)
+            self.assertGreater(len(w['loc_covariance']), 50)
+            self.assertTrue(all(c[1] > 0 and c[4] > 0 for c in w['loc_covariance']))
+        for s, w in zip(specs[1:], warm[1:]):
+            # the fresh twin ran on a stack of its own while the warm one stayed up
+            f = R.read_json(os.path.join(self.out, 'verify', 'runs', s['id'], 'result.json'))
+            self.assertEqual(f['outcome'], 'succeeded', f.get('reason'))
+            self.assertNotEqual(f['port'], w['port'])
             self.assertEqual(R.differences(w, f), [], 'row %s (seed %d, B %s)'
                              % (s['id'], s['seed'], s['goal']))
+
+    def test_a_reset_fault_is_reported(self):
+        suite = os.path.join(self.out, 'leak.yaml')
+        with open(suite, 'w') as f:
+            yaml.safe_dump(LEAK_SUITE, f)
+        out = os.path.join(self.out, 'eval')
+        env = dict(os.environ, TIAGO_NAV_TEST_RESET_LEAK='laser_noise')
+        p = subprocess.run([sys.executable, '-c', 'import sys; from tiago_nav.evaluate.cli import '
+                            'main; sys.exit(main())', suite, '--out', out, '--workers', '1',
+                            '--warm', '--verify-reset', '1'], env=env, stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, universal_newlines=True, timeout=900)
+        self.assertEqual(p.returncode, 3, p.stdout[-3000:])
+        summary = R.read_json(os.path.join(out, 'summary.json'))
+        st = summary['meta']['stacks']
+        self.assertEqual((st['fresh'], st['reset'], st['checked'], st['diverged'], st['verified']),
+                         (1, 1, 1, 1, 0), st)
+        (rid,) = st['diverged_runs']
+        r = R.read_json(os.path.join(out, 'runs', rid, 'result.json'))
+        self.assertEqual((r['stack'], r['attempt'], r['verified']), ('reset', 1, False), r.get('reason'))
+        self.assertNotIn('first_attempt', r)          # kept, not retried
+        self.assertIn('loc_covariance', r['diverged'])
+        warm = R.read_json(os.path.join(out, 'runs', rid, 'reset_result.json'))
+        fresh = R.read_json(os.path.join(out, 'verify', 'runs', rid, 'result.json'))
+        self.assertEqual(R.differences(warm, fresh), r['diverged'])
+        self.assertEqual(r['outcome'], fresh['outcome'])
+        with open(os.path.join(out, 'summary.md')) as f:
+            md = f.read()
+        self.assertIn('## Resets that diverged from a fresh stack', md)
+        self.assertIn('`%s`' % rid, md)
+        self.assertIn('1 reset run checked against a fresh stack: 0 equal, 1 diverged', md)
 
 
 if __name__ == '__main__':

@@ -3,14 +3,16 @@
 the batch evaluator (docs/evaluation.md).
 
 Exit 0 when every run ended (whatever its outcome), 1 when a run has no result, 2 for a bad
-suite file or argument (the message names the file, the field and the reason).
+suite file or argument (the message names the file, the field and the reason), 3 when a row
+checked by ``--verify-reset`` diverged from its fresh run, or could not be checked (every
+run has a result otherwise).
 """
 import argparse
 import os
 import sys
 import time
 
-EXIT_OK, EXIT_MISSING, EXIT_USAGE = 0, 1, 2
+EXIT_OK, EXIT_MISSING, EXIT_USAGE, EXIT_DIVERGED = 0, 1, 2, 3
 
 
 class _Parser(argparse.ArgumentParser):
@@ -40,8 +42,9 @@ def parse_args(argv):
                     help='run the rows that share world, profile and candidate on '
                          'one stack per worker, reset between rows')
     ap.add_argument('--verify-reset', type=int, default=0, metavar='K',
-                    help='with --warm: run every K-th reset row again on a fresh stack and report '
-                         'a difference as an infrastructure error (INFRA_RESET)')
+                    help='with --warm: run the K-th, 2K-th ... reset row of each stack again on a '
+                         'fresh stack and compare; a difference (a diverged reset) is counted in '
+                         'the summary and makes the exit status 3')
     a = ap.parse_args(argv)
     if a.workers is not None and a.workers < 1:
         ap.error('--workers: must be >= 1, got %d' % a.workers)
@@ -119,9 +122,10 @@ def main(argv=None):
         n = state['done']
         el = time.monotonic() - state['t0']
         eta = el / n * (len(todo) - n)
-        print('[%d/%d] done %d, not succeeded %d, remaining %d, ETA %.0f s | %s %s %s' % (
+        print('[%d/%d] done %d, not succeeded %d, remaining %d, ETA %.0f s | %s %s%s %s' % (
             n, len(todo), n, state['failed'], len(todo) - n, eta, res.get('run_id'),
-            res.get('outcome'), (res.get('reason') or '')[:100]), flush=True)
+            res.get('outcome'), ' (reset diverged)' if res.get('diverged') else '',
+            (res.get('reason') or '')[:100]), flush=True)
     if todo:
         from tiago_nav.evaluate.engine import run_all
         run_all([dict(r, isolation=isolation) for r in todo], out, workers=a.workers,
@@ -144,7 +148,19 @@ def main(argv=None):
     if refreshed:
         print('evaluate: %d run(s) ran on a fresh stack after their warm stack\'s reset failed: %s'
               % (len(refreshed), ' '.join(refreshed)))
+    diverged = [r for r in results if r.get('diverged')]
+    for r in diverged:
+        print('evaluate: run %s: its result after a reset (%s) differs from a fresh stack\'s (%s) in '
+              '%s; the row has the fresh result' % (r['run_id'], (r.get('reset_result') or {}).get('outcome'),
+                                                    r.get('outcome'), ', '.join(r['diverged'])))
+    unchecked = [r for r in results if r.get('verify_error')]
+    for r in unchecked:
+        print('evaluate: run %s: not verified: %s' % (r['run_id'], r['verify_error']))
     if missing:
         print('evaluate: %d run(s) without a result: %s' % (len(missing), ' '.join(missing)))
         return EXIT_MISSING
+    if diverged or unchecked:
+        print('evaluate: %d reset(s) diverged from a fresh stack, %d could not be verified'
+              % (len(diverged), len(unchecked)))
+        return EXIT_DIVERGED
     return EXIT_OK

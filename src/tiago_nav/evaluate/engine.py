@@ -40,8 +40,8 @@ def run_all(specs, out_dir, workers=None, scheduler=None, record=False, progress
             warm=False, verify_reset=0):
     """Run ``specs`` on Dask; ``progress(result)`` after each. Returns the results. ``warm``:
     the rows that can share a stack go to one worker together and run on one stack, reset
-    between them (:mod:`tiago_nav.evaluate.warm`; ``verify_reset`` k: every k-th reset row is
-    checked against a fresh stack)."""
+    between them (:mod:`tiago_nav.evaluate.warm`; ``verify_reset`` k: the k-th, 2k-th ... reset
+    row of each stack is checked against a fresh stack)."""
     from dask.distributed import Client, LocalCluster, as_completed
     if scheduler:
         client, cluster = Client(scheduler), None

@@ -139,6 +139,7 @@ def markdown(summary, comparison, results, meta):
     if infra:
         lines += ['', '## Infrastructure errors (retried once; not in the rates)', '']
         lines += ['- `%s` %s: %s' % (r['run_id'], r.get('outcome'), r.get('reason', '')) for r in infra]
+    lines[3:3] = divergence_lines(results)       # (after the headline)
     lines += isolation_lines(meta)
     bad = [r for r in valid if r['outcome'] != 'succeeded']
     if bad:
@@ -162,7 +163,9 @@ def isolations(results):
 def stacks(results):
     """How the runs of a ``--warm`` batch got their stack: ``{'fresh': runs on a stack started
     for them, 'reset': runs after a reset, 'reset_failed': runs rerun on a fresh stack after a
-    failed reset, 'verified': reset runs checked equal to a fresh stack's, 'startup_fresh_s',
+    failed reset, 'checked': reset runs that ``--verify-reset`` ran again on a fresh stack,
+    'verified': those equal to it, 'diverged': those that differ (their ids in
+    'diverged_runs'), 'verify_errors': those whose fresh run failed, 'startup_fresh_s',
     'startup_reset_s': the median start-up wall time of each}``; None when no run was warm."""
     warm = [r for r in results if r.get('stack')]
     if not warm:
@@ -174,7 +177,11 @@ def stacks(results):
     return {'fresh': sum(r['stack'] != 'reset' for r in warm),
             'reset': sum(r['stack'] == 'reset' for r in warm),
             'reset_failed': sum(bool(r.get('reset_failed')) for r in warm),
+            'checked': sum('verified' in r for r in warm),
             'verified': sum(r.get('verified') is True for r in warm),
+            'diverged': sum(bool(r.get('diverged')) for r in warm),
+            'diverged_runs': [r['run_id'] for r in warm if r.get('diverged')],
+            'verify_errors': sum(bool(r.get('verify_error')) for r in warm),
             'startup_fresh_s': startup('fresh'), 'startup_reset_s': startup('reset')}
 
 
@@ -200,10 +207,32 @@ def stack_lines(meta):
         return []
     return ['', 'Warm stacks: %d run%s after a reset (median start-up %s s), %d on a stack started '
             'for them (median start-up %s s); %d rerun on a fresh stack after a failed reset; %d '
-            'reset run%s checked equal to a fresh stack\'s.' % (
+            'reset run%s checked against a fresh stack: %d equal, %d diverged, %d not verified '
+            '(the fresh run failed).' % (
                 w['reset'], '' if w['reset'] == 1 else 's', _f(w['startup_reset_s'], '%.2f'),
-                w['fresh'], _f(w['startup_fresh_s'], '%.2f'), w['reset_failed'], w['verified'],
-                '' if w['verified'] == 1 else 's')]
+                w['fresh'], _f(w['startup_fresh_s'], '%.2f'), w['reset_failed'], w['checked'],
+                '' if w['checked'] == 1 else 's', w['verified'], w['diverged'],
+                w['verify_errors'])]
+
+
+def divergence_lines(results):
+    """summary.md's list of the reset runs that differ from a fresh stack's run of their row
+    (``--verify-reset``), and of those that could not be checked; nothing when there are none."""
+    bad = [r for r in results if r.get('diverged')]
+    lost = [r for r in results if r.get('verify_error')]
+    if not bad and not lost:
+        return []
+    lines = ['', '## Resets that diverged from a fresh stack (exit status 3)', '',
+             '%d reset run%s differ%s from a fresh stack\'s run of the same row, %d could not be '
+             'checked. A '
+             'diverged row counts with the fresh run\'s outcome and figures (the reference); the '
+             'warm run is in `runs/ID/reset_result.json`.' % (
+                 len(bad), '' if len(bad) == 1 else 's', 's' if len(bad) == 1 else '', len(lost)), '']
+    lines += ['- `%s`: after the reset %s, fresh %s; differs in %s' % (
+        r['run_id'], (r.get('reset_result') or {}).get('outcome'), r.get('outcome'),
+        ', '.join(r['diverged'])) for r in bad]
+    lines += ['- `%s`: not verified: %s' % (r['run_id'], r['verify_error']) for r in lost]
+    return lines
 
 
 def time_lines(results, meta):

@@ -29,14 +29,16 @@ SCHEMA = 1
 BASE_PORT = 12000
 PORT_STEP = 10
 MAX_SLOTS = 100                 # ports 12000..12990
-INFRA = ('INFRA_LAUNCH', 'INFRA_NODE_DIED', 'INFRA_SCENARIO', 'INFRA_CONTRACT', 'INFRA_RESET')
+INFRA = ('INFRA_LAUNCH', 'INFRA_NODE_DIED', 'INFRA_SCENARIO', 'INFRA_CONTRACT')
 OUTCOMES = ('succeeded', 'aborted', 'collision', 'timeout', 'detection_failure') + INFRA
 TOKEN_VAR = 'TIAGO_NAV_EVAL_TOKEN'
-# result.json fields that follow the wall clock or the worker, not the run's row
+# result.json fields that follow the wall clock or the worker, not the run's row (a warm
+# stack's verification of its reset among them: tiago_nav.evaluate.warm.verify)
 WALL_CLOCK_FIELDS = ('cpu_s', 'wall_s', 'run_wall_s', 'startup_wall_s', 'sim_wall_ratio', 'host',
                      'port', 'slot', 'attempt', 'first_attempt', 'phases', 'isolation',
-                     'leftover_processes', 'stack', 'reset_failed', 'verified')
-_SLOT = {}                      # this process's claimed slot: {'slot', 'fd'}
+                     'leftover_processes', 'stack', 'reset_failed', 'verified', 'diverged',
+                     'reset_result', 'verify_error')
+_SLOTS = {}                     # this process's claimed slots: {role: {'slot', 'fd'}}
 
 
 def slot_dir():
@@ -53,12 +55,14 @@ def _port_free(port):
             return False
 
 
-def claim_slot():
-    """This process's worker slot (claimed once, for its lifetime): the first ``k`` whose lock
-    file under :func:`slot_dir` no other live process holds (flock) and whose port
-    ``BASE_PORT + PORT_STEP * k`` is free. Two processes never share a slot."""
-    if _SLOT:
-        return _SLOT['slot']
+def claim_slot(role='run'):
+    """This process's worker slot for ``role`` (claimed once, for its lifetime): the first
+    ``k`` whose lock file under :func:`slot_dir` no other live process holds (flock) and whose
+    port ``BASE_PORT + PORT_STEP * k`` is free. Two processes never share a slot, nor two roles
+    of one process (a worker's warm stack runs on its ``run`` slot while the fresh run that
+    verifies one of its rows runs on its ``verify`` slot)."""
+    if role in _SLOTS:
+        return _SLOTS[role]['slot']
     os.makedirs(slot_dir(), exist_ok=True)
     for k in range(MAX_SLOTS):
         fd = os.open(os.path.join(slot_dir(), 'slot_%02d.lock' % k), os.O_CREAT | os.O_RDWR, 0o644)
@@ -73,7 +77,7 @@ def claim_slot():
             continue
         os.ftruncate(fd, 0)
         os.write(fd, str(os.getpid()).encode())
-        _SLOT.update(slot=k, fd=fd)
+        _SLOTS[role] = {'slot': k, 'fd': fd}
         return k
     raise RuntimeError('no free evaluation slot (ports %d..%d)' % (BASE_PORT, port_of(MAX_SLOTS - 1)))
 
@@ -148,10 +152,11 @@ def read_json(path):
         return None
 
 
-def execute(spec, out_dir, record=False, attempt=1):
-    """Run ``spec`` (a run row) once: its supervisor in its own session, watched. Returns the
-    judged result dict (also written to ``runs/ID/result.json``)."""
-    slot = claim_slot()
+def execute(spec, out_dir, record=False, attempt=1, role='run'):
+    """Run ``spec`` (a run row) once: its supervisor in its own session, watched, on this
+    process's slot for ``role`` (:func:`claim_slot`). Returns the judged result dict (also
+    written to ``runs/ID/result.json``)."""
+    slot = claim_slot(role)
     port = port_of(slot)
     run_dir = os.path.join(out_dir, 'runs', spec['id'])
     shutil.rmtree(run_dir, ignore_errors=True)
@@ -215,7 +220,11 @@ def same(a, b, tol=1e-9):
     if isinstance(a, bool) or isinstance(b, bool) or a is None or b is None:
         return type(a) is type(b) and a == b
     if isinstance(a, (int, float)) and isinstance(b, (int, float)):
-        return a == b or abs(a - b) <= tol * max(1.0, abs(a), abs(b))
+        if a == b:
+            return True         # (infinities too: an unknown std is +inf in both)
+        if not (math.isfinite(a) and math.isfinite(b)):
+            return math.isnan(a) and math.isnan(b)     # (an infinity equals only itself)
+        return abs(a - b) <= tol * max(1.0, abs(a), abs(b))
     if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
         return len(a) == len(b) and all(same(x, y, tol) for x, y in zip(a, b))
     if isinstance(a, dict) and isinstance(b, dict):
@@ -225,8 +234,10 @@ def same(a, b, tol=1e-9):
 
 def differences(a, b):
     """The fields of two results of one run (``result.json`` dicts) that differ (:func:`same`),
-    leaving out :data:`WALL_CLOCK_FIELDS`: at ``real_time_factor`` 0 in lockstep a run's outcome
-    and every other figure are a function of its row, wherever and beside whatever it ran."""
+    leaving out :data:`WALL_CLOCK_FIELDS` and nothing else (uncertainties and covariances,
+    ``found_detail`` and ``loc_covariance``, are compared as every other field, and so is any
+    field a result gains): at ``real_time_factor`` 0 in lockstep a run's outcome and every
+    other figure are a function of its row, wherever and beside whatever it ran."""
     keys = (set(a) | set(b)) - set(WALL_CLOCK_FIELDS)
     return sorted(k for k in keys if not same(a.get(k), b.get(k)))
 
@@ -297,6 +308,11 @@ def judge(spec, raw):
         det['truth'] = [[t[1], t[2], t[3]] for t in truth]
     m.update({'detection_' + k if k in ('problem', 'truth') else k: v for k, v in det.items()})
     m['found'] = raw.get('obstacles', [])
+    # every field of each reported obstacle as the message had it (its uncertainty and its
+    # centre in the robot's frame among them), and the localisation's covariance during the
+    # mission: :func:`differences` compares them as every other field
+    m['found_detail'] = raw.get('obstacles_detail', [])
+    m['loc_covariance'] = raw.get('loc_covariance', [])
     m['path'] = path
     m['feedback'] = raw.get('feedback', [])
     if raw.get('timed_out'):

@@ -16,9 +16,16 @@ run). A different key, a failed reset, an infrastructure error or a dead stack e
 a row whose reset failed is run again on a fresh stack, and its result says so
 (``reset_failed``).
 
-``verify_reset`` k: every k-th row run after a reset is run again on a fresh stack
-(``DIR/verify/ID/``) and the two results compared (:func:`tiago_nav.evaluate.run.differences`);
-a difference makes the row an ``INFRA_RESET`` (an infrastructure error naming the fields).
+``verify_reset`` k: the k-th, 2k-th ... reset of each stack is checked (:func:`verify`): its row
+runs again on a fresh stack of its own (``DIR/verify/runs/ID/``, on the worker's second slot,
+while the warm stack waits for its next row) and the two results are compared
+(:func:`tiago_nav.evaluate.run.differences`, every field but the wall-clock ones). Equal: the
+row says ``verified: true``. Different: the reset *diverged*, which is the evaluator's fault,
+not the row's outcome: the row's outcome and figures become the fresh stack's (the reference: a
+fresh stack is what the rates mean), it says ``verified: false``, ``diverged`` (the fields) and
+``reset_result`` (the warm run's outcome and reason; the whole warm result is kept in
+``runs/ID/reset_result.json``), it is not retried, and the summary counts it and the command
+exits non-zero (:mod:`tiago_nav.evaluate.cli`).
 
 Each row's ``phases`` (:mod:`tiago_nav.evaluate.timing`) are those of a fresh run, measured on
 the stack: ``startup`` from handing the row to the stack to the goal about to be sent (a new
@@ -40,7 +47,7 @@ from tiago_nav.evaluate import isolation as iso
 from tiago_nav.evaluate import run as R
 from tiago_nav.evaluate import timing
 
-_WORKER = {'stack': None, 'count': 0, 'reset_runs': 0}   # this worker process's stack
+_WORKER = {'stack': None, 'count': 0}   # this worker process's stack
 
 
 def stack_key(spec):
@@ -93,6 +100,7 @@ class Stack:
         self.proc = subprocess.Popen(cmd, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                      stderr=self.log, start_new_session=True)
         self.runs = 0
+        self.resets = 0         # rows run after a reset
         self.last = None        # (result, path) of the last row the stack answered
 
     def alive(self):
@@ -194,8 +202,9 @@ def execute_warm(spec, out_dir, record=False, attempt=1, verify_reset=0):
                 raw = {'timed_out': True, 'watchdog': True,
                        'reason': 'wall-clock watchdog: no result within %.0f s' % wall_limit}
                 # (the row's stack was started for it, or reset for it: it ran before)
-                return _finish(spec, full, raw, out_dir, attempt, stack, wall, cpu,
-                               'reset' if stack.runs > 1 else 'fresh', (w0, cpu0))
+                result = _finish(spec, full, raw, out_dir, attempt, stack, wall, cpu,
+                                 'reset' if stack.runs > 1 else 'fresh', (w0, cpu0))
+                return _verify_due(spec, out_dir, result, record, stack, verify_reset)
             # the reset failed, or the stack died before the mission: a fresh stack runs the row
             why = answer.get('reason') if answer else 'the warm stack stopped (stage %s)' % stage
             result = R.execute(spec, out_dir, record, attempt)
@@ -212,10 +221,19 @@ def execute_warm(spec, out_dir, record=False, attempt=1, verify_reset=0):
         'infra': 'INFRA_LAUNCH', 'reason': 'no result from the warm stack (see %s)' % stack.dir}
     result = _finish(spec, full, raw, out_dir, attempt, stack, wall, cpu,
                      answer.get('reset', 'fresh') if answer else 'fresh', (w0, cpu0))
-    if result.get('stack') == 'reset':
-        _WORKER['reset_runs'] += 1
-        if verify_reset and _WORKER['reset_runs'] % verify_reset == 0:
-            result = verify(spec, out_dir, result, record)
+    return _verify_due(spec, out_dir, result, record, stack, verify_reset)
+
+
+def _verify_due(spec, out_dir, result, record, stack, verify_reset):
+    """``result``, verified (:func:`verify`) when it is the k-th, 2k-th ... reset of ``stack``
+    (k = ``verify_reset``, 0: none) and not an infrastructure error (that is retried)."""
+    if result.get('stack') != 'reset':
+        return result
+    stack.resets += 1
+    if verify_reset and stack.resets % verify_reset == 0 and result['outcome'] not in R.INFRA:
+        result = verify(spec, out_dir, result, record)
+        if stack.last is not None:      # (the stack's end is counted in the row's teardown)
+            stack.last = (result, stack.last[1])
     return result
 
 
@@ -250,26 +268,49 @@ def _finish(spec, full, raw, out_dir, attempt, stack, wall, cpu, how, began):
 
 
 def verify(spec, out_dir, warm, record=False):
-    """Runs ``spec`` again on a fresh stack (under ``DIR/verify``) and compares: ``warm`` with
-    ``verified: true`` when equal, else an ``INFRA_RESET`` naming the fields that differ (the
-    warm stack is ended: its next row starts a fresh one)."""
-    close_stack()
+    """Runs ``spec`` again on a fresh stack of its own (under ``DIR/verify``, on this worker's
+    ``verify`` slot: the warm stack stays up for its next row) and compares it with ``warm``,
+    the row's result after a reset (:func:`checked`). A fresh run that ends in an
+    infrastructure error is run once more; when that one does too, the row keeps ``warm`` with
+    ``verified: null`` and the reason in ``verify_error``. Returns the row's result (also
+    written to ``runs/ID/result.json``)."""
     vdir = os.path.join(out_dir, 'verify')
     os.makedirs(vdir, exist_ok=True)
     wdir = os.path.join(out_dir, 'worlds')
     if os.path.isdir(wdir) and not os.path.exists(os.path.join(vdir, 'worlds')):
         os.symlink(wdir, os.path.join(vdir, 'worlds'))
-    fresh = R.execute(spec, vdir, record)
+    fresh = R.execute(spec, vdir, record, role='verify')
+    if fresh['outcome'] in R.INFRA:
+        fresh = R.execute(spec, vdir, record, attempt=2, role='verify')
+    row_dir = os.path.join(out_dir, 'runs', spec['id'])
+    if fresh['outcome'] in R.INFRA:
+        row = dict(warm, verified=None,
+                   verify_error='the fresh run ended in %s twice: %s (DIR/verify/runs/%s)'
+                                % (fresh['outcome'], fresh.get('reason'), spec['id']))
+    else:
+        row = checked(warm, fresh)
+        if row.get('diverged'):
+            R.write_json(os.path.join(row_dir, 'reset_result.json'), warm)
+    R.write_json(os.path.join(row_dir, 'result.json'), row)
+    return row
+
+
+def checked(warm, fresh):
+    """The row's result from ``warm`` (its result after a reset) and ``fresh`` (its result on a
+    fresh stack). Equal (:func:`tiago_nav.evaluate.run.differences`, every field but
+    :data:`~tiago_nav.evaluate.run.WALL_CLOCK_FIELDS`): ``warm`` with ``verified: true``.
+    Different, the reset diverged: the fresh result's outcome and figures (what a fresh stack,
+    the reference, gives the row) with the warm run's wall-clock fields (its time is the one
+    the batch spent on the row), ``verified: false``, ``diverged`` (the fields that differ) and
+    ``reset_result`` (the warm run's outcome and reason)."""
     diff = R.differences(warm, fresh)
     if not diff:
-        warm['verified'] = True
-    else:
-        warm = dict(warm, outcome='INFRA_RESET', verified=False,
-                    reason='after a reset the run differs from a fresh stack\'s in %s (fresh: '
-                           'DIR/verify/runs/%s)' % (', '.join(diff), spec['id']),
-                    reset_outcome=warm['outcome'])
-    R.write_json(os.path.join(out_dir, 'runs', spec['id'], 'result.json'), warm)
-    return warm
+        return dict(warm, verified=True)
+    row = {k: v for k, v in fresh.items() if k not in R.WALL_CLOCK_FIELDS}
+    row.update((k, v) for k, v in warm.items() if k in R.WALL_CLOCK_FIELDS)
+    row.update(verified=False, diverged=diff,
+               reset_result={'outcome': warm.get('outcome'), 'reason': warm.get('reason')})
+    return row
 
 
 def group_by_stack(specs):
@@ -291,12 +332,14 @@ def group_by_stack(specs):
 def run_group(specs, out_dir, record=False, verify_reset=0):
     """Runs ``specs`` (one :func:`group_by_stack` chunk) in order on this worker's warm stack,
     each retried once after an infrastructure error (on a fresh stack: the error ended the
-    stack), as :func:`tiago_nav.evaluate.run.execute_with_retry`. Returns their results."""
+    stack), as :func:`tiago_nav.evaluate.run.execute_with_retry`; a row whose reset diverged
+    (:func:`verify`) is not an infrastructure error and is never retried. Returns their
+    results."""
     results = []
     try:
         for s in specs:
             r = execute_warm(s, out_dir, record, 1, verify_reset)
-            if r['outcome'] in R.INFRA:
+            if r['outcome'] in R.INFRA and not r.get('diverged'):
                 first = {'outcome': r['outcome'], 'reason': r['reason']}
                 close_stack()
                 r = execute_warm(s, out_dir, record, 2, verify_reset)

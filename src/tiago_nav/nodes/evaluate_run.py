@@ -27,6 +27,7 @@ STARTED_MARK = '__tiago_nav_eval__'
 LOC_SAMPLES_PER_S = 10      # localisation error: one sample per 0.1 s of simulated time
 LOC_TAIL = 0.5              # [s sim] the last samples before the result, which tf may not reach
 END_WAIT = 10.0             # [s wall] the longest wait for the mission's last messages
+LOC_POSE_TOPIC = '/amcl_pose'   # the localisation's estimate with its covariance
 
 
 def write_json(path, obj):
@@ -34,6 +35,27 @@ def write_json(path, obj):
     with open(tmp, 'w') as f:
         json.dump(obj, f, indent=1)
     os.replace(tmp, path)
+
+
+def message_fields(msg):
+    """A ROS message as plain JSON values, every field of it (nested messages as dicts, arrays
+    as lists), whatever fields its type has."""
+    if hasattr(msg, '_slot_types') or hasattr(msg, 'secs'):     # a message, a time or duration
+        return {k: message_fields(getattr(msg, k)) for k in msg.__slots__}
+    if isinstance(msg, (list, tuple)):
+        return [message_fields(v) for v in msg]
+    if isinstance(msg, bytes):
+        return list(msg)
+    if hasattr(msg, 'tolist'):          # a numpy array or scalar
+        return msg.tolist()
+    return msg
+
+
+def pose_covariance(msg):
+    """``[stamp s, xx, xy, xyaw, yy, yyaw, yawyaw]`` of a PoseWithCovarianceStamped: the
+    upper triangle of its (x, y, yaw) covariance [m², m², m·rad, m², m·rad, rad²]."""
+    c = msg.pose.covariance
+    return [msg.header.stamp.to_sec(), c[0], c[1], c[5], c[7], c[11], c[35]]
 
 
 def mission_over(client, ended_since, now):
@@ -78,6 +100,9 @@ class Supervisor:
         self.loc_bucket = None      # the 0.1 s bucket of the last sample (None: not sampling)
         self.loc_from = None        # samples after this stamp (the goal's)
         self.loc_missing = 0
+        self.loc_cov = []           # pose_covariance of each estimate after the goal (None: off)
+        self.loc_cov_on = False
+        self.loc_pose_sub = None
         self.collisions = None
         self.clock = None
         self.grid_msg = None
@@ -170,6 +195,9 @@ class Supervisor:
         # every message, none dropped (queue_size None): the path and the localisation's samples
         # are then the same whatever the load
         rospy.Subscriber('/sim/ground_truth', Odometry, self.on_truth, queue_size=None)
+        from geometry_msgs.msg import PoseWithCovarianceStamped
+        self.loc_pose_sub = rospy.Subscriber(LOC_POSE_TOPIC, PoseWithCovarianceStamped,
+                                             self.on_loc_pose, queue_size=None)
         cand = self.spec.get('candidate_spec') or {}
         roles = cand.get('replaces', [])
         check = cand.get('check_timeout', lim['check_timeout'])
@@ -219,6 +247,22 @@ class Supervisor:
                 if bucket != self.loc_bucket:
                     self.loc_bucket = bucket
                     self.loc_due.append((m.header.stamp, pose))
+
+    def on_loc_pose(self, m):
+        with self.lock:
+            if self.loc_cov_on:
+                self.loc_cov.append(pose_covariance(m))
+
+    def loc_cov_until(self, until):
+        """The localisation's covariances after the goal up to ``until`` (rospy.Time), or None
+        while one stamped after it has not come from a connected publisher."""
+        sub = self.loc_pose_sub
+        with self.lock:
+            cov = list(self.loc_cov)
+        t = until.to_sec()
+        if sub is not None and sub.get_num_connections() > 0 and not any(c[0] > t for c in cov):
+            return None
+        return [c for c in cov if c[0] <= t]
 
     def sample_localisation(self, tf, until=None):
         """Compares each due true pose with tf's ``map → base_footprint`` at its stamp, in
@@ -306,6 +350,7 @@ class Supervisor:
         with self.lock:
             self.path = [self.truth[1]]
             self.loc_bucket, self.loc_from = -1, rospy.Time.from_sec(s0)
+            self.loc_cov, self.loc_cov_on = [], True
         client.send_goal(TiagoTaskGoal(x=x, y=y, yaw_deg=yaw, use_corridor_law=self.spec['use_corridor_law']))
         timed_out, ended_since = False, None
         while True:
@@ -337,10 +382,14 @@ class Supervisor:
             m = self.truth_msg
             rest = m is not None and m.header.stamp >= ended and m.twist.twist.linear.x == 0.0 \
                 and m.twist.twist.angular.z == 0.0
-            if fed and rest and self.sample_localisation(tf, until=until):
+            if fed and rest and self.sample_localisation(tf, until=until) and \
+                    self.loc_cov_until(until) is not None:
                 break
             time.sleep(0.01)
         loc_err = [e for e in self.loc_err if e[2] <= until.to_sec()]
+        loc_cov = self.loc_cov_until(until)
+        with self.lock:
+            self.loc_cov_on = False
         sub.unregister()
         feedback = []
         for g, stamp, st, status in published:
@@ -354,6 +403,8 @@ class Supervisor:
                 'status_text': client.get_goal_status_text(), 'timed_out': timed_out,
                 'message': result.message if result else '',
                 'obstacles': [[o.center.x, o.center.y, o.radius] for o in result.obstacles] if result else [],
+                'obstacles_detail': [message_fields(o) for o in result.obstacles] if result else [],
+                'loc_covariance': [c for c in (loc_cov or []) if c[0] > s0],
                 'sim_s': ended.to_sec() - s0, 'wall_s': wall,
                 'collisions': (self.collisions or 0) - c0, 'final_pose': list(final),
                 'path': [[round(v, 4) for v in p] for p in path], 'feedback': feedback,
