@@ -697,6 +697,9 @@ def render_suites(d):
         out += _suite_rules(s)
     out += ['Target (at least %s success per suite) met: %s.' % (
         _pct(d.get('target_rate')), ', '.join('%s %s' % (k, _f(v)) for k, v in d.get('met', {}).items()))]
+    if d.get('met_plain'):
+        out += ['', 'Under the plain rule (at least 5 usable beams): %s.' % ', '.join(
+            '%s %s' % (k, _f(v)) for k, v in d['met_plain'].items())]
     return out
 
 
