@@ -25,7 +25,8 @@ BENCHMARKS = (
     ('detection', 'Obstacle detection', [
         ('bench/bench_detection.py', ['detection.json']),
         ('bench/bench_detection.py --laser-model tiago --no-service', ['detection_tiago.json']),
-        ('bench/bench_detection_sensing.py', ['detection_sensing.json'])]),
+        ('bench/bench_detection_sensing.py', ['detection_sensing.json']),
+        ('bench/bench_short_arcs.py', ['short_arcs.json'])]),
     ('navigation', 'Navigation (move_base)', [
         ('bench/bench_navigation.py', ['navigation.json'])]),
     ('corridor', 'Corridor law against move_base', [
@@ -737,7 +738,30 @@ RENDER = {'suites': render_suites, 'evaluate': render_evaluate, 'simulator': ren
           'mission': render_mission, 'demo': render_demo, 'lockstep': render_lockstep,
           'soak': render_soak, 'localisation': render_localisation}
 # a JSON whose structure is not its benchmark's usual one: rendered by its own function
-RENDER_FILE = {'detection_sensing.json': render_detection_sensing}
+def render_short_arcs(d):
+    """short_arcs.json: per cut of the arc, profile and count of usable beams, how often the
+    cylinder was found and placed within the tolerance."""
+    tol = d.get('tolerance_m') or 0
+    rows = [(r['cut'], r['profile'], r['usable_beams'],
+             'yes' if r['in_view'] else ('plain rule only' if r['in_view_plain'] else 'no'),
+             '%d/%d' % (r['found'], r['trials']), '%d/%d' % (r['within_tolerance'], r['trials']),
+             r['max_error_m']) for r in d.get('rows', [])]
+    out = ['A %s m cylinder %s m from the laser, its arc cut short; the median of %s scans at '
+           'rest, exact pose.' % (_f(d.get('radius_m')), _f(d.get('range_m')), d.get('rest_scans')),
+           '']
+    out += _table(('cut', 'profile', 'usable beams', 'in view', 'found',
+                   'within %.0f cm' % (100 * tol), 'worst error [m]'), rows)
+    out += ['']
+    for name in ('evaluator', 'plain'):
+        r = d.get(name) or {}
+        out += ['- rule %s (at least %s usable beams): %s of %s placed within %.0f cm.' % (
+            name, d.get('min_beams' if name == 'evaluator' else 'plain_beams'),
+            r.get('within_tolerance'), r.get('trials'), 100 * tol)]
+    return out
+
+
+RENDER_FILE = {'detection_sensing.json': render_detection_sensing,
+               'short_arcs.json': render_short_arcs}
 
 
 def render_page(results, header):
