@@ -7,7 +7,7 @@ Over seeded random robot poses (reachable, clear of every body) in the shipped w
 pybullet ray cast plus seeded 0.01 m Gaussian range noise, exactly what the simulator publishes.
 Ground truth: the world file's movable obstacles; "in view" is the one definition the
 evaluator and the tests use (tiago_nav.sim.inview, Scene.visible_obstacles: >= 7 usable beams
-of the noise-free cast, an outline edge seen); a found centre on a glimpsed obstacle (reached by
+of the noise-free cast for the laser profile); a found centre on a glimpsed obstacle (reached by
 a beam, not in view) is no false positive. "In clear view" also asks the obstacle to be within
 the detector's max_range and unoccluded (hit by >= 80 % of the beams its silhouette spans).
 The scans are placed with their exact poses, so the pose correction is off unless
@@ -154,7 +154,7 @@ def evaluate_world(path, n_poses, seed, repeats, laser_model=LaserModel(laser_mo
             ranges = laser_model.apply(clean, cfg, NOISE, rng).ranges     # ideal: noisy()
             laser = scene.laser_pose(pose)
             laser_in_base = compose(inverse(pose), laser)
-            visible = scene.visible_obstacles(pose)
+            visible = scene.visible_obstacles(pose, laser_model.laser_model)
             clear = clear_view(world, scene, pose, ids, params.max_range, visible)
             for m in METHODS:
                 best = math.inf
@@ -473,7 +473,7 @@ def live_comparison(laser_model, scans):
                         raise RuntimeError('%s failed: %s' % (k, resp[k].message))
                 _wait(lambda: stamp in circles, 'obstacle_detector did not answer the scan at '
                       '%.3f' % stamp.to_sec())
-                must = scene.visible_obstacles(h.pose())
+                must = scene.visible_obstacles(h.pose(), laser_model)
                 rows.append({'truth': [(world.movable_obstacles[i].x,
                                         world.movable_obstacles[i].y) for i in must],
                              'rest_message': resp['tiago_nav'].message,

@@ -70,7 +70,7 @@ def main():
         scan_xy = h.scan_points_map()
         obstacles = result.obstacles if result else []
         found = [(o.center.x, o.center.y) for o in obstacles]
-        truth = visible_truth(world, final) if final else []
+        truth = visible_truth(world, final, h.laser_model) if final else []
         print()
         lines, s = truth_table(truth, found)
         print('\n'.join(lines))

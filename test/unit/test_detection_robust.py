@@ -9,11 +9,13 @@ import pytest
 from tiago_nav.detection import DetectionParams, ObstacleDetector
 from tiago_nav.detection.centres import circle_fit, radius_std
 from tiago_nav.detection.clustering import centroid_clusters
+from tiago_nav.evaluate.suite import DEFAULTS
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.scene import LaserConfig, Scene, noisy
 from tiago_nav.sim.world import World
 
 L = LaserConfig()
+TOLERANCE = DEFAULTS['detection_tolerance']     # [m] the evaluator's centre tolerance (0.05)
 
 
 def world(movable, walls=()):
@@ -66,12 +68,13 @@ def test_partly_hidden_cylinder_is_placed_with_the_scans_common_radius():
 
 
 def test_hidden_cylinder_keeps_the_free_fit_when_radii_differ():
-    # radii disagree: no common radius is assumed; the hidden one is still found, nothing invented
+    # radii disagree: no common radius is assumed; the hidden one is still found within the
+    # evaluator's tolerance (20 seeds: at most 3.4 cm), nothing invented
     w = world([(2.0, 0.0, 0.15), (3.2, 0.33, 0.25), (2.5, -1.3, 0.3), (4.0, 1.6, 0.1)])
     for seed in range(5):
         found, visible, _, _, _ = run(w, seed)
         e = errors(found, w, visible)
-        assert max(e) < 0.15 and sorted(e)[len(e) - 2] < 0.03
+        assert max(e) < TOLERANCE and sorted(e)[len(e) - 2] < 0.03
 
 
 def test_configured_radius_fixes_every_fit():

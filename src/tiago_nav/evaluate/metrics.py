@@ -111,30 +111,38 @@ def shortest_path_length(world, start_xy, goal_xy, robot_radius=ROBOT_RADIUS):
 
 def detection_score(truth_xy, found_xy, glimpsed_xy=()):
     """:func:`tiago_nav.testing.evaluation.score` of the found centres against the obstacles in
-    view ``truth_xy``, with the glimpsed ones ``glimpsed_xy`` (:mod:`tiago_nav.sim.inview`:
-    reached by a beam but not in view) allowed: a centre matched to one of them is neither a
-    false positive nor counted (the matching is one-to-one over both, Hungarian)."""
+    view ``truth_xy`` and the glimpsed ones ``glimpsed_xy`` (:mod:`tiago_nav.sim.inview`:
+    reached by a beam but not in view), matched one-to-one over both (Hungarian). A centre
+    matched to a glimpsed obstacle is neither a false positive nor required; its error counts
+    like any other. ``true``, ``matched``, ``recall``, ``missed``: over the ones in view;
+    ``glimpsed``, ``matched_glimpsed``: the glimpsed ones and how many were found;
+    ``rms_error``, ``max_error`` [m] and ``errors``: over every matched obstacle, rows
+    ``{'index', 'in_view', 'error'}`` (``index`` into ``truth_xy`` + ``glimpsed_xy``)."""
     from tiago_nav.testing.evaluation import match_obstacles
     t = [tuple(p[:2]) for p in truth_xy]
     g = [tuple(p[:2]) for p in glimpsed_xy]
     f = [tuple(p[:2]) for p in found_xy]
-    pairs, missed, fps = match_obstacles(t + g, f)
-    pairs = [(i, j, e) for i, j, e in pairs if i < len(t)]
-    errs = [e for _, _, e in pairs]
+    every, missed, fps = match_obstacles(t + g, f)
+    pairs = [(i, j, e) for i, j, e in every if i < len(t)]
+    errs = [e for _, _, e in every]
     return {'true': len(t), 'found': len(f), 'matched': len(pairs),
             'recall': len(pairs) / len(t) if t else 1.0, 'false_positives': len(fps),
             'missed': [i for i in missed if i < len(t)], 'false_positive_indices': fps,
-            'glimpsed': len(g),
+            'glimpsed': len(g), 'matched_glimpsed': len(every) - len(pairs),
+            'errors': [{'index': i, 'in_view': i < len(t), 'error': e} for i, _, e in every],
             'rms_error': math.sqrt(sum(e * e for e in errs) / len(errs)) if errs else None,
             'max_error': max(errs) if errs else None, 'pairs': pairs}
 
 
 def detection(truth_xy, found_xy, tolerance, glimpsed_xy=()):
-    """Judge a detection against the ground truth (obstacles in view, :mod:`tiago_nav.sim.inview`):
-    ``(ok, figures)`` with ``ok`` false when one in view is missed, one found is not there (a
-    false positive: matching neither one in view nor a glimpsed one, ``glimpsed_xy``) or a
-    matched centre is farther than ``tolerance`` [m]; ``figures``: recall, false_positives,
-    rms_error, max_error, in_view, found, and ``problem`` (a sentence, '' when ok)."""
+    """Judge a detection against the ground truth (:mod:`tiago_nav.sim.inview`): ``(ok,
+    figures)`` with ``ok`` false when one in view is missed, one found is not there (a false
+    positive: matching neither one in view nor a glimpsed one, ``glimpsed_xy``) or a matched
+    centre, in view or glimpsed, is farther than ``tolerance`` [m] (a centre reported is a
+    claim, wherever it came from). ``figures``: ``in_view``, ``glimpsed``, ``found``,
+    ``matched`` (in view), ``matched_glimpsed``, ``missed`` (in view, not found), recall,
+    false_positives, rms_error, max_error (every matched obstacle), ``errors`` (each matched
+    obstacle's, :func:`detection_score`) and ``problem`` (a sentence, '' when ok)."""
     s = detection_score(truth_xy, found_xy, glimpsed_xy)
     problems = []
     if s['matched'] < s['true']:
@@ -142,10 +150,14 @@ def detection(truth_xy, found_xy, tolerance, glimpsed_xy=()):
     if s['false_positives']:
         problems.append('%d false positive(s)' % s['false_positives'])
     if s['max_error'] is not None and s['max_error'] > tolerance:
-        problems.append('centre error %.3f m > %.3f m' % (s['max_error'], tolerance))
+        worst = max(s['errors'], key=lambda e: e['error'])
+        problems.append('centre error %.3f m > %.3f m%s' % (
+            s['max_error'], tolerance, '' if worst['in_view'] else ' (a glimpsed obstacle)'))
     return not problems, {'recall': s['recall'], 'false_positives': s['false_positives'],
                           'rms_error': s['rms_error'], 'max_error': s['max_error'],
-                          'in_view': s['true'], 'found': s['found'],
+                          'in_view': s['true'], 'glimpsed': s['glimpsed'], 'found': s['found'],
+                          'matched': s['matched'], 'matched_glimpsed': s['matched_glimpsed'],
+                          'missed': s['true'] - s['matched'], 'errors': s['errors'],
                           'problem': '; '.join(problems)}
 
 

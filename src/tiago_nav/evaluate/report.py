@@ -20,6 +20,7 @@ COLUMNS = ('run_id', 'outcome', 'reason', 'world', 'world_group', 'profile', 'us
            'seed', 'candidate', 'goal_x', 'goal_y', 'goal_yaw_deg', 'success', 'time_s', 'wall_s',
            'path_length_m', 'shortest_m', 'spl', 'barn_score', 'collisions', 'min_clearance_m',
            'recall', 'false_positives', 'rms_error', 'max_error', 'in_view', 'found_count',
+           'glimpsed', 'missed', 'matched_glimpsed',
            'loc_error_p95_m', 'loc_error_p95_deg', 'sim_wall_ratio', 'cpu_s', 'attempt')
 MEDIANS = ('time_s', 'wall_s', 'path_length_m', 'spl', 'barn_score', 'min_clearance_m',
            'rms_error', 'loc_error_p95_m', 'sim_wall_ratio', 'cpu_s')
@@ -141,6 +142,7 @@ def markdown(summary, comparison, results, meta):
         lines += ['- `%s` %s: %s' % (r['run_id'], r.get('outcome'), r.get('reason', '')) for r in infra]
     lines[3:3] = divergence_lines(results)       # (after the headline)
     lines += isolation_lines(meta)
+    lines += detection_lines(valid)
     bad = [r for r in valid if r['outcome'] != 'succeeded']
     if bad:
         lines += ['', '## Runs that did not succeed', '']
@@ -149,6 +151,66 @@ def markdown(summary, comparison, results, meta):
             r['candidate'], r['outcome'], r.get('reason', '')) for r in bad]
     lines += time_lines(results, meta)
     return '\n'.join(lines) + '\n'
+
+
+def detection_totals(results):
+    """Per profile, over the judged runs that reported obstacles (a result with
+    ``detection_view``): obstacles ``in_view`` and ``glimpsed`` (:mod:`tiago_nav.sim.inview`),
+    ``found`` centres, ``missed`` (in view, not found), ``false_positives``, ``matched`` and
+    ``matched_glimpsed``, and the centre error [m] of every matched obstacle, glimpsed ones
+    too (``rms_error``, ``max_error``, and the same over the glimpsed ones alone)."""
+    out = {}
+    for r in results:
+        view = r.get('detection_view')
+        if view is None:
+            continue
+        t = out.setdefault(r.get('profile'), {'runs': 0, 'in_view': 0, 'glimpsed': 0, 'found': 0,
+                                              'missed': 0, 'false_positives': 0, 'matched': 0,
+                                              'matched_glimpsed': 0, '_e': [], '_g': []})
+        t['runs'] += 1
+        for k in ('in_view', 'glimpsed', 'missed', 'false_positives', 'matched_glimpsed'):
+            t[k] += int(r.get(k) or 0)
+        t['found'] += len(r.get('found') or [])
+        t['matched'] += int(r.get('matched') or 0)
+        for o in view:
+            if o.get('error') is not None:
+                t['_e'].append(o['error'])
+                if not o['in_view']:
+                    t['_g'].append(o['error'])
+    for t in out.values():
+        e, g = t.pop('_e'), t.pop('_g')
+        t['rms_error'] = (sum(x * x for x in e) / len(e)) ** 0.5 if e else None
+        t['max_error'] = max(e) if e else None
+        t['rms_error_glimpsed'] = (sum(x * x for x in g) / len(g)) ** 0.5 if g else None
+        t['max_error_glimpsed'] = max(g) if g else None
+    return out
+
+
+def detection_lines(results):
+    """summary.md's detection section: :func:`detection_totals` per profile."""
+    tot = detection_totals(results)
+    if not tot:
+        return []
+    lines = ['', '## Detection (runs that reached pose B)', '',
+             'In view: at least %d usable beams of the noise-free cast hit the obstacle; glimpsed: '
+             'fewer (docs/evaluation.md). A glimpsed obstacle may go unreported; a centre reported '
+             'for it is scored like any other.' % _min_beams(), '',
+             '| profile | runs | in view | glimpsed | found | missed | false positives | '
+             'matched in view | matched glimpsed | centre RMS [m] | centre max [m] | '
+             'glimpsed RMS [m] | glimpsed max [m] |',
+             '|---|---|---|---|---|---|---|---|---|---|---|---|---|']
+    for prof, t in sorted(tot.items(), key=lambda kv: str(kv[0])):
+        lines.append('| %s | %d | %d | %d | %d | %d | %d | %d | %d | %s | %s | %s | %s |' % (
+            prof, t['runs'], t['in_view'], t['glimpsed'], t['found'], t['missed'],
+            t['false_positives'], t['matched'], t['matched_glimpsed'],
+            _f(t['rms_error'], '%.4f'), _f(t['max_error'], '%.4f'),
+            _f(t['rms_error_glimpsed'], '%.4f'), _f(t['max_error_glimpsed'], '%.4f')))
+    return lines
+
+
+def _min_beams():
+    from tiago_nav.sim.inview import MIN_BEAMS
+    return MIN_BEAMS
 
 
 def isolations(results):
@@ -372,7 +434,9 @@ def write_all(out, runs, results, wall_s, workers=None, scheduler=None):
     summary = summarise(results)
     comparison = compare(results)
     write_json(os.path.join(out, 'summary.json'), {'schema': 1, 'meta': meta, 'groups': summary,
-                                                   'comparison': comparison})
+                                                   'comparison': comparison,
+                                                   'detection': detection_totals(
+                                                       [r for r in results if not is_infra(r)])})
     text = markdown(summary, comparison, results, meta)
     with open(os.path.join(out, 'summary.md.tmp'), 'w') as f:
         f.write(text)

@@ -262,10 +262,12 @@ def execute_with_retry(spec, out_dir, record=False):
     return r
 
 
-def judge(spec, raw):
+def judge(spec, raw, min_beams=None):
     """The run's result from its spec and the supervisor's raw record: the outcome (infra >
     timeout > collision > aborted > detection failure > succeeded), its reason and the
-    metrics (:mod:`tiago_nav.evaluate.metrics`)."""
+    metrics (:mod:`tiago_nav.evaluate.metrics`). ``min_beams``: the usable beams that make an
+    obstacle in view (None: :data:`tiago_nav.sim.inview.MIN_BEAMS`; the rescoring's plain rule
+    passes :data:`tiago_nav.sim.inview.PLAIN_BEAMS`)."""
     from tiago_nav.evaluate import metrics as M
     base = {'schema': SCHEMA, 'run_id': spec['id'], 'pair': spec.get('pair'),
             'world': spec['world']['name'], 'world_group': spec['world'].get('group'),
@@ -299,14 +301,24 @@ def judge(spec, raw):
     m['loc_samples'] = len(loc)
     det_ok, det = True, {}
     if raw.get('state') == 3 and final:         # SUCCEEDED: judge what it reported
-        from tiago_nav.sim.inview import truth as view_truth
-        truth, glimpsed = view_truth(world, tuple(final))
+        from tiago_nav.sim import inview
+        v = inview.view(world, tuple(final), spec['profile'],
+                        inview.MIN_BEAMS if min_beams is None else min_beams)
+        obs = world.movable_obstacles
         found = [(o[0], o[1]) for o in raw.get('obstacles', [])]
-        det_ok, det = M.detection([(t[1], t[2]) for t in truth], found,
+        det_ok, det = M.detection([(obs[i].x, obs[i].y) for i in v.in_view], found,
                                   spec['limits']['detection_tolerance'],
-                                  [(g[1], g[2]) for g in glimpsed])
-        det['truth'] = [[t[1], t[2], t[3]] for t in truth]
-    m.update({'detection_' + k if k in ('problem', 'truth') else k: v for k, v in det.items()})
+                                  [(obs[i].x, obs[i].y) for i in v.glimpsed])
+        det['truth'] = [[obs[i].x, obs[i].y, obs[i].radius] for i in v.in_view]
+        # every obstacle a beam reached: its beams and usable beams (a rescoring's input),
+        # whether it is in view, and its centre error when matched (None: not found)
+        seen = v.in_view + v.glimpsed
+        err = {seen[e['index']]: e['error'] for e in det.pop('errors')}
+        det['view'] = [{'index': i, 'x': obs[i].x, 'y': obs[i].y, 'radius': obs[i].radius,
+                        'beams': v.beams[i], 'usable_beams': v.usable_beams[i],
+                        'in_view': i in v.in_view, 'error': err.get(i)} for i in sorted(seen)]
+    m.update({'detection_' + k if k in ('problem', 'truth', 'view') else k: v
+              for k, v in det.items()})
     m['found'] = raw.get('obstacles', [])
     # every field of each reported obstacle as the message had it (its uncertainty and its
     # centre in the robot's frame among them), and the localisation's covariance during the

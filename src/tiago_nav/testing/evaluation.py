@@ -12,12 +12,13 @@ from scipy.optimize import linear_sum_assignment
 MATCH_GATE = 0.30      # [m] a found centre farther than this from every true one is a false positive
 
 
-def visible_truth(world, base_pose):
+def visible_truth(world, base_pose, profile='tiago'):
     """``(index, x, y, radius)`` of the world's movable obstacles in view from ``base_pose``
-    ``(x, y, yaw)``: the one definition of "in view", :mod:`tiago_nav.sim.inview` (the same
-    for every laser model: beams beyond the real laser's self-hit angle never count)."""
+    ``(x, y, yaw)`` for the laser ``profile``: the one definition of "in view",
+    :mod:`tiago_nav.sim.inview` (``tiago``: beams beyond the real laser's self-hit angle do not
+    count; ``ideal``: its whole fan does)."""
     from tiago_nav.sim.inview import truth
-    return truth(world, base_pose)[0]
+    return truth(world, base_pose, profile)[0]
 
 
 def match_obstacles(true_xy, found_xy, gate=MATCH_GATE):

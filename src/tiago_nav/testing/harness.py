@@ -68,6 +68,9 @@ class Harness:
         if robot_start is not None:
             args.append('robot_start:=[%g, %g, %g]' % tuple(robot_start))
         args += list(extra_args)
+        # the laser profile it runs (the launch file's default: tiago), for the ground truth
+        self.laser_model = ([a.split(':=', 1)[1] for a in args if a.startswith('laser_model:=')]
+                            or ['tiago'])[-1]
         self.env = dict(os.environ, ROS_MASTER_URI=self.uri)
         self.log = open(self.log_path, 'w')
         # roscore first (roslaunch --wait), in its own session so that it can be stopped as a group
@@ -328,14 +331,15 @@ def mission_record(h, world, goal, use_corridor_law, limit=None):
         use_corridor_law: the goal's flag.
         limit: [s wall] a mission without a terminal state by then is a hang (None: no bound).
 
-    Ground truth: the obstacles in view from the final pose (:mod:`tiago_nav.sim.inview`, the
-    same rule for every laser model); a found centre on a glimpsed obstacle is no false
-    positive.
+    Ground truth: the obstacles in view from the final pose for the harness's laser profile
+    (:mod:`tiago_nav.sim.inview`); a found centre on a glimpsed obstacle is no false positive,
+    and its error counts with the others.
 
     Returns a dict: goal, ``succeeded``, ``hang``, ``message`` (the client's last line on
     failure, else the result's message), wall and simulated seconds, ``collisions`` during the
-    mission, detection figures (``in_view``, ``found``, ``matched``, ``recall``,
-    ``false_positives``, ``rms_error_m``, ``max_error_m``, ``errors_m``), ``final_pose`` and
+    mission, detection figures (``in_view``, ``glimpsed``, ``found``, ``matched``,
+    ``matched_glimpsed``, ``recall``, ``false_positives``, ``rms_error_m``, ``max_error_m``,
+    ``errors_m``: of every matched obstacle), ``final_pose`` and
     ``lines`` (everything the client printed).
     """
     import rospy
@@ -349,7 +353,7 @@ def mission_record(h, world, goal, use_corridor_law, limit=None):
                                           limit=limit)
     sim = rospy.get_time() - t_sim
     final = h.pose()
-    truth, glimpsed = view_truth(world, final) if final else ([], [])
+    truth, glimpsed = view_truth(world, final, h.laser_model) if final else ([], [])
     found = [(o.center.x, o.center.y) for o in result.obstacles] if result else []
     s = detection_score([(tx, ty) for _, tx, ty, _ in truth], found,
                         [(gx, gy) for _, gx, gy, _ in glimpsed])
@@ -357,10 +361,11 @@ def mission_record(h, world, goal, use_corridor_law, limit=None):
     return {'world': world.name, 'goal': [x, y, yaw], 'use_corridor_law': use_corridor_law,
             'succeeded': code == 0, 'hang': code is None, 'message': message,
             'wall_s': wall, 'sim_s': sim, 'collisions': (h.collisions or 0) - c0,
-            'in_view': s['true'], 'found': s['found'], 'matched': s['matched'],
+            'in_view': s['true'], 'glimpsed': s['glimpsed'], 'found': s['found'],
+            'matched': s['matched'], 'matched_glimpsed': s['matched_glimpsed'],
             'recall': s['recall'], 'false_positives': s['false_positives'],
             'rms_error_m': s['rms_error'], 'max_error_m': s['max_error'],
-            'errors_m': [e for _, _, e in s['pairs']],
+            'errors_m': [e['error'] for e in s['errors']],
             'final_pose': list(final) if final else None, 'lines': lines}
 
 
