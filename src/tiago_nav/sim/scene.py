@@ -138,6 +138,8 @@ class Scene:
             self.movable_ids.append(self._mesh_body(mesh, (0.9, 0.3, 0.2, 1)))
         # walkers: one body per leg, a cylinder about its own origin, placed by set_walker_legs
         self.walker_leg_ids = []
+        self._legs_due = {}
+        self._legs_placed = set()
         if world.walkers:
             from tiago_nav.sim.walkers import LEG_RADIUS
             leg = _Mesh()
@@ -167,9 +169,28 @@ class Scene:
         return p.createMultiBody(0, col, vis)
 
     def set_walker_legs(self, i, legs):
-        """Place walker ``i``'s two legs at the ``(2, 2)`` centres ``legs`` [m]."""
-        for body, (x, y) in zip(self.walker_leg_ids[i], legs):
-            self._p.resetBasePositionAndOrientation(body, (float(x), float(y), 0.0), (0, 0, 0, 1))
+        """Place walker ``i``'s two legs at the ``(2, 2)`` centres ``legs`` [m]. The bodies
+        move when something looks: a ray cast moves all of them, a contact test those near the
+        base (a pybullet call per leg and step cost more than the rest of a step); the first
+        placement is made at once."""
+        self._legs_due[i] = legs
+        if i not in self._legs_placed:
+            self._legs_placed.add(i)
+            self._place_legs((legs[0][0], legs[0][1], 0.0))
+
+    def _place_legs(self, near=None):
+        """Move the walkers' leg bodies to their last :meth:`set_walker_legs` (with ``near``
+        ``(x, y, reach)``: only the walkers with a leg within ``reach`` [m] of ``(x, y)``)."""
+        if not self._legs_due:
+            return
+        reset = self._p.resetBasePositionAndOrientation
+        for i in list(self._legs_due):
+            legs = self._legs_due[i]
+            if near is not None and min(math.hypot(x - near[0], y - near[1]) for x, y in legs) > near[2]:
+                continue
+            del self._legs_due[i]
+            for body, (x, y) in zip(self.walker_leg_ids[i], legs):
+                reset(body, (float(x), float(y), 0.0), (0, 0, 0, 1))
 
     # --- robot ----------------------------------------------------------------------------
     def set_robot_pose(self, pose):
@@ -183,6 +204,8 @@ class Scene:
     def robot_contacts(self):
         """Body ids the base touches or penetrates at its current pose."""
         p = self._p
+        if self._legs_due:
+            self._place_legs((self._pose[0], self._pose[1], self.robot_radius + 0.5))
         p.performCollisionDetection()
         return sorted({c[2] for c in p.getContactPoints(bodyA=self.robot_id) if c[8] <= 1e-4})
 
@@ -203,6 +226,7 @@ class Scene:
         nothing is hit within ``range_max``, REP 117) and the pybullet body id hit by each beam
         (-1 for none). The robot's own body lies below the beams and is never hit.
         """
+        self._place_legs()
         lx, ly, lyaw = self.laser_pose(base_pose)
         cfg = self.laser
         ang = lyaw + cfg.angles()

@@ -14,6 +14,7 @@ either side of the walker's line and swing :data:`SWING` ahead of and behind it,
 phase, one gait cycle per :data:`STRIDE` walked; a walker that stops keeps its legs where they
 are. Lengths are metres, angles radians, in the map frame.
 """
+import bisect
 import math
 
 import numpy as np
@@ -42,15 +43,19 @@ class Path:
         self.cum = np.concatenate(([0.0], np.cumsum(self.len)))
         self.total = float(self.cum[-1])
         self.loop = bool(loop)
+        # plain floats for at(), called for every walker at every physics step
+        self._cum = self.cum.tolist()
+        self._rows = [(float(p0[0]), float(p0[1]), float(d[0]), float(d[1]), float(n),
+                       math.atan2(d[1], d[0])) for p0, d, n in zip(self.points, self.seg, self.len)]
 
     def at(self, s):
         """``(x, y, heading)`` at distance ``s`` [m] along the path (wrapped with ``loop``,
         else held at the last point, heading along the last segment)."""
         s = s % self.total if self.loop else min(max(s, 0.0), self.total)
-        k = min(int(np.searchsorted(self.cum, s, side='right')) - 1, len(self.len) - 1)
-        f = (s - self.cum[k]) / self.len[k]
-        x, y = self.points[k] + f * self.seg[k]
-        return float(x), float(y), math.atan2(self.seg[k][1], self.seg[k][0])
+        k = min(bisect.bisect_right(self._cum, s) - 1, len(self._rows) - 1)
+        x0, y0, dx, dy, n, heading = self._rows[k]
+        f = (s - self._cum[k]) / n
+        return x0 + f * dx, y0 + f * dy, heading
 
     def finished(self, s):
         """True when a walker that has walked ``s`` [m] is at the end (never with ``loop``)."""
@@ -60,11 +65,10 @@ class Path:
 def legs_at(x, y, heading, s):
     """``(2, 2)`` centres [m] of the two legs of a walker at ``(x, y)`` heading ``heading``
     [rad] that has walked ``s`` [m]."""
-    u = np.array([math.cos(heading), math.sin(heading)])
-    n = np.array([-u[1], u[0]])
+    ux, uy = math.cos(heading), math.sin(heading)
     swing = SWING * math.sin(2.0 * math.pi * s / STRIDE)
-    c = np.array([x, y])
-    return np.array([c + HIP_HALF_WIDTH * n + swing * u, c - HIP_HALF_WIDTH * n - swing * u])
+    ax, ay = swing * ux - HIP_HALF_WIDTH * uy, swing * uy + HIP_HALF_WIDTH * ux
+    return np.array([[x + ax, y + ay], [x - ax, y - ay]])
 
 
 class Walkers:
@@ -80,6 +84,7 @@ class Walkers:
         self.walkers = list(walkers)
         self.paths = [Path(w.path, w.loop) for w in self.walkers]
         self.s = [0.0] * len(self.walkers)
+        self.poses = [p.at(0.0) for p in self.paths]
         self.velocity = [(0.0, 0.0)] * len(self.walkers)
         self.waiting = [False] * len(self.walkers)
 
@@ -88,7 +93,7 @@ class Walkers:
 
     def pose(self, i):
         """``(x, y, heading)`` of walker ``i``."""
-        return self.paths[i].at(self.s[i])
+        return self.poses[i]
 
     def legs(self, i):
         """``(2, 2)`` leg centres [m] of walker ``i``."""
@@ -116,16 +121,17 @@ class Walkers:
             if time < w.start_delay or path.finished(s):
                 self.velocity[i], self.waiting[i] = (0.0, 0.0), False
                 continue
-            x0, y0, _ = path.at(s)
+            x0, y0, _ = self.poses[i]
             s1 = s + w.speed * dt
             if not path.loop:
                 s1 = min(s1, path.total)
-            x1, y1, _ = path.at(s1)
+            pose = path.at(s1)
+            x1, y1, _ = pose
             d0, d1 = math.hypot(x0 - rx, y0 - ry), math.hypot(x1 - rx, y1 - ry)
             if d1 < near and d1 <= d0:
                 self.velocity[i], self.waiting[i] = (0.0, 0.0), True
                 continue
-            self.s[i] = s1
+            self.s[i], self.poses[i] = s1, pose
             self.velocity[i] = ((x1 - x0) / dt, (y1 - y0) / dt)
             self.waiting[i] = False
             moved.append(i)

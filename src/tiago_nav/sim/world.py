@@ -7,8 +7,9 @@ Movable obstacles come in four shapes (:class:`Cylinder`, :class:`Box`, :class:`
 ``table`` and ``chair``), which share one interface: ``shape``, ``x``, ``y`` (the centre),
 ``yaw``, ``radius`` (the cylinder's radius; for the other shapes the radius of the smallest
 circle about the centre that holds the whole footprint), ``legs()`` and ``leg_radius`` (what a
-laser below a table top sees), ``outline()`` (the footprint polygon) and ``distance(x, y)``
-(exact distance from points to what a robot's base can touch). :class:`Walker` entries are
+laser below a table top sees), ``outline()`` (the footprint polygon), ``solids()`` (the
+outlines of what the laser and the base meet: a table's legs) and ``distance(x, y)`` (exact
+distance from points to them). :class:`Walker` entries are
 people walking a polyline (:mod:`tiago_nav.sim.walkers` moves them). An optional
 ``world_frame`` names another frame and gives its origin in the map (the simulator publishes
 it on /tf_static), e.g. the Gazebo world the file was measured from.
@@ -79,6 +80,11 @@ class Cylinder:
         """Distance [m] from the points ``(x, y)`` (arrays) to the surface; negative inside."""
         return np.hypot(np.asarray(x, float) - self.x, np.asarray(y, float) - self.y) - self.radius
 
+    def solids(self, sides=32):
+        """Outlines ``[(n, 2), ...]`` [m] of what the laser and the base meet: the circle as a
+        ``sides``-gon."""
+        return [self.outline(sides)]
+
 
 @dataclass(frozen=True)
 class Box:
@@ -121,6 +127,10 @@ class Box:
     def distance(self, x, y):
         """Distance [m] from the points ``(x, y)`` (arrays) to the box; negative inside."""
         return _box_distance(x, y, self.x, self.y, self.length, self.width, self.yaw)
+
+    def solids(self, sides=32):
+        """Outlines ``[(4, 2)]`` [m] of what the laser and the base meet: the box."""
+        return [self.corners()]
 
 
 FURNITURE_LEG_RADIUS = {'table': 0.03, 'chair': 0.015}   # [m] defaults of leg_radius
@@ -167,6 +177,10 @@ class Furniture:
         above the base); negative inside a leg."""
         x, y = np.asarray(x, float), np.asarray(y, float)
         return np.min([np.hypot(x - lx, y - ly) for lx, ly in self.legs()], axis=0) - self.leg_radius
+
+    def solids(self, sides=32):
+        """Outlines ``[(sides, 2)] * 4`` [m] of what the laser and the base meet: the legs."""
+        return [Cylinder(float(lx), float(ly), self.leg_radius).outline(sides) for lx, ly in self.legs()]
 
 
 @dataclass(frozen=True)
