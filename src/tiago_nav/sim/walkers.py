@@ -23,8 +23,11 @@ LEG_RADIUS = 0.06       # [m] a calf about 0.12 m across
 HIP_HALF_WIDTH = 0.1    # [m] each leg's centre this far to the side of the walking line
 SWING = 0.2             # [m] the legs swing this far ahead of and behind the walker's centre
 STRIDE = 1.4            # [m] walked per gait cycle (two steps of 0.7 m)
-KEEPOUT = 0.5           # [m] a walker does not step nearer than this to the robot's footprint
-                        # (measured from the walker's centre: its legs stay >= ~0.25 m away)
+KEEPOUT = 0.7           # [m] a walker does not step with its centre nearer than this to the
+                        # robot's footprint: its legs (within hypot(SWING, HIP_HALF_WIDTH) +
+                        # LEG_RADIUS = 0.28 m of its centre) stay >= 0.4 m from the robot's body,
+                        # so a walker alone never brings a leg within 0.3 m of it: nearer is the
+                        # robot's doing
 
 
 class Path:

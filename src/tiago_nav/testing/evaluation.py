@@ -174,9 +174,10 @@ def plot_run(path_png, grid, world, robot_path, scan_xy, truth, found_xy, goal=N
             ax.add_patch(Polygon(c.outline(), closed=True, fill=False, ec='0.5', ls='--', lw=1))
             for lx, ly in c.legs():
                 ax.add_patch(Circle((lx, ly), c.leg_radius, fill=True, fc='0.5', ec='none'))
-    for wk in world.walkers:
+    for k, wk in enumerate(world.walkers):
         path = np.array(wk.path + ((wk.path[0],) if wk.loop else ()))
-        ax.plot(path[:, 0], path[:, 1], ':', color='tab:orange', lw=1)
+        ax.plot(path[:, 0], path[:, 1], '--', color='tab:brown', lw=0.8,
+                label='walker paths' if k == 0 else None)
     for _, x, y, r in truth:
         ax.add_patch(Circle((x, y), r, fill=False, ec='tab:green', lw=2))
     if len(robot_path):
