@@ -92,7 +92,7 @@ class Params:
                                'the movable obstacles and walkers (at scan_rate while there are '
                                'walkers)', nonempty=True)
     markers_topic: str = param('/sim/markers', 'latched visualization_msgs/MarkerArray out: '
-                               'objects_topic drawn for RViz (only while subscribed)', nonempty=True)
+                               'objects_topic drawn for RViz (with walkers, only while subscribed)', nonempty=True)
     laser_fault_topic: str = param('/sim/laser_fault', 'std_msgs/String in: laser fault injection '
                                    'for tests', nonempty=True)
     lockstep: bool = param(False, "hold simulated time at each lockstep participant's deadline "
