@@ -183,6 +183,7 @@ def test_clearance_to_shapes_is_to_what_the_base_touches():
     (lambda d: d['walkers'][1].update(path=[[0, 0], [1]]), r'walkers\[1\].path\[1\] must be a list of 2'),
     (lambda d: d['walkers'][1].update(path=[[0, 0], [1, 1], [1, 1]]), r'walkers\[1\].path\[2\] repeats'),
     (lambda d: d['walkers'][0].update(loop='yes'), r'walkers\[0\].loop must be true or false'),
+    (lambda d: d['walkers'][1].update(path=[[1, 1], [9, 1]]), r'walkers\[1\].path\[1\] .* lies outside bounds'),
     (lambda d: d['walkers'][0].update(start_delay=-1), r'walkers\[0\].start_delay must be >= 0'),
     (lambda d: d['walkers'][0].update(name='bob'), r'walkers\[0\] has unknown key\(s\) name'),
 ])

@@ -375,8 +375,9 @@ def _movables(src, data):
     return out
 
 
-def _walkers(src, data):
-    """``walkers``: ``{path: [[x, y], ...], speed, loop, start_delay}`` each."""
+def _walkers(src, data, bounds):
+    """``walkers``: ``{path: [[x, y], ...], speed, loop, start_delay}`` each, every point
+    within ``bounds``."""
     out = []
     for i, w in enumerate(_list(src, data, 'walkers')):
         where = 'walkers[%d]' % i
@@ -386,6 +387,10 @@ def _walkers(src, data):
             raise WorldError('%s: %s.path must be a list of at least 2 points [x, y], got %r'
                              % (src, where, path))
         pts = tuple(_vector(src, '%s.path[%d]' % (where, k), q, 2) for k, q in enumerate(path))
+        for k, (x, y) in enumerate(pts):
+            if not (bounds[0] <= x <= bounds[2] and bounds[1] <= y <= bounds[3]):
+                raise WorldError('%s: %s.path[%d] %r lies outside bounds %r'
+                                 % (src, where, k, [x, y], list(bounds)))
         for k in range(1, len(pts)):
             if pts[k] == pts[k - 1]:
                 raise WorldError('%s: %s.path[%d] repeats the point before it, got %r'
@@ -439,7 +444,7 @@ def _parse(data, src):
                             _number(src, 'corridor.width', c['width'], positive=True))
     return World(name=name, resolution=resolution, bounds=bounds, robot_start=start, walls=walls,
                  static_cylinders=_cylinders(src, data, 'static_cylinders'),
-                 movable_obstacles=_movables(src, data), walkers=_walkers(src, data),
+                 movable_obstacles=_movables(src, data), walkers=_walkers(src, data, bounds),
                  corridor=corridor, world_frame=_world_frame(src, data.get('world_frame')),
                  source=src)
 
