@@ -75,6 +75,12 @@ NODES = (
             ('{map_metadata_topic}', 'nav_msgs/MapMetaData', 'latched: the map\'s metadata'),
             ('{collisions_topic}', 'std_msgs/UInt32',
              'latched: the number of contacts of the robot with anything so far'),
+            ('{objects_topic}', 'tiago_nav/SimObjects',
+             'latched: ground truth of the movable obstacles (any shape) and walkers (position, '
+             'legs, velocity, state), in `~map_frame`; with walkers at `~scan_rate`, for tests '
+             'and benchmarks only'),
+            ('{markers_topic}', 'visualization_msgs/MarkerArray',
+             'latched: the same drawn for RViz (with walkers only while subscribed)'),
             _CLOCK,
             ('/sim/lockstep/tick', 'tiago_nav/LockstepTick',
              'with `~lockstep`: each control cycle, naming the scan and odometry stamps to use'),

@@ -399,3 +399,36 @@ def test_a_bad_fault_command_is_logged_and_changes_nothing(node, text):
     assert len(node.log.warnings) == 1 and 'ignoring laser fault command' in node.log.warnings[0]
     run(node, 60)
     assert node.out.scan.messages[1:] == []         # still dead
+
+
+def test_objects_ground_truth_of_shapes_and_walkers_and_a_reset_puts_walkers_back(tmp_path):
+    import yaml
+    world = tmp_path / 'shapes.yaml'
+    world.write_text(yaml.safe_dump({
+        'name': 'shapes', 'resolution': 0.05, 'bounds': [-4, -4, 4, 4], 'robot_start': [0, 0, 0],
+        'movable_obstacles': [{'x': 2, 'y': 2, 'radius': 0.2},
+                              {'shape': 'box', 'x': 2, 'y': -2, 'length': 0.8, 'width': 0.4, 'yaw_deg': 30},
+                              {'shape': 'table', 'x': -2, 'y': 2, 'length': 1.2, 'width': 0.8}],
+        'walkers': [{'path': [[3, 1], [-3, 1]], 'speed': 1.0, 'loop': True}]}))
+    node = make_node(world=str(world))
+    try:
+        node.start()
+        first = node.out.objects.last
+        assert [o.shape for o in first.objects] == ['cylinder', 'box', 'table', 'walker']
+        assert [o.name for o in first.objects][-1] == 'walkers[0]'
+        box, table, walker = first.objects[1:]
+        assert box.pose.theta == pytest.approx(math.radians(30)) and box.length == pytest.approx(0.8)
+        assert len(table.legs) == 4 and table.leg_radius == pytest.approx(0.03)
+        assert (walker.pose.x, walker.pose.y) == (3.0, 1.0) and len(walker.legs) == 2
+        assert node.out.markers.last.markers, 'drawn for RViz'
+        n = len(node.out.objects.messages)
+        run(node, 60)                       # 1 s: 15 scans, each with the objects
+        assert len(node.out.objects.messages) == n + 15
+        walker = node.out.objects.last.objects[-1]
+        assert walker.pose.x == pytest.approx(2.0) and walker.velocity.x == pytest.approx(-1.0)
+        assert walker.state == 'walking'
+        node.reset(node.params)
+        walker = node.out.objects.last.objects[-1]
+        assert (walker.pose.x, walker.pose.y) == (3.0, 1.0) and walker.velocity.x == 0.0
+    finally:
+        node.close()

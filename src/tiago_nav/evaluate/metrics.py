@@ -66,7 +66,7 @@ def median(values):
 
 def obstacle_distance_field(world, include_movable=True):
     """``(grid, distance)``: the world's static raster and, per cell centre, the distance [m]
-    to the nearest static cell or (with ``include_movable``) movable cylinder's surface."""
+    to the nearest static cell or (with ``include_movable``) movable obstacle's surface."""
     from tiago_nav.gridmap import distance_to_mask
     from tiago_nav.sim.raster import rasterise_world
     grid = rasterise_world(world)
@@ -74,7 +74,7 @@ def obstacle_distance_field(world, include_movable=True):
     if include_movable and world.movable_obstacles:
         cx, cy = grid.cell_centres()
         for c in world.movable_obstacles:
-            dist = np.minimum(dist, np.hypot(cx - c.x, cy - c.y) - c.radius)
+            dist = np.minimum(dist, c.distance(cx, cy))
     return grid, dist
 
 

@@ -1,6 +1,7 @@
 """The simulator node: the pybullet mock TIAGo (library :mod:`tiago_nav.sim`) wired to ROS.
 
-Publishes /scan, odometry, tf, the latched /map, /clock, /sim/collisions and /sim/ground_truth;
+Publishes /scan, odometry, tf, the latched /map, /clock, /sim/collisions, /sim/ground_truth and
+/sim/objects (the movable obstacles and walkers, with their RViz drawing on /sim/markers);
 obeys /mobile_base_controller/cmd_vel; takes injected laser faults on /sim/laser_fault
 (:mod:`tiago_nav.sim.faults`). :class:`SimulatorNode` holds the decisions (what is due at each
 step, the stamps and frames, pacing against ``real_time_factor``) and publishes through the
@@ -28,13 +29,16 @@ from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String, UInt32
 from std_srvs.srv import Trigger, TriggerResponse
 from tf2_msgs.msg import TFMessage
+from visualization_msgs.msg import MarkerArray
 
+from tiago_nav.msg import SimObjects
 from tiago_nav.params import ParamError, nested, param, read_params, validate
 from tiago_nav.robot import BASE_LINK_HEIGHT
 from tiago_nav.ros import conversions
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.lockstep import ClockSource, LockstepHost, direct_publisher
 from tiago_nav.ros.tcpros import concurrent_handshakes
+from tiago_nav.ros.world_objects import objects_markers, objects_msg
 from tiago_nav.sim.faults import FaultError, LaserFaults
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
@@ -88,6 +92,11 @@ class Params:
                                   nonempty=True)
     ground_truth_topic: str = param('/sim/ground_truth', 'nav_msgs/Odometry out: the true pose in '
                                     'map_frame, for tests and benchmarks', nonempty=True)
+    objects_topic: str = param('/sim/objects', 'latched tiago_nav/SimObjects out: ground truth of '
+                               'the movable obstacles and walkers (at scan_rate while there are '
+                               'walkers)', nonempty=True)
+    markers_topic: str = param('/sim/markers', 'latched visualization_msgs/MarkerArray out: '
+                               'objects_topic drawn for RViz (with walkers, only while subscribed)', nonempty=True)
     laser_fault_topic: str = param('/sim/laser_fault', 'std_msgs/String in: laser fault injection '
                                    'for tests', nonempty=True)
     lockstep: bool = param(False, "hold simulated time at each lockstep participant's deadline "
@@ -168,6 +177,8 @@ class Outputs:
     collisions: Any
     map: Any
     map_metadata: Any
+    objects: Any = None
+    markers: Any = None
 
 
 def ros_outputs(params, use_sim_time):
@@ -193,7 +204,9 @@ def ros_outputs(params, use_sim_time):
         tf_static=rospy.Publisher('/tf_static', TFMessage, **latched),
         collisions=rospy.Publisher(params.collisions_topic, UInt32, **latched),
         map=rospy.Publisher(params.map_topic, OccupancyGrid, **latched),
-        map_metadata=rospy.Publisher(params.map_metadata_topic, MapMetaData, **latched))
+        map_metadata=rospy.Publisher(params.map_metadata_topic, MapMetaData, **latched),
+        objects=rospy.Publisher(params.objects_topic, SimObjects, **latched),
+        markers=rospy.Publisher(params.markers_topic, MarkerArray, **latched))
 
 
 class Pacer:
@@ -346,6 +359,19 @@ class SimulatorNode:
                 self.log.logwarn('collision #%d: the robot bumped into something at (%.2f, %.2f)'
                                  % (n, x, y))
 
+    def publish_objects(self, stamp):
+        """/sim/objects (the ground truth of the movable obstacles and walkers) and its drawing
+        on /sim/markers (with walkers, which move, only while someone subscribes)."""
+        if self.out.objects is None:
+            return
+        msg = objects_msg(self.world.movable_obstacles, self.sim.walkers, self.sim.time,
+                          self.params.map_frame, stamp)
+        self.out.objects.publish(msg)
+        markers = self.out.markers
+        if markers is not None and (not len(self.sim.walkers)
+                                    or getattr(markers, 'get_num_connections', lambda: 1)() > 0):
+            markers.publish(objects_markers(msg))
+
     def publish_odom(self, stamp):
         """Odometry (odom → base, drifting with ``odometry_model`` drift) and its tf, with
         (``publish_map_to_odom``) the ground-truth map → odom = pose ∘ inverse(odom pose), and
@@ -390,6 +416,7 @@ class SimulatorNode:
                     self.sim.step()
             stamp = self.stamp()
             self.publish_static(stamp)
+            self.publish_objects(stamp)
             self.publish_collisions()
             self.publish_odom(stamp)
             self.publish_scan(stamp)
@@ -418,6 +445,8 @@ class SimulatorNode:
                 self.publish_odom(stamp)
             if scan_due:
                 self.publish_scan(stamp)
+                if len(self.sim.walkers):
+                    self.publish_objects(stamp)
             self.publish_collisions()
 
     # --- reset ----------------------------------------------------------------------------

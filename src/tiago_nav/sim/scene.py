@@ -1,5 +1,10 @@
-"""The pybullet scene of a world: static bodies, movable cylinders, a TIAGo-like base and
-its 2-D laser, ray cast with pybullet's batch ray test.
+"""The pybullet scene of a world: static bodies, movable obstacles (cylinders, boxes, tables
+and chairs), walkers' legs, a TIAGo-like base and its 2-D laser, ray cast with pybullet's
+batch ray test.
+
+A table's or a chair's body is its four legs under a top at :data:`TOP_HEIGHT` (above the base
+and the laser: both meet only the legs). Each walker is two leg bodies, moved kinematically
+(:meth:`Scene.set_walker_legs`).
 
 Frames: the world frame is the map frame; the base pose ``(x, y, yaw)`` is base_footprint's;
 the laser (base_laser_link) sits ``laser_offset`` [m] ahead of the base centre, at
@@ -50,6 +55,9 @@ with _silenced(2):
 
 WALL_HEIGHT = 1.0          # [m] every static and movable body spans the floor to this height
 ROBOT_HEIGHT = 0.25        # [m] the base's collision body, floor to this height
+TOP_HEIGHT = {'table': 0.75, 'chair': 0.45}   # [m] the top of a table or seat of a chair
+TOP_THICKNESS = 0.03       # [m] of that top
+WALKER_HEIGHT = 0.9        # [m] a walker's legs span the floor to this height
 
 
 @dataclass(frozen=True)
@@ -118,8 +126,27 @@ class Scene:
         self.movable_ids = []
         for c in world.movable_obstacles:
             mesh = _Mesh()
-            mesh.cylinder(c.x, c.y, c.radius)
+            if c.shape == 'cylinder':
+                mesh.cylinder(c.x, c.y, c.radius)
+            elif c.shape == 'box':
+                mesh.box(c.corners())
+            else:
+                for lx, ly in c.legs():
+                    mesh.cylinder(lx, ly, c.leg_radius, top=TOP_HEIGHT[c.shape])
+                top = TOP_HEIGHT[c.shape]
+                mesh.prism(c.outline(), top - TOP_THICKNESS, top)
             self.movable_ids.append(self._mesh_body(mesh, (0.9, 0.3, 0.2, 1)))
+        # walkers: one body per leg, a cylinder about its own origin, placed by set_walker_legs
+        self.walker_leg_ids = []
+        self._legs_due = {}
+        self._legs_placed = set()
+        if world.walkers:
+            from tiago_nav.sim.walkers import LEG_RADIUS
+            leg = _Mesh()
+            leg.cylinder(0.0, 0.0, LEG_RADIUS, top=WALKER_HEIGHT)
+            for _ in world.walkers:
+                self.walker_leg_ids.append(tuple(self._mesh_body(leg, (0.9, 0.7, 0.2, 1))
+                                                 for _ in range(2)))
         col = p.createCollisionShape(pybullet.GEOM_CYLINDER, radius=self.robot_radius,
                                      height=ROBOT_HEIGHT)
         vis = p.createVisualShape(pybullet.GEOM_CYLINDER, radius=self.robot_radius,
@@ -141,6 +168,30 @@ class Scene:
                                   rgbaColor=rgba)
         return p.createMultiBody(0, col, vis)
 
+    def set_walker_legs(self, i, legs):
+        """Place walker ``i``'s two legs at the ``(2, 2)`` centres ``legs`` [m]. The bodies
+        move when something looks: a ray cast moves all of them, a contact test those near the
+        base (a pybullet call per leg and step cost more than the rest of a step); the first
+        placement is made at once."""
+        self._legs_due[i] = legs
+        if i not in self._legs_placed:
+            self._legs_placed.add(i)
+            self._place_legs((legs[0][0], legs[0][1], 0.0))
+
+    def _place_legs(self, near=None):
+        """Move the walkers' leg bodies to their last :meth:`set_walker_legs` (with ``near``
+        ``(x, y, reach)``: only the walkers with a leg within ``reach`` [m] of ``(x, y)``)."""
+        if not self._legs_due:
+            return
+        reset = self._p.resetBasePositionAndOrientation
+        for i in list(self._legs_due):
+            legs = self._legs_due[i]
+            if near is not None and min(math.hypot(x - near[0], y - near[1]) for x, y in legs) > near[2]:
+                continue
+            del self._legs_due[i]
+            for body, (x, y) in zip(self.walker_leg_ids[i], legs):
+                reset(body, (float(x), float(y), 0.0), (0, 0, 0, 1))
+
     # --- robot ----------------------------------------------------------------------------
     def set_robot_pose(self, pose):
         """Place the base at ``pose`` ``(x, y, yaw)`` (no collision check)."""
@@ -153,6 +204,8 @@ class Scene:
     def robot_contacts(self):
         """Body ids the base touches or penetrates at its current pose."""
         p = self._p
+        if self._legs_due:
+            self._place_legs((self._pose[0], self._pose[1], self.robot_radius + 0.5))
         p.performCollisionDetection()
         return sorted({c[2] for c in p.getContactPoints(bodyA=self.robot_id) if c[8] <= 1e-4})
 
@@ -173,6 +226,7 @@ class Scene:
         nothing is hit within ``range_max``, REP 117) and the pybullet body id hit by each beam
         (-1 for none). The robot's own body lies below the beams and is never hit.
         """
+        self._place_legs()
         lx, ly, lyaw = self.laser_pose(base_pose)
         cfg = self.laser
         ang = lyaw + cfg.angles()
@@ -244,18 +298,20 @@ def noisy(ranges, std, rng, range_min, range_max):
 
 
 class _Mesh:
-    """Vertical prisms (boxes, cylinders) from the floor to ``WALL_HEIGHT`` as one triangle mesh."""
+    """Vertical prisms (boxes, cylinders), by default from the floor to ``WALL_HEIGHT``, as one
+    triangle mesh."""
     CYLINDER_SIDES = 96
 
     def __init__(self):
         self.vertices = []
         self.indices = []
 
-    def prism(self, outline):
-        """A prism over a convex ``(n, 2)`` counter-clockwise outline [m]."""
+    def prism(self, outline, bottom=0.0, top=WALL_HEIGHT):
+        """A prism over a convex ``(n, 2)`` counter-clockwise outline [m], from ``bottom`` to
+        ``top`` [m] above the floor."""
         n = len(outline)
         b = len(self.vertices)
-        for z in (0.0, WALL_HEIGHT):
+        for z in (bottom, top):
             self.vertices.extend([float(x), float(y), z] for x, y in outline)
         for i in range(n):
             j = (i + 1) % n
@@ -267,10 +323,11 @@ class _Mesh:
     def box(self, corners):
         self.prism(corners)
 
-    def cylinder(self, x, y, radius):
-        """A regular polygon whose sides touch the circle (error < 0.1 mm at r = 0.2 m)."""
+    def cylinder(self, x, y, radius, top=WALL_HEIGHT):
+        """A regular polygon whose sides touch the circle (error < 0.1 mm at r = 0.2 m), from
+        the floor to ``top`` [m]."""
         n = self.CYLINDER_SIDES
         t = np.linspace(0.0, 2.0 * math.pi, n, endpoint=False)
         big = radius / math.cos(math.pi / n)
-        self.prism(np.column_stack((x + big * np.cos(t), y + big * np.sin(t))))
+        self.prism(np.column_stack((x + big * np.cos(t), y + big * np.sin(t))), top=top)
 

@@ -4,6 +4,7 @@ stepped at a fixed rate of simulated time. :mod:`tiago_nav.nodes.simulator` wire
 Ground truth (:attr:`Simulator.pose`) lives in the world (map) frame. Odometry is expressed in
 the odom frame, whose origin is the robot's start pose (REP 105); it is exact or drifts
 (:mod:`tiago_nav.sim.odometry`). The laser is modelled by a profile (:mod:`tiago_nav.sim.laser`).
+The world's walkers (:mod:`tiago_nav.sim.walkers`) move with each step, before the base.
 """
 import math
 from dataclasses import dataclass
@@ -16,6 +17,7 @@ from tiago_nav.sim.diffdrive import BaseLimits, DiffDrive
 from tiago_nav.sim.laser import LaserModel
 from tiago_nav.sim.odometry import Odometry, OdometryNoise
 from tiago_nav.sim.scene import LaserConfig, Scene
+from tiago_nav.sim.walkers import Walkers
 
 
 CONTACT_CLEARANCE = 0.02   # [m] a contact event ends when the base is this far from what it hit
@@ -68,6 +70,9 @@ class Simulator:
         self.scene = Scene(world, robot_radius=config.robot_radius, laser=config.laser, gui=gui)
         self.start_pose = tuple(start_pose) if start_pose is not None else world.start_pose
         self.scene.set_robot_pose(self.start_pose)
+        self.walkers = Walkers(world.walkers)
+        for i in range(len(self.walkers)):
+            self.scene.set_walker_legs(i, self.walkers.legs(i))
         touching = self.scene.robot_contacts()
         if touching:
             self.scene.close()
@@ -116,8 +121,13 @@ class Simulator:
         return self._cmd if self.time - self._cmd_time <= self.config.cmd_timeout else (0.0, 0.0)
 
     def step(self):
-        """Advance one step. Returns ``(scan_due, odom_due)`` for the new time."""
+        """Advance one step: the walkers (each yields to the base where it stands now), then
+        the base (a contact with anything, a walker's leg too, is a collision). Returns
+        ``(scan_due, odom_due)`` for the new time."""
         dt = self.config.dt
+        if len(self.walkers):
+            for i in self.walkers.step(self.time, dt, self.base.pose[:2], self.config.robot_radius):
+                self.scene.set_walker_legs(i, self.walkers.legs(i))
         v, w = self._command_in_force()
         before = self.base.pose
         pose = self.base.step(v, w, dt)

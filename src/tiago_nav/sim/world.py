@@ -1,7 +1,16 @@
 """World files (``worlds/*.yaml``): the one source of geometry for simulator, map and tests.
 
 The format is fixed by docs/interfaces.md (World files). All lengths are metres, headings degrees in the file and
-radians in code (``yaw`` properties); coordinates are in the map frame. An optional
+radians in code (``yaw`` properties); coordinates are in the map frame.
+
+Movable obstacles come in four shapes (:class:`Cylinder`, :class:`Box`, :class:`Furniture` for
+``table`` and ``chair``), which share one interface: ``shape``, ``x``, ``y`` (the centre),
+``yaw``, ``radius`` (the cylinder's radius; for the other shapes the radius of the smallest
+circle about the centre that holds the whole footprint), ``legs()`` and ``leg_radius`` (what a
+laser below a table top sees), ``outline()`` (the footprint polygon), ``solids()`` (the
+outlines of what the laser and the base meet: a table's legs) and ``distance(x, y)`` (exact
+distance from points to them). :class:`Walker` entries are
+people walking a polyline (:mod:`tiago_nav.sim.walkers` moves them). An optional
 ``world_frame`` names another frame and gives its origin in the map (the simulator publishes
 it on /tf_static), e.g. the Gazebo world the file was measured from.
 :func:`load_world` validates a file and raises :class:`WorldError` naming the file and the field.
@@ -39,12 +48,163 @@ class Wall:
         return oriented_box_corners(self.x, self.y, self.length, self.width, self.yaw)
 
 
+_NO_LEGS = np.zeros((0, 2))
+
+
 @dataclass(frozen=True)
 class Cylinder:
-    """A vertical cylinder: centre ``(x, y)`` [m] and ``radius`` [m]."""
+    """A vertical cylinder: centre ``(x, y)`` [m] and ``radius`` [m] (static, or the movable
+    shape ``cylinder``)."""
     x: float
     y: float
     radius: float
+
+    shape = 'cylinder'
+    yaw = 0.0
+    leg_radius = 0.0
+
+    @property
+    def centre(self):
+        return (self.x, self.y)
+
+    def legs(self):
+        """Leg centres ``(0, 2)``: a cylinder has none."""
+        return _NO_LEGS
+
+    def outline(self, sides=32):
+        """``(sides, 2)`` points of the circle, counter-clockwise [m]."""
+        t = np.linspace(0.0, 2.0 * math.pi, sides, endpoint=False)
+        return np.column_stack((self.x + self.radius * np.cos(t), self.y + self.radius * np.sin(t)))
+
+    def distance(self, x, y):
+        """Distance [m] from the points ``(x, y)`` (arrays) to the surface; negative inside."""
+        return np.hypot(np.asarray(x, float) - self.x, np.asarray(y, float) - self.y) - self.radius
+
+    def solids(self, sides=32):
+        """Outlines ``[(n, 2), ...]`` [m] of what the laser and the base meet: the circle as a
+        ``sides``-gon."""
+        return [self.outline(sides)]
+
+
+@dataclass(frozen=True)
+class Box:
+    """The movable shape ``box``: a ``length`` × ``width`` [m] rectangle centred at ``(x, y)``
+    [m], its length along ``yaw_deg``; solid from the floor up (the laser sees its faces)."""
+    x: float
+    y: float
+    length: float
+    width: float
+    yaw_deg: float = 0.0
+
+    shape = 'box'
+    leg_radius = 0.0
+
+    @property
+    def yaw(self):
+        return math.radians(self.yaw_deg)
+
+    @property
+    def centre(self):
+        return (self.x, self.y)
+
+    @property
+    def radius(self):
+        """[m] Radius of the smallest circle about the centre holding the box (half its diagonal)."""
+        return 0.5 * math.hypot(self.length, self.width)
+
+    def corners(self):
+        """``(4, 2)`` corners in the world frame, counter-clockwise."""
+        return oriented_box_corners(self.x, self.y, self.length, self.width, self.yaw)
+
+    def legs(self):
+        """Leg centres ``(0, 2)``: a box has none."""
+        return _NO_LEGS
+
+    def outline(self):
+        """The footprint: :meth:`corners`."""
+        return self.corners()
+
+    def distance(self, x, y):
+        """Distance [m] from the points ``(x, y)`` (arrays) to the box; negative inside."""
+        return _box_distance(x, y, self.x, self.y, self.length, self.width, self.yaw)
+
+    def solids(self, sides=32):
+        """Outlines ``[(4, 2)]`` [m] of what the laser and the base meet: the box."""
+        return [self.corners()]
+
+
+FURNITURE_LEG_RADIUS = {'table': 0.03, 'chair': 0.015}   # [m] defaults of leg_radius
+
+
+@dataclass(frozen=True)
+class Furniture:
+    """The movable shapes ``table`` and ``chair``: four vertical legs of ``leg_radius`` [m]
+    centred on the corners of a ``length`` × ``width`` [m] rectangle centred at ``(x, y)``,
+    its length along ``yaw_deg``, under a top higher than the laser and the robot's base
+    (:mod:`tiago_nav.sim.scene`): the laser and the base meet only the legs."""
+    shape: str
+    x: float
+    y: float
+    length: float
+    width: float
+    yaw_deg: float = 0.0
+    leg_radius: float = 0.03
+
+    @property
+    def yaw(self):
+        return math.radians(self.yaw_deg)
+
+    @property
+    def centre(self):
+        return (self.x, self.y)
+
+    @property
+    def radius(self):
+        """[m] Radius of the smallest circle about the centre holding the legs."""
+        return 0.5 * math.hypot(self.length, self.width) + self.leg_radius
+
+    def legs(self):
+        """``(4, 2)`` leg centres [m] in the world frame (the corners, counter-clockwise)."""
+        return oriented_box_corners(self.x, self.y, self.length, self.width, self.yaw)
+
+    def outline(self):
+        """The footprint: the rectangle that holds the legs, ``(4, 2)`` counter-clockwise."""
+        d = 2.0 * self.leg_radius
+        return oriented_box_corners(self.x, self.y, self.length + d, self.width + d, self.yaw)
+
+    def distance(self, x, y):
+        """Distance [m] from the points ``(x, y)`` (arrays) to the nearest leg (the top is
+        above the base); negative inside a leg."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        return np.min([np.hypot(x - lx, y - ly) for lx, ly in self.legs()], axis=0) - self.leg_radius
+
+    def solids(self, sides=32):
+        """Outlines ``[(sides, 2)] * 4`` [m] of what the laser and the base meet: the legs."""
+        return [Cylinder(float(lx), float(ly), self.leg_radius).outline(sides) for lx, ly in self.legs()]
+
+
+@dataclass(frozen=True)
+class Walker:
+    """A person walking the polyline ``path`` (``((x, y), ...)`` [m]) at ``speed`` [m/s],
+    starting ``start_delay`` [s of simulated time] after the simulator starts; with ``loop``
+    the path closes back to its first point and repeats, otherwise the walker stops at its
+    last point. :mod:`tiago_nav.sim.walkers` gives its legs and its motion."""
+    path: Tuple[Tuple[float, float], ...]
+    speed: float
+    loop: bool = False
+    start_delay: float = 0.0
+
+    shape = 'walker'
+
+
+def _box_distance(x, y, cx, cy, length, width, yaw):
+    """Signed distance [m] from points ``(x, y)`` to a ``length`` × ``width`` rectangle
+    centred at ``(cx, cy)`` along ``yaw`` [rad]: > 0 outside, < 0 inside."""
+    dx, dy = np.asarray(x, float) - cx, np.asarray(y, float) - cy
+    c, s = math.cos(yaw), math.sin(yaw)
+    qx = np.abs(dx * c + dy * s) - length / 2.0
+    qy = np.abs(-dx * s + dy * c) - width / 2.0
+    return np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0)) + np.minimum(np.maximum(qx, qy), 0.0)
 
 
 @dataclass(frozen=True)
@@ -78,7 +238,8 @@ class World:
     robot_start: Tuple[float, float, float]  # x [m], y [m], yaw [deg]
     walls: List[Wall] = field(default_factory=list)
     static_cylinders: List[Cylinder] = field(default_factory=list)
-    movable_obstacles: List[Cylinder] = field(default_factory=list)
+    movable_obstacles: list = field(default_factory=list)   # Cylinder, Box or Furniture
+    walkers: List[Walker] = field(default_factory=list)
     corridor: Optional[Corridor] = None
     world_frame: Optional[WorldFrame] = None
     source: str = '<dict>'
@@ -96,14 +257,16 @@ class World:
 
 
 _TOP_KEYS = ('name', 'resolution', 'bounds', 'robot_start', 'walls', 'static_cylinders',
-             'movable_obstacles', 'corridor', 'world_frame')
+             'movable_obstacles', 'walkers', 'corridor', 'world_frame')
+MOVABLE_SHAPES = ('cylinder', 'box', 'table', 'chair')
 
 
 def clearance(world, xy, robot_radius=0.0, cylinders=True):
     """The smallest gap [m], exact, between a disc of ``robot_radius`` [m] centred on any of the
     map positions ``xy`` ((N, 2), or poses whose first two entries are x, y) and the ``world``'s
-    walls (their boxes' edges) and, with ``cylinders``, its static and movable cylinders;
-    negative where they overlap; None without positions."""
+    walls (their boxes' edges) and, with ``cylinders``, its static cylinders and its movable
+    obstacles of any shape (what the base can touch of them: a table's legs); negative where
+    they overlap; None without positions. Walkers move and are not included."""
     p = np.asarray([q[:2] for q in xy], float).reshape(-1, 2)
     if not len(p):
         return None
@@ -115,8 +278,8 @@ def clearance(world, xy, robot_radius=0.0, cylinders=True):
             t = np.clip(((p - a) @ ab) / max(float(ab @ ab), 1e-12), 0.0, 1.0)
             best = min(best, float(np.hypot(*(p - (a + t[:, None] * ab)).T).min()))
     if cylinders:
-        for cyl in list(world.static_cylinders) + list(world.movable_obstacles):
-            best = min(best, float(np.hypot(p[:, 0] - cyl.x, p[:, 1] - cyl.y).min()) - cyl.radius)
+        for obj in list(world.static_cylinders) + list(world.movable_obstacles):
+            best = min(best, float(np.min(obj.distance(p[:, 0], p[:, 1]))))
     return best - robot_radius
 
 def load_world(path):
@@ -180,6 +343,66 @@ def _cylinders(src, data, key):
     return out
 
 
+def _movables(src, data):
+    """``movable_obstacles``: each a mapping with an optional ``shape`` (default cylinder)."""
+    out = []
+    for i, c in enumerate(_list(src, data, 'movable_obstacles')):
+        where = 'movable_obstacles[%d]' % i
+        shape = c.get('shape', 'cylinder') if isinstance(c, dict) else 'cylinder'
+        if shape not in MOVABLE_SHAPES:
+            raise WorldError('%s: %s.shape must be one of %s, got %r'
+                             % (src, where, ', '.join(MOVABLE_SHAPES), shape))
+        if shape == 'cylinder':
+            _record(src, where, c, ('x', 'y', 'radius'), ('shape',))
+            out.append(Cylinder(_number(src, where + '.x', c['x']), _number(src, where + '.y', c['y']),
+                                _number(src, where + '.radius', c['radius'], positive=True)))
+            continue
+        extra = ('shape', 'yaw_deg') + (('leg_radius',) if shape != 'box' else ())
+        _record(src, where, c, ('x', 'y', 'length', 'width'), extra)
+        x, y = _number(src, where + '.x', c['x']), _number(src, where + '.y', c['y'])
+        length = _number(src, where + '.length', c['length'], positive=True)
+        width = _number(src, where + '.width', c['width'], positive=True)
+        yaw_deg = _number(src, where + '.yaw_deg', c.get('yaw_deg', 0.0))
+        if shape == 'box':
+            out.append(Box(x, y, length, width, yaw_deg))
+            continue
+        leg = _number(src, where + '.leg_radius', c.get('leg_radius', FURNITURE_LEG_RADIUS[shape]),
+                      positive=True)
+        if 2.0 * leg >= min(length, width):
+            raise WorldError('%s: %s.leg_radius must be less than half of length and width (the '
+                             'legs would touch), got %r' % (src, where, leg))
+        out.append(Furniture(shape, x, y, length, width, yaw_deg, leg))
+    return out
+
+
+def _walkers(src, data, bounds):
+    """``walkers``: ``{path: [[x, y], ...], speed, loop, start_delay}`` each, every point
+    within ``bounds``."""
+    out = []
+    for i, w in enumerate(_list(src, data, 'walkers')):
+        where = 'walkers[%d]' % i
+        _record(src, where, w, ('path', 'speed'), ('loop', 'start_delay'))
+        path = w['path']
+        if not isinstance(path, list) or len(path) < 2:
+            raise WorldError('%s: %s.path must be a list of at least 2 points [x, y], got %r'
+                             % (src, where, path))
+        pts = tuple(_vector(src, '%s.path[%d]' % (where, k), q, 2) for k, q in enumerate(path))
+        for k, (x, y) in enumerate(pts):
+            if not (bounds[0] <= x <= bounds[2] and bounds[1] <= y <= bounds[3]):
+                raise WorldError('%s: %s.path[%d] %r lies outside bounds %r'
+                                 % (src, where, k, [x, y], list(bounds)))
+        for k in range(1, len(pts)):
+            if pts[k] == pts[k - 1]:
+                raise WorldError('%s: %s.path[%d] repeats the point before it, got %r'
+                                 % (src, where, k, list(pts[k])))
+        loop = w.get('loop', False)
+        if not isinstance(loop, bool):
+            raise WorldError('%s: %s.loop must be true or false, got %r' % (src, where, loop))
+        out.append(Walker(pts, _number(src, where + '.speed', w['speed'], positive=True), loop,
+                          _number(src, where + '.start_delay', w.get('start_delay', 0.0), nonneg=True)))
+    return out
+
+
 def _parse(data, src):
     if not isinstance(data, dict):
         raise WorldError('%s: a world file must be a YAML mapping, got %r' % (src, type(data).__name__))
@@ -221,7 +444,7 @@ def _parse(data, src):
                             _number(src, 'corridor.width', c['width'], positive=True))
     return World(name=name, resolution=resolution, bounds=bounds, robot_start=start, walls=walls,
                  static_cylinders=_cylinders(src, data, 'static_cylinders'),
-                 movable_obstacles=_cylinders(src, data, 'movable_obstacles'),
+                 movable_obstacles=_movables(src, data), walkers=_walkers(src, data, bounds),
                  corridor=corridor, world_frame=_world_frame(src, data.get('world_frame')),
                  source=src)
 

@@ -54,12 +54,12 @@ def run_in_simulator(sim, params=CorridorParams(), max_speed=None, max_distance=
 
 
 def world_segments(world, sides=32):
-    """The outlines of a :class:`tiago_nav.sim.world.World`'s walls and cylinders (static and
-    movable) as ``(N, 2, 2)`` segments [m], cylinders as ``sides``-gons."""
+    """The outlines of a :class:`tiago_nav.sim.world.World`'s walls, static cylinders and
+    movable obstacles (what the laser meets of them: a table's legs) as ``(N, 2, 2)``
+    segments [m], circles as ``sides``-gons. Walkers move and are left out."""
     polys = [w.corners() for w in world.walls]
-    a = np.linspace(0.0, 2.0 * math.pi, sides, endpoint=False)
     for c in list(world.static_cylinders) + list(world.movable_obstacles):
-        polys.append(np.column_stack((c.x + c.radius * np.cos(a), c.y + c.radius * np.sin(a))))
+        polys.extend(c.solids(sides))
     return np.array([(poly[i], poly[(i + 1) % len(poly)]) for poly in polys
                      for i in range(len(poly))], float).reshape(-1, 2, 2)
 

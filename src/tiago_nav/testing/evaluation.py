@@ -113,8 +113,7 @@ def sample_goals(world, n, rng, start=None, clearance=0.65, passage=0.35, min_di
     centres = np.stack(grid.cell_centres(), axis=-1)             # (rows, cols, 2) [m]
     to_movable = np.full(dist.shape, np.inf)
     for c in world.movable_obstacles:
-        to_movable = np.minimum(to_movable, np.hypot(centres[..., 0] - c.x,
-                                                     centres[..., 1] - c.y) - c.radius)
+        to_movable = np.minimum(to_movable, c.distance(centres[..., 0], centres[..., 1]))
     clear = np.minimum(dist, to_movable)
     labels, _ = ndimage.label((clear >= passage) & (grid.data == 0))
     sx, sy = (start or world.start_pose)[:2]
@@ -162,7 +161,7 @@ def plot_run(path_png, grid, world, robot_path, scan_xy, truth, found_xy, goal=N
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Circle
+    from matplotlib.patches import Circle, Polygon
 
     fig, ax = plt.subplots(figsize=(10, 6))
     if grid is not None:
@@ -170,7 +169,16 @@ def plot_run(path_png, grid, world, robot_path, scan_xy, truth, found_xy, goal=N
         img = np.where(grid.data == 100, 0.15, np.where(grid.data == 0, 1.0, 0.75))
         ax.imshow(img, cmap='gray', vmin=0, vmax=1, origin='lower', extent=(xmin, xmax, ymin, ymax))
     for c in world.movable_obstacles:
-        ax.add_patch(Circle((c.x, c.y), c.radius, fill=False, ec='0.5', ls='--', lw=1))
+        if c.shape == 'cylinder':
+            ax.add_patch(Circle((c.x, c.y), c.radius, fill=False, ec='0.5', ls='--', lw=1))
+        else:
+            ax.add_patch(Polygon(c.outline(), closed=True, fill=False, ec='0.5', ls='--', lw=1))
+            for lx, ly in c.legs():
+                ax.add_patch(Circle((lx, ly), c.leg_radius, fill=True, fc='0.5', ec='none'))
+    for k, wk in enumerate(world.walkers):
+        path = np.array(wk.path + ((wk.path[0],) if wk.loop else ()))
+        ax.plot(path[:, 0], path[:, 1], '--', color='tab:brown', lw=0.8,
+                label='walker paths' if k == 0 else None)
     for _, x, y, r in truth:
         ax.add_patch(Circle((x, y), r, fill=False, ec='tab:green', lw=2))
     if len(robot_path):

@@ -168,7 +168,7 @@ class ClosedLoop:
             p = self.sim.pose
             trail.append(p)
             for c in self.world.movable_obstacles:
-                closest[0] = min(closest[0], math.hypot(p[0] - c.x, p[1] - c.y) - c.radius)
+                closest[0] = min(closest[0], float(c.distance(p[0], p[1])))
             if t_xy[0] is None and math.hypot(p[0] - goal[0], p[1] - goal[1]) <= 0.15:
                 t_xy[0] = self.sim.time - t0
         self.on_control.append(track)
