@@ -18,12 +18,14 @@ from tiago_nav.motion import MotionMonitor
 
 
 class FakeBackend:
-    """Simulated time advances by ``dt`` per sleep (wall time too, unless ``clock_stalls``).
+    """Wall time advances by ``dt`` per sleep, simulated time too unless ``clock_stalls`` (until
+    the wall time ``resume_at``: a slow simulator; with ``dead``, the reason, a dead one).
     The robot moves toward the navigation goal at ``speed`` m/s while that stage is active."""
 
     def __init__(self, corridor='succeed', navigation='succeed', detection='ok', speed=1.0,
                  servers=('corridor', 'navigation', 'detection'), preempt_at=None,
-                 clock_stalls=False, vanish_at=None, corridor_ahead=True):
+                 clock_stalls=False, vanish_at=None, corridor_ahead=True, dead='',
+                 resume_at=None):
         self.t = 0.0
         self.w = 0.0
         self.robot = [0.0, 0.0, 0.0]
@@ -36,6 +38,7 @@ class FakeBackend:
         self.servers = set(servers)
         self.preempt_at = preempt_at
         self.clock_stalls = clock_stalls
+        self.dead, self.resume_at, self.asked = dead, resume_at, 0
         self.vanish_at = vanish_at
         self.feedbacks = []
         self.sent = []
@@ -52,8 +55,14 @@ class FakeBackend:
     def wall(self):
         return self.w
 
+    def source_dead(self):
+        self.asked += 1
+        return self.dead
+
     def sleep(self, dt):
         self.w += dt
+        if self.clock_stalls and self.resume_at is not None and self.w >= self.resume_at:
+            self.clock_stalls = False
         if not self.clock_stalls:
             self.t += dt
             self._move(dt)
@@ -233,12 +242,24 @@ def test_stage_timeout_cancels_the_goal():
     assert b.cancelled == ['corridor']
 
 
-def test_stopped_clock_does_not_hang():
-    b = FakeBackend(navigation='hang', clock_stalls=True)
+def test_dead_clock_does_not_hang():
+    dead = 'the process of /simulator, which published /clock, is gone'
+    b = FakeBackend(navigation='hang', clock_stalls=True, dead=dead)
     out = run(b, Goal(3, 0, 0, False))
     assert out.status == ABORTED and out.stage == 'navigation'
-    assert 'ROS time stopped' in out.message
-    assert b.w < 10.0
+    assert out.message.startswith('navigation failed: ROS time stopped advancing')
+    assert out.message.endswith(dead)
+    assert b.cancelled == ['navigation']
+    assert b.w < 2 * CFG.clock_timeout
+
+
+def test_slow_clock_is_waited_for():
+    """ROS time stands still for 10 clock_timeouts of wall time while its source lives: the
+    mission goes on and succeeds."""
+    b = FakeBackend(clock_stalls=True, resume_at=10 * CFG.clock_timeout)
+    out = run(b, Goal(3, 0, 0, False))
+    assert out.status == SUCCEEDED, out.message
+    assert b.asked >= 5 and b.w - b.t >= 10 * CFG.clock_timeout - 1.0
 
 
 def test_server_that_goes_away_mid_stage_aborts_within_the_lost_timeout():

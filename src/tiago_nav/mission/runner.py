@@ -4,13 +4,15 @@ through a *backend* and returns an :class:`Outcome`.
 Units: metres, radians (degrees only where a name says ``_deg``), seconds. Poses are
 ``(x, y, yaw)`` of base_footprint in the ``map`` frame. The backend's ``now()`` is ROS time
 (simulated under /use_sim_time); stage timeouts count in it. ``wall()`` is a monotonic wall
-clock; waits for servers and the "simulated clock stopped" guard count in it, so nothing hangs
-if /clock stops.
+clock; waits for servers count in it, and so does the "simulated clock stopped" guard, which
+abandons a stage only when the backend's ``source_dead()`` names a reason (a slow simulator is
+waited for), so nothing hangs if /clock stops.
 """
 import math
 from dataclasses import dataclass, field
 from typing import Any, List, Optional, Tuple
 
+from tiago_nav.clock import StallWatch
 from tiago_nav.geometry import wrap_angle
 from tiago_nav.mission.goals import GoalError, validate_goal
 from tiago_nav.mission.sentences import (corridor_done_sentence, corridor_sentence, fmt_pose,
@@ -35,7 +37,8 @@ class MissionConfig:
 
     ``*_timeout`` of a stage: ROS (simulated) seconds from its start; ``server_timeout`` and
     ``detection_timeout``: wall seconds (waiting for a server, one service call);
-    ``clock_timeout``: wall seconds without ROS time advancing before a stage is abandoned.
+    ``clock_timeout``: wall seconds without ROS time advancing before the source of ROS time
+    is judged (dead: the stage is abandoned; alive, however slow: waited for).
     """
     server_timeout: float = param(30.0, '[s wall] wait this long for each action server / the '
                                   'service, and for a fresh scan to judge the corridor, before a '
@@ -50,8 +53,9 @@ class MissionConfig:
                                   'still before scanning', gt=0)
     stop_timeout: float = param(5.0, '[s] on cancel, wait at most this for the base to stop',
                                 gt=0)
-    clock_timeout: float = param(10.0, '[s wall] abandon a stage when ROS time stands still this '
-                                 'long', gt=0)
+    clock_timeout: float = param(10.0, '[s wall] when ROS time stands still this long, ask '
+                                 'whether its source (the simulator) is dead: abandon the stage '
+                                 'if so, wait on if it lives', gt=0)
     feedback_period: float = param(1.0, '[s] at most one progress feedback per period while a '
                                    'state lasts', gt=0)
     poll_period: float = param(0.02, '[s wall] how often stages are polled', gt=0)
@@ -166,7 +170,8 @@ class MissionRunner:
     """Runs one goal after another through a backend.
 
     The backend is a :mod:`tiago_nav.clock` clock (``now()``, ``wall()``, ``sleep(wall
-    seconds)``, ``shutdown()``) and provides ``preempt_requested()``, ``pose()`` (``(x, y,
+    seconds)``, ``shutdown()``, ``source_dead()``) and provides ``preempt_requested()``,
+    ``pose()`` (``(x, y,
     yaw)`` in map or None), ``path()`` (the current plan as ``[(x, y), ...]`` or None),
     ``server_ready(stage)``, ``send_goal(stage, goal)`` (corridor: ``(max_speed,
     max_distance)``; navigation: ``(x, y, yaw)``), ``poll(stage) -> Poll``, ``cancel(stage)``,
@@ -263,12 +268,13 @@ class MissionRunner:
 
     def _run_action(self, stage, what, goal, timeout, on_tick):
         """Send ``goal`` to the stage's action server and poll it until it ends; return its
-        result. Cancels the goal on preemption, timeout or a stopped clock."""
+        result. Cancels the goal on preemption, timeout (ROS time) or a dead clock (ROS time
+        standing still while its source is dead: :class:`tiago_nav.clock.StallWatch`)."""
         self._wait_server(stage, what)
         self.b.send_goal(stage, goal)
         t0 = self.b.now()
-        last_t, last_change = t0, self.b.wall()
-        last_seen = last_change
+        clock = StallWatch(self.b, self.cfg.clock_timeout)
+        last_seen = self.b.wall()
         while True:
             if self.b.preempt_requested():
                 self.b.cancel(stage)
@@ -288,12 +294,10 @@ class MissionRunner:
                 self.b.cancel(stage)
                 raise StageError(stage, 'the %s server went away (gone for %g s)'
                                  % (what, self.cfg.server_lost_timeout))
-            if t != last_t:
-                last_t, last_change = t, w
-            elif w - last_change > self.cfg.clock_timeout:
+            dead = clock.check(t)
+            if dead:
                 self.b.cancel(stage)
-                raise StageError(stage, 'ROS time stopped advancing for %g s (is the simulator '
-                                 'running?)' % self.cfg.clock_timeout)
+                raise StageError(stage, dead)
             if t - t0 > timeout:
                 self.b.cancel(stage)
                 raise StageError(stage, 'timed out after %g s' % timeout)
@@ -373,8 +377,8 @@ class MissionRunner:
                           % (fmt_pose(pose), err, yaw_err, '' if stopped else ' (still settling)'))
 
     def _wait_stopped(self, timeout):
-        """Tell the robot to stop and wait until it is still (``timeout`` [s] of ROS time, with
-        ``clock_timeout`` as the wall-clock guard); True when it stopped."""
+        """Tell the robot to stop and wait until it is still (``timeout`` [s] of ROS time; a
+        dead clock ends the wait: ``clock_timeout``); True when it stopped."""
         return wait_until_still(self.b, self.b.pose, self.b.stop_robot, self.motion, timeout,
                                 period=self.cfg.poll_period * 2, stall=self.cfg.clock_timeout)
 

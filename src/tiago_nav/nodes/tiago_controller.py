@@ -35,6 +35,7 @@ from tiago_nav.msg import (CorridorAction, CorridorActionFeedback, CorridorGoal,
 from tiago_nav.params import nested, param, validate
 from tiago_nav.ros import params as ros_params
 from tiago_nav.ros.actions import server_connected
+from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant, Peers,
                                     ScanCache, goal_since, lookup_at)
@@ -62,7 +63,8 @@ class Params:
     """Parameters of the tiago_controller node (the TiagoTask proxy).
 
     Stage timeouts count in ROS time (simulated under /use_sim_time); server_timeout,
-    detection_timeout and clock_timeout in wall time, so nothing hangs if /clock stops.
+    detection_timeout and clock_timeout in wall time, so nothing hangs if /clock stops (a
+    stage is abandoned only once the simulator is found dead, not merely slow).
     """
     mission: MissionConfig = nested(MissionConfig)
     action_name: str = param('tiago_controller', 'the TiagoTask action served', nonempty=True)
@@ -91,6 +93,7 @@ class RosBackend:
 
     def __init__(self, params):
         self.p = params
+        self._clock = RosClock()
         self.cfg = params.mission
         self.global_frame, self.robot_frame = params.global_frame, params.robot_frame
         self.clients = {
@@ -131,6 +134,9 @@ class RosBackend:
 
     def wall(self):
         return time.monotonic()
+
+    def source_dead(self):
+        return self._clock.source_dead()
 
     def sleep(self, seconds):
         """Out of lockstep: ``seconds`` of wall time (never blocks if /clock stops). In lockstep,
