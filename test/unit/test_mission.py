@@ -12,7 +12,8 @@ from tiago_nav.mission import (ABORTED, ACTIVE, NO_CORRIDOR, PREEMPTED, SUCCEEDE
                                Goal, GoalError, MissionConfig, MissionRunner, Poll, StageError,
                                validate_goal)
 from tiago_nav.mission.client import obstacle_table
-from tiago_nav.mission.runner import no_corridor_scan, no_service, service_failed
+from tiago_nav.mission.runner import (Cancelled, no_corridor_scan, no_service, service_failed,
+                                      service_verdict)
 from tiago_nav.mission.sentences import remaining_path_length
 from tiago_nav.motion import MotionMonitor
 
@@ -153,6 +154,8 @@ class FakeBackend:
             return False, [], ''
         if self.detection == 'none':
             return True, [], ''
+        if self.detection == 'cancelled':      # cancelled while the call waited on a slow node
+            raise Cancelled()
         return True, ['o1', 'o2'], ''
 
     def stop_robot(self):
@@ -451,3 +454,21 @@ def test_corridor_ahead_uses_the_robot_pose():
     points, laser = _scan_from('ias_lab_room_full.yaml', (0.0, 0.0, 0.0))
     assert corridor_ahead(points, laser, (0.0, 0.0, 0.0), (11.0, 0.0, 0.0))
     assert not corridor_ahead(points, laser, (0.0, 0.0, math.pi / 2), (11.0, 0.0, 0.0))
+
+
+def test_a_cancel_while_detection_waits_preempts_in_detection():
+    b = FakeBackend(detection='cancelled')
+    out = run(b)
+    assert out.status == PREEMPTED and out.stage == 'detection', out.message
+    assert out.message.startswith('cancelled during detection')
+
+
+@pytest.mark.parametrize('registered, exited, words', [
+    (True, False, ''), (True, None, ''),        # alive, or busy/frozen (cannot tell): wait on
+    (True, True, "registered, but its node's process is gone"),
+    (False, None, 'no longer registered')])
+def test_service_verdict_rests_on_facts(registered, exited, words):
+    verdict = service_verdict('/obstacle_detection', registered, exited)
+    assert (words in verdict) if words else verdict == ''
+    if words:
+        assert verdict.startswith('the /obstacle_detection service went away: ')

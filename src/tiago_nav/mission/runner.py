@@ -45,10 +45,12 @@ class MissionConfig:
                                   'stage fails; in lockstep, at start-up, for the node\'s '
                                   'registration', gt=0)
     server_lost_timeout: float = param(3.0, '[s wall] a stage whose server has been gone (node '
-                                       'died) this long aborts', gt=0)
+                                       'died: its connections closed) this long aborts', gt=0)
     corridor_timeout: float = param(120.0, '[s] the corridor_controller stage', gt=0)
     navigation_timeout: float = param(240.0, '[s] the move_base stage', gt=0)
-    detection_timeout: float = param(10.0, '[s wall] one obstacle_detection call', gt=0)
+    detection_timeout: float = param(10.0, '[s wall] an obstacle_detection call unanswered this '
+                                     'long: ask whether its node is dead (fail if so, wait on '
+                                     'while it lives)', gt=0)
     settle_timeout: float = param(3.0, '[s] after arrival, wait at most this for the base to be '
                                   'still before scanning', gt=0)
     stop_timeout: float = param(5.0, '[s] on cancel, wait at most this for the base to stop',
@@ -129,12 +131,6 @@ def no_service(name, timeout):
     return 'no %s service after %g s (is it running?)' % (name, timeout)
 
 
-def service_gone(name, timeout):
-    """The service ``name`` stayed registered but did not answer for ``timeout`` [s wall]."""
-    return ('the %s service went away: registered but not answering (gone for %g s; did its '
-            'node die?)' % (name, timeout))
-
-
 def service_failed(name, error):
     """The call of the service ``name`` raised ``error`` (e.g. its handler raised)."""
     return 'the %s service failed: %s' % (name, error)
@@ -143,6 +139,25 @@ def service_failed(name, error):
 def service_silent(name, timeout):
     """The service ``name`` did not answer within ``timeout`` [s wall]."""
     return 'the %s service did not answer within %g s' % (name, timeout)
+
+
+def service_verdict(name, registered, exited):
+    """Is the provider of the service ``name`` dead? Judged from facts, never from time alone:
+    ``registered``, the master lists the service; ``exited``, its node's process is gone (True:
+    its XML-RPC port refuses connections), there (False) or cannot be told now (None: a busy
+    or frozen process). ``''`` while it may live (a slow node is waited for), else the
+    reason."""
+    if not registered:
+        return 'the %s service went away: no longer registered (its node shut down)' % name
+    if exited:
+        return ('the %s service went away: registered, but its node\'s process is gone (did '
+                'it die?)' % name)
+    return ''
+
+
+class Cancelled(Exception):
+    """Raised by a backend's wait (e.g. ``detect``) when the goal is cancelled meanwhile: the
+    mission ends PREEMPTED in the stage that waited."""
 
 
 def no_corridor_scan(topic, timeout):
@@ -178,7 +193,8 @@ class MissionRunner:
     ``corridor_ahead(goal) -> bool`` (does a corridor lead from here toward the
     :class:`Goal`? may raise :class:`StageError` when it cannot tell, e.g. no scan),
     ``detect(timeout) -> (success, obstacles, message)`` (the obstacle_detection service's
-    answer; :class:`DetectionError` when it could not be asked), ``stop_robot()`` and
+    answer; :class:`DetectionError` when it could not be asked, :class:`Cancelled` when the
+    goal was cancelled while it waited), ``stop_robot()`` and
     ``publish_feedback(state, status, pose)``.
 
     Every failure ends the goal ABORTED with ``'<stage> failed: <reason>'`` (but corridor_controller's
@@ -388,6 +404,8 @@ class MissionRunner:
             raise _Preempted('detection')
         try:
             success, obstacles, message = self.b.detect(self.cfg.detection_timeout)
+        except Cancelled:
+            raise _Preempted('detection') from None
         except DetectionError as e:
             raise StageError('detection', str(e)) from None
         if not success:
