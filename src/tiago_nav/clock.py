@@ -6,7 +6,7 @@ A *clock* is any object with ``now()`` (ROS time [s]: simulated under ``/use_sim
 time (the simulator, through ``/clock``) lives and is connected to this process, else a
 sentence saying why it is dead (its publisher unregistered, the connection closed, its process
 gone). :class:`tiago_nav.ros.clock.RosClock` is the ROS one (it gathers those facts and
-:func:`clock_verdict` judges them), :class:`tiago_nav.testing.fakes.FakeClock` a simulated one
+:func:`source_verdict` judges them), :class:`tiago_nav.testing.fakes.FakeClock` a simulated one
 for unit tests.
 
 ROS time standing still is not by itself a verdict: on a loaded machine a live simulator can
@@ -20,16 +20,18 @@ NAP = 0.002          # [s wall] polling step of sleep_until
 STALL = 2.0          # [s wall] ROS time standing still this long: ask whether its source is dead
 
 
-def clock_verdict(topic, listed, connected, exited=()):
-    """Is the source of ROS time dead? Judged from facts, never from time alone.
+def source_verdict(topic, listed, connected, exited=(), what='the simulator'):
+    """Is the source of a topic (ROS time's ``/clock``; a sensor a cycle names) dead? Judged
+    from facts, never from time alone.
 
     Args:
-        topic: the clock topic's name (``/clock``), for the sentence.
+        topic: the topic's name (``/clock``), for the sentence.
         listed: the nodes the ROS master lists as publishing ``topic``; None when the master
             cannot be reached.
         connected: the nodes this process holds a live connection from on ``topic``.
         exited: the nodes among ``listed`` known to have no process any more (e.g. their
             pid is gone); those whose state is unknown are not in it.
+        what: who normally publishes it, for the sentence.
 
     Returns ``''`` when a listed publisher is connected and its process is not known to have
     exited (it lives; it may be slow), else the reason it is dead:
@@ -40,7 +42,7 @@ def clock_verdict(topic, listed, connected, exited=()):
         return 'the ROS master cannot be reached'
     listed = [n for n in listed if n]
     if not listed:
-        return 'nothing publishes %s any more (the simulator is not running)' % topic
+        return 'nothing publishes %s any more (%s is not running)' % (topic, what)
     living = [n for n in listed if n not in set(exited)]
     if not living:
         return 'the process of %s, which published %s, is gone' % (', '.join(listed), topic)

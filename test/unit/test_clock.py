@@ -1,21 +1,21 @@
 """Waiting in ROS time (tiago_nav.clock): a stalled clock is a verdict only with a dead source.
 
-:func:`clock_verdict` judges the facts the ROS side gathers (the master's publishers of /clock,
+:func:`source_verdict` judges the facts the ROS side gathers (the master's publishers of /clock,
 this process's live connections, processes known gone); :class:`StallWatch` and the waits built
 on it give up only when ROS time stands still *and* the source is dead, and wait on (asking
 again) while it lives, however long it lags."""
 import pytest
 
-from tiago_nav.clock import StallWatch, Ticker, clock_verdict, sleep_until, wait_until
+from tiago_nav.clock import StallWatch, Ticker, source_verdict, sleep_until, wait_until
 from tiago_nav.motion import MotionMonitor, wait_until_still
 from tiago_nav.testing.fakes import FakeClock
 
 
 # --- the verdict from facts -------------------------------------------------------------------
 def test_a_connected_publisher_lives():
-    assert clock_verdict('/clock', ['/simulator'], {'/simulator'}) == ''
+    assert source_verdict('/clock', ['/simulator'], {'/simulator'}) == ''
     # another, dead publisher beside it changes nothing: time can still come
-    assert clock_verdict('/clock', ['/old', '/simulator'], {'/simulator'}, {'/old'}) == ''
+    assert source_verdict('/clock', ['/old', '/simulator'], {'/simulator'}, {'/old'}) == ''
 
 
 @pytest.mark.parametrize('listed, connected, exited, words', [
@@ -29,12 +29,12 @@ def test_a_connected_publisher_lives():
     ([], {'/simulator'}, set(), 'nothing publishes /clock'),
 ])
 def test_dead_sources_are_named(listed, connected, exited, words):
-    assert words in clock_verdict('/clock', listed, connected, exited)
+    assert words in source_verdict('/clock', listed, connected, exited)
 
 
 def test_a_connected_publisher_whose_process_is_gone_is_dead():
     # (a pid seen gone outweighs a connection rospy has not noticed closing yet)
-    assert 'is gone' in clock_verdict('/clock', ['/simulator'], {'/simulator'}, {'/simulator'})
+    assert 'is gone' in source_verdict('/clock', ['/simulator'], {'/simulator'}, {'/simulator'})
 
 
 # --- waits ----------------------------------------------------------------------------------------

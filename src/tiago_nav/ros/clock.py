@@ -8,7 +8,7 @@ import rosgraph
 import rospy
 from rospy.impl.registration import get_topic_manager
 
-from tiago_nav.clock import clock_verdict
+from tiago_nav.clock import source_verdict
 
 CLOCK_TOPIC = '/clock'
 PROBE_TIMEOUT = 1.0     # [s wall] one question to a node's XML-RPC server (is its process there?)
@@ -33,8 +33,9 @@ def node_exited(uri, caller_id, timeout=PROBE_TIMEOUT):
         return None
 
 
-def clock_facts(topic=CLOCK_TOPIC, master=None):
-    """``(listed, connected, exited)`` for :func:`tiago_nav.clock.clock_verdict`: the master's
+def topic_facts(topic=CLOCK_TOPIC, master=None):
+    """``(listed, connected, exited)`` for :func:`tiago_nav.clock.source_verdict` of a topic this
+    process subscribes to (``topic``, resolved): the master's
     publishers of ``topic`` (None when it cannot be reached), those this process has a live
     connection from (a completed handshake), and the listed ones without a connection whose
     process is gone. (rospy keeps a dropped connection in its list, without a socket, while it
@@ -65,7 +66,7 @@ def clock_facts(topic=CLOCK_TOPIC, master=None):
 class RosClock:
     """``now()`` is ROS time (``/clock`` under ``/use_sim_time``), ``wall()`` monotonic wall
     time; ``sleep`` sleeps in wall time, so it never blocks when ``/clock`` stops;
-    ``source_dead()`` judges ``/clock``'s publisher from :func:`clock_facts`."""
+    ``source_dead()`` judges ``/clock``'s publisher from :func:`topic_facts`."""
 
     def now(self):
         return rospy.get_time()
@@ -82,8 +83,14 @@ class RosClock:
     def source_dead(self):
         """``''`` while ROS time's source lives: wall time (no /use_sim_time), this process's
         own (the simulator publishes /clock and takes no /clock in), or a connected /clock
-        publisher whose process is there; else the reason (:func:`clock_verdict`)."""
+        publisher whose process is there; else the reason (:func:`source_verdict`)."""
         if rospy.rostime.is_wallclock() or \
                 get_topic_manager().get_subscriber_impl(CLOCK_TOPIC) is None:
             return ''
-        return clock_verdict(CLOCK_TOPIC, *clock_facts())
+        return source_verdict(CLOCK_TOPIC, *topic_facts())
+
+
+def topic_dead(topic, what='the simulator'):
+    """``''`` while a publisher of ``topic`` (resolved) that this process subscribes to lives and
+    is connected, else the reason (:func:`tiago_nav.clock.source_verdict`)."""
+    return source_verdict(topic, *topic_facts(topic), what=what)

@@ -10,7 +10,7 @@ class FakeClock:
     As the real clock's source fails: ``stalled`` alone is a live simulator that has fallen
     behind (ROS time stands still, ``source_dead()`` says ``''``) until the wall time
     ``resume_at`` (None: never); a dead one is ``stalled`` with ``dead`` set to the reason
-    ``source_dead()`` gives (as :func:`tiago_nav.clock.clock_verdict` would)."""
+    ``source_dead()`` gives (as :func:`tiago_nav.clock.source_verdict` would)."""
 
     def __init__(self, t=0.0, shutdown_at=None):
         self.t = float(t)
