@@ -1,44 +1,119 @@
 """Waiting in ROS time without hanging when that time stops (no ROS here).
 
 A *clock* is any object with ``now()`` (ROS time [s]: simulated under ``/use_sim_time``),
-``wall()`` (a monotonic wall clock [s]), ``sleep(seconds)`` (wall time) and ``shutdown()``
-(True once the process is stopping). :class:`tiago_nav.ros.clock.RosClock` is the ROS one,
-:class:`tiago_nav.testing.fakes.FakeClock` a simulated one for unit tests.
+``wall()`` (a monotonic wall clock [s]), ``sleep(seconds)`` (wall time), ``shutdown()``
+(True once the process is stopping) and ``source_dead()``: ``''`` while whatever makes ROS
+time (the simulator, through ``/clock``) lives and is connected to this process, else a
+sentence saying why it is dead (its publisher unregistered, the connection closed, its process
+gone). :class:`tiago_nav.ros.clock.RosClock` is the ROS one (it gathers those facts and
+:func:`source_verdict` judges them), :class:`tiago_nav.testing.fakes.FakeClock` a simulated one
+for unit tests.
+
+ROS time standing still is not by itself a verdict: on a loaded machine a live simulator can
+fall seconds behind. A wait that sees ROS time stand still for ``stall`` wall seconds asks
+``source_dead()`` (:class:`StallWatch`): a dead source ends the wait at once, naming the
+reason; a live one is waited for, asked again every ``stall`` seconds, the waiter's own
+patience counting in ROS time (a goal's timeout).
 """
 
 NAP = 0.002          # [s wall] polling step of sleep_until
-STALL = 2.0          # [s wall] ROS time standing still this long counts as stopped
+STALL = 2.0          # [s wall] ROS time standing still this long: ask whether its source is dead
 
 
-def sleep_until(clock, target, stall=STALL, nap=NAP):
-    """Sleep until ROS time ``target`` [s].
+def source_verdict(topic, listed, connected, exited=(), what='the simulator'):
+    """Is the source of a topic (ROS time's ``/clock``; a sensor a cycle names) dead? Judged
+    from facts, never from time alone.
 
-    Returns True once ``clock.now() >= target``; False when the process is shutting down or
-    ROS time has not moved for ``stall`` seconds of wall time (a stopped ``/clock``), so that
-    no loop built on it can block for ever.
-    """
-    last, since = clock.now(), clock.wall()
+    Args:
+        topic: the topic's name (``/clock``), for the sentence.
+        listed: the nodes the ROS master lists as publishing ``topic``; None when the master
+            cannot be reached.
+        connected: the nodes this process holds a live connection from on ``topic``.
+        exited: the nodes among ``listed`` known to have no process any more (e.g. their
+            pid is gone); those whose state is unknown are not in it.
+        what: who normally publishes it, for the sentence.
+
+    Returns ``''`` when a listed publisher is connected and its process is not known to have
+    exited (it lives; it may be slow), else the reason it is dead:
+    the master unreachable, no publisher registered, every publisher's process gone, or no
+    connection left to any of them (a killed process's connections close; its registration
+    stays behind)."""
+    if listed is None:
+        return 'the ROS master cannot be reached'
+    listed = [n for n in listed if n]
+    if not listed:
+        return 'nothing publishes %s any more (%s is not running)' % (topic, what)
+    living = [n for n in listed if n not in set(exited)]
+    if not living:
+        return 'the process of %s, which published %s, is gone' % (', '.join(listed), topic)
+    if not set(living) & set(connected):
+        return 'the connection to %s, which publishes %s, is closed (did it die?)' % (
+            ', '.join(living), topic)
+    return ''
+
+
+class StallWatch:
+    """Watches ROS time during a wait: :meth:`check` returns ``''`` while time moves, or stands
+    still with its source alive; the reason (``clock.source_dead()``'s, with how long time
+    stood still) once it stands still and its source is dead. The source is asked only after
+    ``stall`` wall seconds without a change of ROS time, then again every ``stall`` seconds.
+    ``reason`` keeps the last verdict."""
+
+    def __init__(self, clock, stall=STALL):
+        self.clock, self.stall = clock, float(stall)
+        self.last, self.since = clock.now(), clock.wall()
+        self.asked = self.since
+        self.reason = ''
+
+    def check(self, now=None):
+        """``''`` to keep waiting, else why ROS time will not move again."""
+        now = self.clock.now() if now is None else now
+        wall = self.clock.wall()
+        if now != self.last:
+            self.last, self.since, self.asked = now, wall, wall
+            return ''
+        if wall - self.asked <= self.stall:
+            return ''
+        self.asked = wall
+        dead = self.clock.source_dead()
+        if dead:
+            self.reason = 'ROS time stopped advancing at %.3f s (for %.1f s of wall time): %s' % (
+                now, wall - self.since, dead)
+        return self.reason
+
+
+def wait_until(clock, target, stall=STALL, nap=NAP):
+    """Sleep until ROS time ``target`` [s]. Returns ``''`` once ``clock.now() >= target``, else
+    why not: ``'node shutting down'``, or the :class:`StallWatch` reason when ROS time stopped
+    and its source is dead. While the source lives, however slow, it keeps waiting."""
+    watch = StallWatch(clock, stall)
     while not clock.shutdown():
         now = clock.now()
         if now >= target:
-            return True
-        if now != last:
-            last, since = now, clock.wall()
-        elif clock.wall() - since > stall:
-            return False
+            return ''
+        dead = watch.check(now)
+        if dead:
+            return dead
         clock.sleep(nap)
-    return False
+    return 'node shutting down'
+
+
+def sleep_until(clock, target, stall=STALL, nap=NAP):
+    """:func:`wait_until` as a bool: True once ROS time reached ``target``."""
+    return not wait_until(clock, target, stall, nap)
 
 
 class Ticker:
     """A fixed-rate loop in ROS time: ``tick()`` sleeps until the next period and returns False
-    when :func:`sleep_until` gives up. A loop that falls more than one period behind skips the
-    missed ticks instead of running them back to back."""
+    when :func:`wait_until` gives up (``reason`` then says why). A loop that falls more than one
+    period behind skips the missed ticks instead of running them back to back."""
 
     def __init__(self, clock, period, stall=STALL):
         self.clock, self.period, self.stall = clock, float(period), stall
         self.next = clock.now()
+        self.reason = ''
 
     def tick(self):
         self.next = max(self.next + self.period, self.clock.now() - self.period)
-        return sleep_until(self.clock, self.next, self.stall)
+        self.reason = wait_until(self.clock, self.next, self.stall)
+        return not self.reason

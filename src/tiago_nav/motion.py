@@ -5,6 +5,7 @@ Poses are ``(x, y, yaw)`` [m, m, rad] in one fixed frame (map or odom); times [s
 import collections
 import math
 
+from tiago_nav.clock import STALL, StallWatch
 from tiago_nav.geometry import wrap_angle
 
 
@@ -57,7 +58,7 @@ class MotionMonitor:
         return bool(s[0] > self.speed_threshold or s[1] > self.turn_threshold)
 
 
-def wait_until_still(clock, pose, stop, monitor, timeout, period=0.04, stall=10.0):
+def wait_until_still(clock, pose, stop, monitor, timeout, period=0.04, stall=STALL):
     """Command a stop and wait until the robot is still.
 
     Args:
@@ -67,17 +68,20 @@ def wait_until_still(clock, pose, stop, monitor, timeout, period=0.04, stall=10.
         monitor: the :class:`MotionMonitor` that judges stillness (reset here).
         timeout: give up after this long [s of ROS time] ...
         period: polling period [s wall].
-        stall: ... or after ``max(timeout, stall)`` seconds of wall time (ROS time stopped).
+        stall: ... or when ROS time has stood still this long [s wall] and its source is dead
+            (:class:`tiago_nav.clock.StallWatch`; a live, slow source is waited for).
 
-    Returns True once the monitor says stopped, False on timeout or shutdown.
+    Returns True once the monitor says stopped, False on timeout, a dead clock or shutdown.
     """
     monitor.reset()
-    t0, w0 = clock.now(), clock.wall()
+    t0 = clock.now()
+    watch = StallWatch(clock, stall)
     while not clock.shutdown():
         stop()
-        if monitor.update(clock.now(), pose()) is False:
+        now = clock.now()
+        if monitor.update(now, pose()) is False:
             return True
-        if clock.now() - t0 > timeout or clock.wall() - w0 > max(timeout, stall):
+        if now - t0 > timeout or watch.check(now):
             return False
         clock.sleep(period)
     return False

@@ -3,6 +3,7 @@ before the bend, centred, without contact and at least 5 cm from every wall, nev
 ahead" by the outer wall; a real obstacle in the corridor still is. And the mission's handoff:
 when corridor_controller aborts, move_base drives the rest (CORRIDOR -> NAVIGATING, reason)."""
 import math
+import os
 
 import numpy as np
 import pytest
@@ -13,14 +14,18 @@ from tiago_nav.mission import SUCCEEDED, ABORTED, MissionRunner, Poll
 from tiago_nav.mission.sentences import handoff_sentence
 from tiago_nav.geometry import wrap_angle
 from tiago_nav.robot import ROBOT_RADIUS
+from tiago_nav.sim.laser import LaserModel
+from tiago_nav.sim.odometry import OdometryNoise
 from tiago_nav.sim.simulator import SimConfig, Simulator
-from tiago_nav.sim.world import World
+from tiago_nav.sim.world import World, load_world
 from tiago_nav.sim.worlds import corridor_world
-from tiago_nav.testing.corridor import clearance, run_in_simulator
+from tiago_nav.testing.corridor import clearance, ray_cast, run_in_simulator, world_segments
 
 from test_mission import CFG, FakeBackend
 
 P = CorridorParams()
+WORLDS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
+                      'worlds')
 
 
 def drive(world_dict, seed=0):
@@ -64,6 +69,53 @@ def test_stops_before_the_bend_centred_and_clear(bend, width):
         else:
             # the inner wall ended first: stopped past it, facing along the first leg
             assert abs(yaw) < math.radians(6)
+
+
+def _ahead(world, pose, radius=ROBOT_RADIUS):
+    """Ground truth: how far [m] the base's disc at ``pose`` could move along +x (the first
+    leg of the shipped bend worlds) before it touched anything."""
+    segments = world_segments(world)
+    free = math.inf
+    for o in np.linspace(-radius, radius, 41):
+        r = ray_cast((pose[0], pose[1] + o), np.array([0.0]), segments, 25.0)[0]
+        free = min(free, r - math.sqrt(max(radius * radius - o * o, 0.0)))
+    return free
+
+
+# the law's documented clearance from every wall (docs/corridor.md, Bends); at 30 deg the outer
+# wall crosses the first leg so shallowly that the stop end_clearance (0.25 m) short of it
+# along the leg is 0.25 sin 30 = 0.125 m square to it
+LAW_CLEARANCE = {30.0: 0.12, 45.0: 0.13, 60.0: 0.13}
+
+
+@pytest.mark.parametrize('seed', [1, 2, 3])
+@pytest.mark.parametrize('bend', [30.0, 45.0, 60.0])
+def test_tiago_profile_stops_end_clearance_before_the_bend(bend, seed):
+    """The shipped bend worlds in the tiago profile (its laser: self-hits, mixed pixels,
+    dropouts; drifting odometry, which the law drives on): the law stops where the outer wall
+    crossing the first leg is ``end_clearance`` ahead of the disc (ground truth), turns toward
+    the next leg, and keeps the documented clearance from every wall all the way. A law that
+    did not stop short of the bend drives on to end + exit_margin: it is blocked by the outer
+    wall, or stops with it a few centimetres ahead."""
+    world = load_world(os.path.join(WORLDS, 'corridor_bend_%d.yaml' % bend))
+    cfg = SimConfig(laser_noise=0.01, seed=seed, laser_model=LaserModel(laser_model='tiago'),
+                    odometry=OdometryNoise(odometry_model='drift'))
+    sim = Simulator(world, cfg)
+    track = []
+    try:
+        cmd, _ = run_in_simulator(sim, timeout=40.0, on_step=lambda s, c: track.append(s.pose))
+        collisions = sim.collisions
+    finally:
+        sim.close()
+    track = np.array(track)
+    assert cmd.state == 'done', cmd.reason
+    assert 'stopped %.2f m before a wall ahead past its end' % P.end_clearance in cmd.reason
+    assert collisions == 0
+    assert clearance(world, track[:, :2]) >= LAW_CLEARANCE[bend]
+    x, y, yaw = track[-1]
+    assert abs(y) < 0.05                                     # centred in the first leg
+    assert _ahead(world, track[-1]) == pytest.approx(P.end_clearance, abs=0.05)
+    assert abs(wrap_angle(yaw - math.radians(bend))) < math.radians(8)   # turned to the next leg
 
 
 def test_a_slight_bend_is_still_driven_through():

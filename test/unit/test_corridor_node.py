@@ -112,12 +112,34 @@ def test_cancel_preempts_and_stops():
     rig.assert_stopped()
 
 
-def test_stopped_clock_aborts():
+DEAD = 'the connection to /simulator, which publishes /clock, is closed (did it die?)'
+
+
+def test_a_dead_clock_aborts_naming_the_reason():
     rig = Rig(corridor_world(1.07, 5.0, start=(-0.5, 0.0, 0.0)))
-    rig.at(1.5, lambda: setattr(rig.clock, 'stalled', True))
+    rig.at(1.5, lambda: (setattr(rig.clock, 'stalled', True), setattr(rig.clock, 'dead', DEAD)))
     server = rig.run()
     assert server.state == 'aborted' and server.text.startswith('ROS time stopped'), server.text
+    assert server.text.endswith(DEAD), server.text
     assert rig.cmd.last.linear.x == 0.0 and rig.cmd.last.angular.z == 0.0
+
+
+def test_a_slow_clock_is_waited_for():
+    """ROS time stands still for 60 s of wall time while its source lives (a starved
+    simulator): the goal goes on when time moves again and ends as without the stall."""
+    def run(stall):
+        rig = Rig(corridor_world(1.07, 5.0, start=(-0.5, 0.0, 0.0)))
+        if stall:
+            rig.at(1.5, lambda: (setattr(rig.clock, 'stalled', True),
+                                 setattr(rig.clock, 'resume_at', rig.clock.wall() + 60.0)))
+        return rig, rig.run()
+    rig, server = run(True)
+    _, calm = run(False)
+    assert rig.clock.wall() - rig.clock.now() >= 59.9       # it did stand still that long
+    assert rig.clock.asked >= 10                            # and asked whether it was dead
+    assert server.state == 'succeeded' == calm.state, server.text
+    assert server.text == calm.text
+    assert server.result.distance == pytest.approx(calm.result.distance, abs=1e-6)
 
 
 def test_goal_timeout_aborts():

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from tiago_nav.detection.service import DetectionService, Scan, check_request
+from tiago_nav.clock import source_verdict
+from tiago_nav.detection.service import DetectionService, Failure, Scan, check_request
 from tiago_nav.geometry import compose, inverse
 from tiago_nav.gridmap import GridMap
 from tiago_nav.nodes.obstacle_detection import Params
@@ -52,10 +53,15 @@ class FakeSensors:
         return Scan(self.ranges, L.angle_min, L.angle_increment, L.range_min, L.range_max,
                     12.5, 'base_laser_link')
 
-    def scan_at(self, stamp, timeout):
-        """Like the node's: the first scan at or after ``stamp``; the one scan here is at 12.5 s."""
-        self.calls.append(('scan_at', stamp, timeout))
+    def scan_at(self, stamp, timeout, published=False):
+        """Like the node's: the first scan at or after ``stamp``; the one scan here is at 12.5 s.
+        A later one never comes: the node waits for a ``published`` one while its publisher
+        lives, so it fails only once that is dead, naming the fact (here: unregistered)."""
+        self.calls.append(('scan_at', stamp, timeout, published))
         if self.ranges is None or stamp > 12.5:
+            if published:
+                raise Failure('no /scan stamped at or after %.3f s: %s' % (stamp, source_verdict(
+                    '/scan', [], set())))
             return None
         return Scan(self.ranges, L.angle_min, L.angle_increment, L.range_min, L.range_max,
                     12.5, 'base_laser_link')
@@ -102,12 +108,12 @@ def test_a_request_with_a_scan_stamp_uses_the_scan_at_that_stamp_and_names_it(cl
     sensors = FakeSensors(noisy_scan(clean))
     a = service(grid).handle('', 0.0, 0.0, sensors, scan_stamp=12.5)
     assert a.success, a.message
-    assert sensors.calls[0] == ('scan_at', 12.5, Params().scan_timeout)
+    assert sensors.calls[0] == ('scan_at', 12.5, Params().scan_timeout, True)
     assert a.stamp == 12.5 and 'on the scan at 12.500 s' in a.message
     later = service(grid).handle('', 0.0, 0.0, FakeSensors(noisy_scan(clean)), scan_stamp=13.0)
     assert not later.success
-    assert later.message == 'no /scan stamped at or after 13.000 s received within %.1f s' \
-        % Params().scan_timeout
+    assert later.message == ('no /scan stamped at or after 13.000 s: nothing publishes /scan any '
+                             'more (the simulator is not running)')
 
 
 def _errors(answer, visible):

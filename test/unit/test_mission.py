@@ -12,18 +12,21 @@ from tiago_nav.mission import (ABORTED, ACTIVE, NO_CORRIDOR, PREEMPTED, SUCCEEDE
                                Goal, GoalError, MissionConfig, MissionRunner, Poll, StageError,
                                validate_goal)
 from tiago_nav.mission.client import obstacle_table
-from tiago_nav.mission.runner import no_corridor_scan, no_service, service_failed
+from tiago_nav.mission.runner import (Cancelled, no_corridor_scan, no_service, service_failed,
+                                      service_verdict)
 from tiago_nav.mission.sentences import remaining_path_length
 from tiago_nav.motion import MotionMonitor
 
 
 class FakeBackend:
-    """Simulated time advances by ``dt`` per sleep (wall time too, unless ``clock_stalls``).
+    """Wall time advances by ``dt`` per sleep, simulated time too unless ``clock_stalls`` (until
+    the wall time ``resume_at``: a slow simulator; with ``dead``, the reason, a dead one).
     The robot moves toward the navigation goal at ``speed`` m/s while that stage is active."""
 
     def __init__(self, corridor='succeed', navigation='succeed', detection='ok', speed=1.0,
                  servers=('corridor', 'navigation', 'detection'), preempt_at=None,
-                 clock_stalls=False, vanish_at=None, corridor_ahead=True):
+                 clock_stalls=False, vanish_at=None, corridor_ahead=True, dead='',
+                 resume_at=None):
         self.t = 0.0
         self.w = 0.0
         self.robot = [0.0, 0.0, 0.0]
@@ -36,6 +39,7 @@ class FakeBackend:
         self.servers = set(servers)
         self.preempt_at = preempt_at
         self.clock_stalls = clock_stalls
+        self.dead, self.resume_at, self.asked = dead, resume_at, 0
         self.vanish_at = vanish_at
         self.feedbacks = []
         self.sent = []
@@ -52,8 +56,14 @@ class FakeBackend:
     def wall(self):
         return self.w
 
+    def source_dead(self):
+        self.asked += 1
+        return self.dead
+
     def sleep(self, dt):
         self.w += dt
+        if self.clock_stalls and self.resume_at is not None and self.w >= self.resume_at:
+            self.clock_stalls = False
         if not self.clock_stalls:
             self.t += dt
             self._move(dt)
@@ -144,6 +154,8 @@ class FakeBackend:
             return False, [], ''
         if self.detection == 'none':
             return True, [], ''
+        if self.detection == 'cancelled':      # cancelled while the call waited on a slow node
+            raise Cancelled()
         return True, ['o1', 'o2'], ''
 
     def stop_robot(self):
@@ -233,12 +245,24 @@ def test_stage_timeout_cancels_the_goal():
     assert b.cancelled == ['corridor']
 
 
-def test_stopped_clock_does_not_hang():
-    b = FakeBackend(navigation='hang', clock_stalls=True)
+def test_dead_clock_does_not_hang():
+    dead = 'the process of /simulator, which published /clock, is gone'
+    b = FakeBackend(navigation='hang', clock_stalls=True, dead=dead)
     out = run(b, Goal(3, 0, 0, False))
     assert out.status == ABORTED and out.stage == 'navigation'
-    assert 'ROS time stopped' in out.message
-    assert b.w < 10.0
+    assert out.message.startswith('navigation failed: ROS time stopped advancing')
+    assert out.message.endswith(dead)
+    assert b.cancelled == ['navigation']
+    assert b.w < 2 * CFG.clock_timeout
+
+
+def test_slow_clock_is_waited_for():
+    """ROS time stands still for 10 clock_timeouts of wall time while its source lives: the
+    mission goes on and succeeds."""
+    b = FakeBackend(clock_stalls=True, resume_at=10 * CFG.clock_timeout)
+    out = run(b, Goal(3, 0, 0, False))
+    assert out.status == SUCCEEDED, out.message
+    assert b.asked >= 5 and b.w - b.t >= 10 * CFG.clock_timeout - 1.0
 
 
 def test_server_that_goes_away_mid_stage_aborts_within_the_lost_timeout():
@@ -430,3 +454,21 @@ def test_corridor_ahead_uses_the_robot_pose():
     points, laser = _scan_from('ias_lab_room_full.yaml', (0.0, 0.0, 0.0))
     assert corridor_ahead(points, laser, (0.0, 0.0, 0.0), (11.0, 0.0, 0.0))
     assert not corridor_ahead(points, laser, (0.0, 0.0, math.pi / 2), (11.0, 0.0, 0.0))
+
+
+def test_a_cancel_while_detection_waits_preempts_in_detection():
+    b = FakeBackend(detection='cancelled')
+    out = run(b)
+    assert out.status == PREEMPTED and out.stage == 'detection', out.message
+    assert out.message.startswith('cancelled during detection')
+
+
+@pytest.mark.parametrize('registered, exited, words', [
+    (True, False, ''), (True, None, ''),        # alive, or busy/frozen (cannot tell): wait on
+    (True, True, "registered, but its node's process is gone"),
+    (False, None, 'no longer registered')])
+def test_service_verdict_rests_on_facts(registered, exited, words):
+    verdict = service_verdict('/obstacle_detection', registered, exited)
+    assert (words in verdict) if words else verdict == ''
+    if words:
+        assert verdict.startswith('the /obstacle_detection service went away: ')

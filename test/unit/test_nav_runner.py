@@ -164,13 +164,32 @@ def test_preempt_stops_the_base():
     assert rig.nav.state is None
 
 
-def test_stopped_clock_ends_the_loop():
+def test_dead_clock_ends_the_loop_naming_the_reason():
     rig = Rig()
-    rig.clock.on_advance(lambda dt: setattr(rig.clock, 'stalled', rig.clock.t >= 1.0))
+    dead = 'nothing publishes /clock any more (the simulator is not running)'
+
+    def stall(dt):
+        if rig.clock.t >= 1.0:
+            rig.clock.stalled, rig.clock.dead = True, dead
+    rig.clock.on_advance(stall)
     rig.run(7.0, 2.0)
     assert rig.server.state == 'aborted'
-    assert 'ROS time stopped advancing' in rig.server.text
+    assert rig.server.text.startswith('ROS time stopped advancing at 1.')
+    assert rig.server.text.endswith(dead)
     assert rig.stopped_at_end()
+
+
+def test_slow_clock_is_waited_for():
+    """ROS time stands still for 30 s of wall time, its source alive: the goal still arrives."""
+    rig = Rig()
+
+    def stall(dt):
+        if rig.clock.t >= 1.0 and rig.clock.resume_at is None and rig.clock.w < 30.0:
+            rig.clock.stalled, rig.clock.resume_at = True, rig.clock.w + 30.0
+    rig.clock.on_advance(stall)
+    rig.run(7.0, 2.0)
+    assert rig.server.state == 'succeeded', rig.server.text
+    assert rig.clock.w - rig.clock.t >= 29.9 and rig.clock.asked >= 10
 
 
 def test_shutdown_ends_the_loop():

@@ -12,9 +12,11 @@ seconds.
 
 * ``fresh_scan(timeout)``: the first :class:`Scan` stamped at or after the call, or None after
   ``timeout`` wall seconds;
-* ``scan_at(stamp, timeout)``: the first :class:`Scan` stamped at or after ``stamp`` (a request's
-  ``scan_stamp``), waiting up to ``timeout`` wall seconds for it; None when it does not come;
-  :class:`Failure` when it is no longer held;
+* ``scan_at(stamp, timeout, published)``: the first :class:`Scan` stamped at or after ``stamp``
+  (a request's ``scan_stamp``: ``published`` True, the scan went out before the request),
+  waiting up to ``timeout`` wall seconds for it (a published one: longer while its publisher
+  lives); None when it does not come; :class:`Failure` when it is no longer held or its
+  publisher is dead;
 * ``scans_before(scan, count)``: up to ``count`` held scans stamped just before ``scan``,
   newest first (``[]`` when none is held);
 * ``transform(target, source, stamp, timeout)``: the pose ``(x, y, yaw)`` of frame ``source`` in
@@ -177,7 +179,7 @@ class DetectionService:
             if detector is None:
                 raise Failure(self.map_error)
             if scan_stamp:
-                scan = sensors.scan_at(scan_stamp, self.params.scan_timeout)
+                scan = sensors.scan_at(scan_stamp, self.params.scan_timeout, published=True)
                 if scan is None:
                     raise Failure('no %s stamped at or after %s received within %.1f s'
                                   % (self.params.scan_topic, _seconds(scan_stamp),

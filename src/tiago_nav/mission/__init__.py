@@ -21,5 +21,5 @@ its node is :mod:`tiago_nav.nodes.client`).
 from tiago_nav.mission.goals import GoalError, parse_number, validate_goal  # noqa: F401
 from tiago_nav.mission.runner import (  # noqa: F401
     ABORTED, ACTIVE, ARRIVED, CORRIDOR, DETECTING, DETECTION_DONE, GOAL_RECEIVED, LOST, MOVING,
-    NAVIGATING, PREEMPTED, REJECTED, STATE_NAMES, STOPPED, SUCCEEDED, DetectionError, Goal,
+    NAVIGATING, PREEMPTED, REJECTED, STATE_NAMES, STOPPED, SUCCEEDED, Cancelled, DetectionError, Goal,
     MissionConfig, MissionRunner, NO_CORRIDOR, Outcome, Poll, StageError)

@@ -4,13 +4,15 @@ through a *backend* and returns an :class:`Outcome`.
 Units: metres, radians (degrees only where a name says ``_deg``), seconds. Poses are
 ``(x, y, yaw)`` of base_footprint in the ``map`` frame. The backend's ``now()`` is ROS time
 (simulated under /use_sim_time); stage timeouts count in it. ``wall()`` is a monotonic wall
-clock; waits for servers and the "simulated clock stopped" guard count in it, so nothing hangs
-if /clock stops.
+clock; waits for servers count in it, and so does the "simulated clock stopped" guard, which
+abandons a stage only when the backend's ``source_dead()`` names a reason (a slow simulator is
+waited for), so nothing hangs if /clock stops.
 """
 import math
 from dataclasses import dataclass, field
 from typing import Any, List, Optional, Tuple
 
+from tiago_nav.clock import StallWatch
 from tiago_nav.geometry import wrap_angle
 from tiago_nav.mission.goals import GoalError, validate_goal
 from tiago_nav.mission.sentences import (corridor_done_sentence, corridor_sentence, fmt_pose,
@@ -35,23 +37,27 @@ class MissionConfig:
 
     ``*_timeout`` of a stage: ROS (simulated) seconds from its start; ``server_timeout`` and
     ``detection_timeout``: wall seconds (waiting for a server, one service call);
-    ``clock_timeout``: wall seconds without ROS time advancing before a stage is abandoned.
+    ``clock_timeout``: wall seconds without ROS time advancing before the source of ROS time
+    is judged (dead: the stage is abandoned; alive, however slow: waited for).
     """
     server_timeout: float = param(30.0, '[s wall] wait this long for each action server / the '
                                   'service, and for a fresh scan to judge the corridor, before a '
                                   'stage fails; in lockstep, at start-up, for the node\'s '
                                   'registration', gt=0)
     server_lost_timeout: float = param(3.0, '[s wall] a stage whose server has been gone (node '
-                                       'died) this long aborts', gt=0)
+                                       'died: its connections closed) this long aborts', gt=0)
     corridor_timeout: float = param(120.0, '[s] the corridor_controller stage', gt=0)
     navigation_timeout: float = param(240.0, '[s] the move_base stage', gt=0)
-    detection_timeout: float = param(10.0, '[s wall] one obstacle_detection call', gt=0)
+    detection_timeout: float = param(10.0, '[s wall] an obstacle_detection call unanswered this '
+                                     'long: ask whether its node is dead (fail if so, wait on '
+                                     'while it lives)', gt=0)
     settle_timeout: float = param(3.0, '[s] after arrival, wait at most this for the base to be '
                                   'still before scanning', gt=0)
     stop_timeout: float = param(5.0, '[s] on cancel, wait at most this for the base to stop',
                                 gt=0)
-    clock_timeout: float = param(10.0, '[s wall] abandon a stage when ROS time stands still this '
-                                 'long', gt=0)
+    clock_timeout: float = param(10.0, '[s wall] when ROS time stands still this long, ask '
+                                 'whether its source (the simulator) is dead: abandon the stage '
+                                 'if so, wait on if it lives', gt=0)
     feedback_period: float = param(1.0, '[s] at most one progress feedback per period while a '
                                    'state lasts', gt=0)
     poll_period: float = param(0.02, '[s wall] how often stages are polled', gt=0)
@@ -125,12 +131,6 @@ def no_service(name, timeout):
     return 'no %s service after %g s (is it running?)' % (name, timeout)
 
 
-def service_gone(name, timeout):
-    """The service ``name`` stayed registered but did not answer for ``timeout`` [s wall]."""
-    return ('the %s service went away: registered but not answering (gone for %g s; did its '
-            'node die?)' % (name, timeout))
-
-
 def service_failed(name, error):
     """The call of the service ``name`` raised ``error`` (e.g. its handler raised)."""
     return 'the %s service failed: %s' % (name, error)
@@ -139,6 +139,25 @@ def service_failed(name, error):
 def service_silent(name, timeout):
     """The service ``name`` did not answer within ``timeout`` [s wall]."""
     return 'the %s service did not answer within %g s' % (name, timeout)
+
+
+def service_verdict(name, registered, exited):
+    """Is the provider of the service ``name`` dead? Judged from facts, never from time alone:
+    ``registered``, the master lists the service; ``exited``, its node's process is gone (True:
+    its XML-RPC port refuses connections), there (False) or cannot be told now (None: a busy
+    or frozen process). ``''`` while it may live (a slow node is waited for), else the
+    reason."""
+    if not registered:
+        return 'the %s service went away: no longer registered (its node shut down)' % name
+    if exited:
+        return ('the %s service went away: registered, but its node\'s process is gone (did '
+                'it die?)' % name)
+    return ''
+
+
+class Cancelled(Exception):
+    """Raised by a backend's wait (e.g. ``detect``) when the goal is cancelled meanwhile: the
+    mission ends PREEMPTED in the stage that waited."""
 
 
 def no_corridor_scan(topic, timeout):
@@ -166,14 +185,16 @@ class MissionRunner:
     """Runs one goal after another through a backend.
 
     The backend is a :mod:`tiago_nav.clock` clock (``now()``, ``wall()``, ``sleep(wall
-    seconds)``, ``shutdown()``) and provides ``preempt_requested()``, ``pose()`` (``(x, y,
+    seconds)``, ``shutdown()``, ``source_dead()``) and provides ``preempt_requested()``,
+    ``pose()`` (``(x, y,
     yaw)`` in map or None), ``path()`` (the current plan as ``[(x, y), ...]`` or None),
     ``server_ready(stage)``, ``send_goal(stage, goal)`` (corridor: ``(max_speed,
     max_distance)``; navigation: ``(x, y, yaw)``), ``poll(stage) -> Poll``, ``cancel(stage)``,
     ``corridor_ahead(goal) -> bool`` (does a corridor lead from here toward the
     :class:`Goal`? may raise :class:`StageError` when it cannot tell, e.g. no scan),
     ``detect(timeout) -> (success, obstacles, message)`` (the obstacle_detection service's
-    answer; :class:`DetectionError` when it could not be asked), ``stop_robot()`` and
+    answer; :class:`DetectionError` when it could not be asked, :class:`Cancelled` when the
+    goal was cancelled while it waited), ``stop_robot()`` and
     ``publish_feedback(state, status, pose)``.
 
     Every failure ends the goal ABORTED with ``'<stage> failed: <reason>'`` (but corridor_controller's
@@ -263,12 +284,13 @@ class MissionRunner:
 
     def _run_action(self, stage, what, goal, timeout, on_tick):
         """Send ``goal`` to the stage's action server and poll it until it ends; return its
-        result. Cancels the goal on preemption, timeout or a stopped clock."""
+        result. Cancels the goal on preemption, timeout (ROS time) or a dead clock (ROS time
+        standing still while its source is dead: :class:`tiago_nav.clock.StallWatch`)."""
         self._wait_server(stage, what)
         self.b.send_goal(stage, goal)
         t0 = self.b.now()
-        last_t, last_change = t0, self.b.wall()
-        last_seen = last_change
+        clock = StallWatch(self.b, self.cfg.clock_timeout)
+        last_seen = self.b.wall()
         while True:
             if self.b.preempt_requested():
                 self.b.cancel(stage)
@@ -288,12 +310,10 @@ class MissionRunner:
                 self.b.cancel(stage)
                 raise StageError(stage, 'the %s server went away (gone for %g s)'
                                  % (what, self.cfg.server_lost_timeout))
-            if t != last_t:
-                last_t, last_change = t, w
-            elif w - last_change > self.cfg.clock_timeout:
+            dead = clock.check(t)
+            if dead:
                 self.b.cancel(stage)
-                raise StageError(stage, 'ROS time stopped advancing for %g s (is the simulator '
-                                 'running?)' % self.cfg.clock_timeout)
+                raise StageError(stage, dead)
             if t - t0 > timeout:
                 self.b.cancel(stage)
                 raise StageError(stage, 'timed out after %g s' % timeout)
@@ -373,8 +393,8 @@ class MissionRunner:
                           % (fmt_pose(pose), err, yaw_err, '' if stopped else ' (still settling)'))
 
     def _wait_stopped(self, timeout):
-        """Tell the robot to stop and wait until it is still (``timeout`` [s] of ROS time, with
-        ``clock_timeout`` as the wall-clock guard); True when it stopped."""
+        """Tell the robot to stop and wait until it is still (``timeout`` [s] of ROS time; a
+        dead clock ends the wait: ``clock_timeout``); True when it stopped."""
         return wait_until_still(self.b, self.b.pose, self.b.stop_robot, self.motion, timeout,
                                 period=self.cfg.poll_period * 2, stall=self.cfg.clock_timeout)
 
@@ -384,6 +404,8 @@ class MissionRunner:
             raise _Preempted('detection')
         try:
             success, obstacles, message = self.b.detect(self.cfg.detection_timeout)
+        except Cancelled:
+            raise _Preempted('detection') from None
         except DetectionError as e:
             raise StageError('detection', str(e)) from None
         if not success:

@@ -115,12 +115,13 @@ class GoalRunner:
         return Outcome(status, text)
 
     def _tick(self, ticker):
-        """The next cycle; the text of the abort when there is none, else ''."""
+        """The next cycle; the text of the abort when there is none (shutting down, or ROS time
+        stopped with its source dead: the ticker's ``reason``), else ''."""
         if ticker.tick():
             getattr(self.io, 'sense', lambda: None)()
             return ''
         return 'node shutting down' if self.io.clock.shutdown() else \
-            'ROS time stopped advancing (is the simulator or /clock running?)'
+            getattr(ticker, 'reason', '') or 'ROS time stopped advancing'
 
     def _run(self, frame, position, orientation):
         io, nav = self.io, self.nav

@@ -220,12 +220,13 @@ class CorridorServer:
         base's latest odom pose gives the command. The base is held still while the newest usable
         scan is older than ``sensor_timeout``; the goal aborts when it is older than
         ``scan_timeout``, when the base's pose is unknown that long, on ``timeout``, when the
-        law fails or stays blocked longer than ``blocked_timeout``, and when ROS time stops."""
+        law fails or stays blocked longer than ``blocked_timeout``, and when ROS time stops with
+        its source dead (a slow simulator is waited for)."""
         p = self.p
         judge = GoalJudge(p.blocked_timeout)
         ticker = self.participant or rclock.Ticker(self.clock, 1.0 / p.control_rate)
         if self.participant is not None and self.participant.enabled and not ticker.tick():
-            return self.stopped()               # lockstep: the goal starts at its first cycle
+            return self.stopped(ticker)         # lockstep: the goal starts at its first cycle
         start = self.clock.now()
         used, tf_error, no_pose_since = None, '', None
         while True:
@@ -266,12 +267,13 @@ class CorridorServer:
                     self.publish(cmd.v, cmd.omega)
                 self.feedback(follower, cmd)
             if not ticker.tick():
-                return self.stopped()
+                return self.stopped(ticker)
 
-    def stopped(self):
-        """``(ABORTED, reason)`` when the loop gets no next cycle."""
+    def stopped(self, ticker):
+        """``(ABORTED, reason)`` when the loop gets no next cycle: shutting down, or ROS time
+        stopped with its source dead (``ticker.reason`` names why)."""
         return ABORTED, ('node shutting down' if self.clock.shutdown()
-                         else 'ROS time stopped (no /clock?)')
+                         else ticker.reason or 'ROS time stopped advancing')
 
 
 def _scan(msg):

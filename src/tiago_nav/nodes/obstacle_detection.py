@@ -8,7 +8,9 @@ Waits (all in wall time, each bounded):
   usable map has arrived, otherwise the node logs a fatal error and exits with status 1;
 * in each call: a scan stamped at or after the call, or at or after the request's
   ``scan_stamp`` when it is not zero (the last :data:`SCANS_HELD` scans are held for this), up to
-  ``~scan_timeout`` (so a call that comes before the first scan waits for it), then each
+  ``~scan_timeout`` (so a call that comes before the first scan waits for it; a ``scan_stamp``'s
+  scan, published before the request, is waited for on while its publisher lives and is
+  connected), then each
   transform at the scan's time, up to ``~tf_timeout``. Running out of either is an answer with
   ``success: false``, never a hang.
 """
@@ -28,6 +30,7 @@ from visualization_msgs.msg import MarkerArray
 from tiago_nav.detection import METHODS, DetectionParams
 from tiago_nav.detection.pipeline import ObstacleDetector
 from tiago_nav.detection.service import DetectionService, Failure, Scan
+from tiago_nav.ros.clock import topic_dead
 from tiago_nav.msg import Obstacle
 from tiago_nav.params import nested, param, validate
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform
@@ -98,7 +101,7 @@ class RosSensors:
         self.cond = threading.Condition()
         self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
         self.listener = tf2_ros.TransformListener(self.tf)
-        Subscription(scan_topic, LaserScan, self.on_scan, queue_size=SCANS_HELD)
+        self.topic = Subscription(scan_topic, LaserScan, self.on_scan, queue_size=SCANS_HELD).name
 
     @property
     def scan(self):
@@ -112,10 +115,13 @@ class RosSensors:
             self.scans.append(msg)
             self.cond.notify_all()
 
-    def scan_at(self, stamp, timeout):
+    def scan_at(self, stamp, timeout, published=False):
         """The first scan stamped at or after ``stamp`` (rospy.Time), waiting up to ``timeout``
         wall seconds for it; None if it does not come; :class:`Failure` when the scans held
-        no longer reach back to it."""
+        no longer reach back to it. ``published``: the scan is known to have been published
+        (a request's ``scan_stamp``, named by a lockstep cycle): past ``timeout`` it is waited
+        for again while the scan's publisher lives and is connected (a starved process is only
+        late), and :class:`Failure` names the fact when it is dead."""
         deadline = time.monotonic() + timeout
         with self.cond:
             while not rospy.is_shutdown():
@@ -127,7 +133,17 @@ class RosSensors:
                         return _plain_scan(s)
                 left = deadline - time.monotonic()
                 if left <= 0:
-                    return None
+                    if not published:
+                        return None
+                    dead = topic_dead(self.topic)
+                    if dead:
+                        raise Failure('no %s stamped at or after %.3f s: %s'
+                                      % (self.topic, stamp.to_sec(), dead))
+                    rospy.logwarn('obstacle_detection: the scan at %.3f s has not come within '
+                                  '%.1f s; its publisher lives: waiting on', stamp.to_sec(),
+                                  timeout)
+                    deadline = time.monotonic() + timeout
+                    continue
                 self.cond.wait(min(left, 0.1))
         return None
 

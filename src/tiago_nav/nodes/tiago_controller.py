@@ -28,13 +28,14 @@ from tiago_nav import mission
 from tiago_nav.mission import DetectionError, Goal, MissionConfig, MissionRunner, Poll, StageError
 from tiago_nav.mission.entrance import corridor_ahead
 from tiago_nav.lockstep import Settled
-from tiago_nav.mission.runner import (no_corridor_scan, no_service, service_failed, service_gone,
-                                      service_silent)
+from tiago_nav.mission.runner import (Cancelled, no_corridor_scan, no_service, service_failed,
+                                      service_silent, service_verdict)
 from tiago_nav.msg import (CorridorAction, CorridorActionFeedback, CorridorGoal, TiagoTaskAction,
                            TiagoTaskFeedback, TiagoTaskResult)
 from tiago_nav.params import nested, param, validate
 from tiago_nav.ros import params as ros_params
 from tiago_nav.ros.actions import server_connected
+from tiago_nav.ros.clock import RosClock, node_exited
 from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant, Peers,
                                     ScanCache, goal_since, lookup_at)
@@ -62,7 +63,8 @@ class Params:
     """Parameters of the tiago_controller node (the TiagoTask proxy).
 
     Stage timeouts count in ROS time (simulated under /use_sim_time); server_timeout,
-    detection_timeout and clock_timeout in wall time, so nothing hangs if /clock stops.
+    detection_timeout and clock_timeout in wall time, so nothing hangs if /clock stops (a
+    stage is abandoned only once the simulator is found dead, not merely slow).
     """
     mission: MissionConfig = nested(MissionConfig)
     action_name: str = param('tiago_controller', 'the TiagoTask action served', nonempty=True)
@@ -91,6 +93,7 @@ class RosBackend:
 
     def __init__(self, params):
         self.p = params
+        self._clock = RosClock()
         self.cfg = params.mission
         self.global_frame, self.robot_frame = params.global_frame, params.robot_frame
         self.clients = {
@@ -131,6 +134,9 @@ class RosBackend:
 
     def wall(self):
         return time.monotonic()
+
+    def source_dead(self):
+        return self._clock.source_dead()
 
     def sleep(self, seconds):
         """Out of lockstep: ``seconds`` of wall time (never blocks if /clock stops). In lockstep,
@@ -429,9 +435,22 @@ class RosBackend:
                 box['error'] = e
         worker = threading.Thread(target=call, daemon=True)
         worker.start()
-        worker.join(timeout)
-        if worker.is_alive():
-            raise DetectionError(service_silent(name, timeout))
+        resolved = rospy.resolve_name(name)
+        waited = 0.0
+        while True:
+            worker.join(timeout)
+            if not worker.is_alive():
+                break
+            # unanswered: a call whose connection closed has already failed (its node died);
+            # one still open waits on while the node lives, however slow
+            waited += timeout
+            dead = self._service_dead(resolved)
+            if dead:
+                raise DetectionError(dead)
+            if self.preempt_requested():
+                raise Cancelled()
+            rospy.logwarn('tiago_controller: %s; its node lives: waiting on',
+                          service_silent(resolved, waited))
         if 'error' in box:
             raise DetectionError(service_failed(name, box['error']))
         resp = box['response']
@@ -439,13 +458,13 @@ class RosBackend:
 
     def _wait_service(self, name):
         """Wait (wall clock) for the service ``name`` to answer: up to ``server_timeout`` while
-        it is not registered (a node still starting), but only ``server_lost_timeout`` while it
-        is registered and does not answer (its node died: a killed process leaves its
-        registration behind). :class:`DetectionError` saying which otherwise."""
+        it is not registered (a node still starting); while it is registered and does not
+        answer, until its node is found dead (:meth:`_service_dead`: a killed process leaves
+        its registration behind, its port refuses connections), waiting on while it lives.
+        :class:`DetectionError` saying which otherwise; :class:`Cancelled` on a cancel."""
         resolved = rospy.resolve_name(name)
         master = rosgraph.Master(rospy.get_name())
         t0 = time.monotonic()
-        gone_since = None
         while True:
             try:
                 rospy.wait_for_service(resolved, timeout=SERVICE_PROBE)
@@ -453,17 +472,36 @@ class RosBackend:
             except rospy.ROSException:
                 pass
             now = time.monotonic()
-            try:
-                master.lookupService(resolved)
-                gone_since = now if gone_since is None else gone_since
-            except (rosgraph.MasterError, OSError):
-                gone_since = None
             if rospy.is_shutdown():
                 raise DetectionError('node shutting down')
-            if gone_since is not None and now - gone_since > self.cfg.server_lost_timeout:
-                raise DetectionError(service_gone(resolved, self.cfg.server_lost_timeout))
-            if now - t0 > self.cfg.server_timeout:
-                raise DetectionError(no_service(resolved, self.cfg.server_timeout))
+            if self.preempt_requested():
+                raise Cancelled()
+            try:
+                master.lookupService(resolved)
+            except (rosgraph.MasterError, OSError):
+                if now - t0 > self.cfg.server_timeout:
+                    raise DetectionError(no_service(resolved, self.cfg.server_timeout)) from None
+                continue
+            dead = self._service_dead(resolved)
+            if dead:
+                raise DetectionError(dead)
+
+    def _service_dead(self, resolved):
+        """:func:`tiago_nav.mission.runner.service_verdict` on the facts of the service
+        ``resolved``: registered with the master, and its node's process there."""
+        master = rosgraph.Master(rospy.get_name())
+        try:
+            _, _, services = master.getSystemState()
+        except (rosgraph.MasterError, OSError):
+            return 'the ROS master cannot be reached'
+        nodes = next((n for s, n in services if s == resolved), [])
+        exited = None
+        for node in nodes:
+            try:
+                exited = node_exited(master.lookupNode(node), rospy.get_name())
+            except (rosgraph.MasterError, OSError):
+                exited = None
+        return service_verdict(resolved, bool(nodes), exited)
 
     # --- feedback ----------------------------------------------------------------------------
     def publish_feedback(self, state, status, pose):

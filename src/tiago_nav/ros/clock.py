@@ -1,12 +1,72 @@
-"""ROS time for the nodes' loops (:mod:`tiago_nav.clock` explains the clock protocol)."""
+"""ROS time for the nodes' loops (:mod:`tiago_nav.clock` explains the clock protocol), and the
+facts that tell a dead source of ROS time from a slow one."""
+import socket
 import time
+import xmlrpc.client
 
+import rosgraph
 import rospy
+from rospy.impl.registration import get_topic_manager
+
+from tiago_nav.clock import source_verdict
+
+CLOCK_TOPIC = '/clock'
+PROBE_TIMEOUT = 1.0     # [s wall] one question to a node's XML-RPC server (is its process there?)
+
+
+def node_exited(uri, caller_id, timeout=PROBE_TIMEOUT):
+    """True when the node whose XML-RPC server is ``uri`` has no process any more: its port
+    refuses connections (a process that died takes its listening socket with it). False when
+    it answers; None when that cannot be told within ``timeout`` [s wall] (a busy or frozen
+    process)."""
+    class _Transport(xmlrpc.client.Transport):
+        def make_connection(self, host):
+            conn = super().make_connection(host)
+            conn.timeout = timeout
+            return conn
+    try:
+        xmlrpc.client.ServerProxy(uri, transport=_Transport()).getPid(caller_id)
+        return False
+    except ConnectionRefusedError:
+        return True
+    except (OSError, socket.timeout, xmlrpc.client.Error):
+        return None
+
+
+def topic_facts(topic=CLOCK_TOPIC, master=None):
+    """``(listed, connected, exited)`` for :func:`tiago_nav.clock.source_verdict` of a topic this
+    process subscribes to (``topic``, resolved): the master's
+    publishers of ``topic`` (None when it cannot be reached), those this process has a live
+    connection from (a completed handshake), and the listed ones without a connection whose
+    process is gone. (rospy keeps a dropped connection in its list, without a socket, while it
+    tries to connect again: only one with a socket counts.)"""
+    impl = get_topic_manager().get_subscriber_impl(topic)
+    connected = {c.header.get('callerid') for c in list(getattr(impl, 'connections', None) or ())
+                 if getattr(c, 'header', None) is not None and getattr(c, 'socket', None) is not None}
+    caller = rospy.get_name()
+    master = master or rosgraph.Master(caller)
+    try:
+        pubs, _, _ = master.getSystemState()
+    except (rosgraph.MasterError, OSError):
+        return None, connected, set()
+    listed = next((nodes for name, nodes in pubs if name == topic), [])
+    exited = set()
+    for node in listed:
+        if node in connected:
+            continue
+        try:
+            uri = master.lookupNode(node)
+        except (rosgraph.MasterError, OSError):
+            continue
+        if node_exited(uri, caller):
+            exited.add(node)
+    return listed, connected, exited
 
 
 class RosClock:
     """``now()`` is ROS time (``/clock`` under ``/use_sim_time``), ``wall()`` monotonic wall
-    time; ``sleep`` sleeps in wall time, so it never blocks when ``/clock`` stops."""
+    time; ``sleep`` sleeps in wall time, so it never blocks when ``/clock`` stops;
+    ``source_dead()`` judges ``/clock``'s publisher from :func:`topic_facts`."""
 
     def now(self):
         return rospy.get_time()
@@ -19,3 +79,18 @@ class RosClock:
 
     def shutdown(self):
         return rospy.is_shutdown()
+
+    def source_dead(self):
+        """``''`` while ROS time's source lives: wall time (no /use_sim_time), this process's
+        own (the simulator publishes /clock and takes no /clock in), or a connected /clock
+        publisher whose process is there; else the reason (:func:`source_verdict`)."""
+        if rospy.rostime.is_wallclock() or \
+                get_topic_manager().get_subscriber_impl(CLOCK_TOPIC) is None:
+            return ''
+        return source_verdict(CLOCK_TOPIC, *topic_facts())
+
+
+def topic_dead(topic, what='the simulator'):
+    """``''`` while a publisher of ``topic`` (resolved) that this process subscribes to lives and
+    is connected, else the reason (:func:`tiago_nav.clock.source_verdict`)."""
+    return source_verdict(topic, *topic_facts(topic), what=what)

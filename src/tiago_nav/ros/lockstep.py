@@ -19,7 +19,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 
 from tiago_nav import motion
-from tiago_nav.clock import NAP, STALL, Ticker
+from tiago_nav.clock import NAP, STALL, StallWatch, Ticker
 from tiago_nav.lockstep import EPS, Ack, Gate, ParticipantCore, Schedule, Tick
 from tiago_nav.msg import LockstepAck, LockstepTick
 from tiago_nav.ros.clock import RosClock
@@ -29,8 +29,8 @@ from tiago_nav.ros.topics import Subscription, connected_publishers, connected_s
 ACK_TOPIC = '/sim/lockstep/ack'
 TICK_TOPIC = '/sim/lockstep/tick'
 USE_LOCKSTEP = '/use_lockstep'      # bool: the participants take part (set by sim.launch)
-TIMEOUT = 1.0     # [s wall] the simulator's default wait for a missing answer; below clock.STALL,
-                  # after which a participant takes ROS time standing still for a dead simulator
+TIMEOUT = 1.0     # [s wall] the simulator's default wait for a missing answer (it then drops
+                  # the participant, which may rejoin; no goal fails for it)
 CYCLE_WAIT = 2.0  # [s wall] in a held cycle, the longest wait for its scan, tf or pose: the
                   # simulator has published them, so only a starved process waits at all
 STARTUP_WAIT = 30.0  # [s wall] before a node has joined, the longest wait for the data it needs
@@ -315,8 +315,9 @@ class LockstepParticipant:
             cmd_vel messages, so that the simulator ignores those).
         enabled: take part; default the ``/use_lockstep`` parameter. When False this is a
             plain :class:`Ticker` and publishes nothing.
-        stall: [s wall] :meth:`tick` gives up when ROS time stands still this long without a
-            tick for it; keep it above the simulator's ``lockstep_timeout``.
+        stall: [s wall] when ROS time stands still this long without a tick for it,
+            :meth:`tick` asks whether the simulator is dead (then it gives up), and again
+            every ``stall`` seconds while it lives.
         ready: ``ready(tick)`` (a LockstepTick) returns once the node has taken in the sensor
             data the tick names (e.g. its costmap holds every scan up to ``tick.scan_stamp``);
             called before each idle answer, from the tick subscriber's thread. None: idle
@@ -340,6 +341,7 @@ class LockstepParticipant:
         self.enabled = rospy.get_param(USE_LOCKSTEP, False) if enabled is None else enabled
         self.stall, self.ready, self.inputs = stall, ready, inputs
         self.stamp = None        # rospy.Time of the current cycle
+        self.reason = ''         # why the last tick() gave up
         self.tick_msg = None     # its LockstepTick, None when running free
         self.ticker = None if self.enabled else Ticker(self.clock, self.period, stall)
         if not self.enabled:
@@ -505,11 +507,15 @@ class LockstepParticipant:
     def tick(self):
         """Waits for the next cycle: the simulator's tick for this participant's next deadline
         (lockstep), or ROS time past it (running free). False on shutdown, or when ROS time
-        has stood still for ``stall`` wall seconds without a tick."""
+        stands still and its source is dead (:class:`tiago_nav.clock.StallWatch`: a live
+        simulator, however slow, is waited for); ``reason`` then says which."""
         if self.ticker is not None:
-            return self.ticker.tick()
+            ok = self.ticker.tick()
+            self.reason = self.ticker.reason
+            return ok
         clock = self.clock
-        last, since = clock.now(), clock.wall()
+        watch = StallWatch(clock, self.stall)
+        self.reason = ''
         with self.cond:
             if not self.core.claimed:       # a loop without claim(): it owns every later cycle
                 self._left = False
@@ -528,11 +534,11 @@ class LockstepParticipant:
                     self.stamp = self.tick_msg.stamp if tick is not None else rospy.Time.from_sec(stamp)
                     self._answered = False
                     return True
-                if now != last:
-                    last, since = now, clock.wall()
-                elif clock.wall() - since > self.stall:
+                self.reason = watch.check(now)
+                if self.reason:
                     return False
                 self.cond.wait(self._nap(now))
+        self.reason = 'node shutting down'
         return False
 
     def answer(self, cmd=None, busy=True):

@@ -5,14 +5,26 @@ class FakeClock:
     """A :mod:`tiago_nav.clock` clock in simulated time: ``sleep(dt)`` advances wall time by
     ``dt`` and, unless ``stalled``, ROS time too, then calls every ``on_advance(dt)`` hook
     (e.g. to move a fake robot). ``shutdown_at``: ROS time at which ``shutdown()`` turns
-    True."""
+    True.
+
+    As the real clock's source fails: ``stalled`` alone is a live simulator that has fallen
+    behind (ROS time stands still, ``source_dead()`` says ``''``) until the wall time
+    ``resume_at`` (None: never); a dead one is ``stalled`` with ``dead`` set to the reason
+    ``source_dead()`` gives (as :func:`tiago_nav.clock.source_verdict` would)."""
 
     def __init__(self, t=0.0, shutdown_at=None):
         self.t = float(t)
         self.w = 0.0
         self.stalled = False
+        self.resume_at = None
+        self.dead = ''
+        self.asked = 0          # how often source_dead() was asked
         self.shutdown_at = shutdown_at
         self.hooks = []
+
+    def source_dead(self):
+        self.asked += 1
+        return self.dead
 
     def now(self):
         return self.t
@@ -22,6 +34,8 @@ class FakeClock:
 
     def sleep(self, dt):
         self.w += dt
+        if self.stalled and self.resume_at is not None and self.w >= self.resume_at:
+            self.stalled, self.resume_at = False, None
         if not self.stalled:
             self.t += dt
             for hook in self.hooks:

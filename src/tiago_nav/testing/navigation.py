@@ -30,7 +30,8 @@ MAP, ODOM, BASE = 'map', 'odom', 'base_footprint'   # the node's frames (its def
 class SimClock:
     """A :mod:`tiago_nav.clock` clock whose time is the simulator's: ``sleep(dt)`` steps the
     simulator until its time reaches the sleeper's target, calling ``on_step(scan_due,
-    odom_due)`` after each step. ``stalled``: time stands still (a stopped /clock); ``shutdown_at``: ROS time at
+    odom_due)`` after each step. ``stalled``: time stands still (a slow simulator; with
+    ``dead``, the reason ``source_dead()`` gives, a dead one); ``shutdown_at``: ROS time at
     which ``shutdown()`` turns True."""
 
     def __init__(self, sim, on_step):
@@ -38,7 +39,13 @@ class SimClock:
         self.w = 0.0
         self.target = sim.time
         self.stalled = False
+        self.dead = ''
         self.shutdown_at = None
+
+    def source_dead(self):
+        """``dead``: ``''`` (a stalled clock then stands for a slow simulator) or the reason
+        its source is dead."""
+        return self.dead
 
     def now(self):
         return self.sim.time + EPS

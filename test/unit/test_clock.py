@@ -1,0 +1,99 @@
+"""Waiting in ROS time (tiago_nav.clock): a stalled clock is a verdict only with a dead source.
+
+:func:`source_verdict` judges the facts the ROS side gathers (the master's publishers of /clock,
+this process's live connections, processes known gone); :class:`StallWatch` and the waits built
+on it give up only when ROS time stands still *and* the source is dead, and wait on (asking
+again) while it lives, however long it lags."""
+import pytest
+
+from tiago_nav.clock import StallWatch, Ticker, source_verdict, sleep_until, wait_until
+from tiago_nav.motion import MotionMonitor, wait_until_still
+from tiago_nav.testing.fakes import FakeClock
+
+
+# --- the verdict from facts -------------------------------------------------------------------
+def test_a_connected_publisher_lives():
+    assert source_verdict('/clock', ['/simulator'], {'/simulator'}) == ''
+    # another, dead publisher beside it changes nothing: time can still come
+    assert source_verdict('/clock', ['/old', '/simulator'], {'/simulator'}, {'/old'}) == ''
+
+
+@pytest.mark.parametrize('listed, connected, exited, words', [
+    (None, set(), set(), 'the ROS master cannot be reached'),
+    ([], set(), set(), 'nothing publishes /clock any more'),
+    (['/simulator'], set(), {'/simulator'}, 'the process of /simulator, which published /clock, '
+                                            'is gone'),
+    (['/simulator'], set(), set(), 'the connection to /simulator, which publishes /clock, is '
+                                   'closed'),
+    # a connection from a node the master no longer lists: it unregistered (shut down)
+    ([], {'/simulator'}, set(), 'nothing publishes /clock'),
+])
+def test_dead_sources_are_named(listed, connected, exited, words):
+    assert words in source_verdict('/clock', listed, connected, exited)
+
+
+def test_a_connected_publisher_whose_process_is_gone_is_dead():
+    # (a pid seen gone outweighs a connection rospy has not noticed closing yet)
+    assert 'is gone' in source_verdict('/clock', ['/simulator'], {'/simulator'}, {'/simulator'})
+
+
+# --- waits ----------------------------------------------------------------------------------------
+def test_moving_time_never_asks_the_source():
+    clock = FakeClock()
+    assert sleep_until(clock, 5.0)
+    assert clock.asked == 0
+
+
+def test_a_slow_source_is_waited_for_however_long():
+    clock = FakeClock()
+    clock.stalled, clock.resume_at = True, 100.0        # 100 s wall behind, alive
+    assert wait_until(clock, 1.0, stall=2.0) == ''
+    assert clock.now() >= 1.0 and clock.wall() >= 100.0
+    assert 40 <= clock.asked <= 51                      # asked about every stall seconds
+
+
+def test_a_dead_source_ends_the_wait_after_one_stall_naming_it():
+    clock = FakeClock(t=3.0)
+    clock.stalled, clock.dead = True, 'nothing publishes /clock any more'
+    reason = wait_until(clock, 5.0, stall=2.0)
+    assert reason == ('ROS time stopped advancing at 3.000 s (for 2.0 s of wall time): '
+                      'nothing publishes /clock any more')
+    assert 2.0 < clock.wall() < 2.1 and clock.asked == 1
+
+
+def test_a_source_that_dies_while_slow_is_found_at_the_next_question():
+    clock = FakeClock()
+    clock.stalled = True
+
+    watch = StallWatch(clock, stall=2.0)
+    while clock.wall() < 7.0:
+        assert watch.check() == ''
+        clock.sleep(0.01)
+    clock.dead = 'the connection to /simulator, which publishes /clock, is closed (did it die?)'
+    while not watch.check():
+        clock.sleep(0.01)
+    assert clock.wall() < 8.1
+    assert watch.reason.startswith('ROS time stopped advancing at 0.000 s (for 8.')
+
+
+def test_ticker_says_why_it_stopped():
+    clock = FakeClock()
+    ticker = Ticker(clock, 0.1)
+    assert ticker.tick() and ticker.reason == ''
+    clock.stalled, clock.dead = True, 'the ROS master cannot be reached'
+    assert not ticker.tick()
+    assert ticker.reason.endswith('the ROS master cannot be reached')
+    clock.shutdown_at = 0.0
+    assert not ticker.tick() and ticker.reason == 'node shutting down'
+
+
+def test_wait_until_still_waits_for_a_slow_clock_and_gives_up_on_a_dead_one():
+    poses = {'p': (0.0, 0.0, 0.0)}
+    for dead, expect in (('', True), ('nothing publishes /clock any more', False)):
+        clock = FakeClock()
+        clock.stalled, clock.dead = True, dead
+        clock.resume_at = None if dead else 50.0
+        still = wait_until_still(clock, lambda: poses['p'], lambda: None, MotionMonitor(), 1.0,
+                                 period=0.04, stall=2.0)
+        assert still is expect
+        assert (clock.wall() >= 50.0) if not dead else (clock.wall() < 2.2)
