@@ -297,6 +297,7 @@ def judge(spec, raw):
         det['truth'] = [[t[1], t[2], t[3]] for t in truth]
     m.update({'detection_' + k if k in ('problem', 'truth') else k: v for k, v in det.items()})
     m['found'] = raw.get('obstacles', [])
+    m['found_uncertainty'] = raw.get('obstacle_uncertainty', [])
     m['path'] = path
     m['feedback'] = raw.get('feedback', [])
     if raw.get('timed_out'):

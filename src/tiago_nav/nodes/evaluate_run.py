@@ -354,6 +354,7 @@ class Supervisor:
                 'status_text': client.get_goal_status_text(), 'timed_out': timed_out,
                 'message': result.message if result else '',
                 'obstacles': [[o.center.x, o.center.y, o.radius] for o in result.obstacles] if result else [],
+                'obstacle_uncertainty': [uncertainty_record(o) for o in result.obstacles] if result else [],
                 'sim_s': ended.to_sec() - s0, 'wall_s': wall,
                 'collisions': (self.collisions or 0) - c0, 'final_pose': list(final),
                 'path': [[round(v, 4) for v in p] for p in path], 'feedback': feedback,
@@ -389,6 +390,18 @@ class Supervisor:
                 os.kill(pid, signal.SIGKILL)
             except OSError:
                 pass
+
+
+def uncertainty_record(o):
+    """How sure one tiago_nav/Obstacle is, for ``raw.json`` (same order as ``obstacles``):
+    its centre in the robot frame and the uncertainty fields (non-finite values as None)."""
+    def num(v):
+        return float(v) if math.isfinite(v) else None
+    return {'center_robot': [o.center_robot.x, o.center_robot.y],
+            'center_std': num(o.center_std), 'radius_std': num(o.radius_std),
+            'center_covariance': [num(v) for v in o.center_covariance],
+            'center_robot_covariance': [num(v) for v in o.center_robot_covariance],
+            'center_variance_terms': [num(v) for v in o.center_variance_terms]}
 
 
 def watch_parent(sup):
