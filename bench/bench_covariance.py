@@ -187,9 +187,9 @@ def plot(path, dets, figures):
         rr = math.sqrt(CHI2_95)
         ax.plot(rr * np.cos(t), rr * np.sin(t), 'r-', label='95 % ellipse')
         f = figures['map' if key == 'nees_map' else 'robot']
-        ax.set_title('%s: mean NEES %s, %s inside (n %s)'
+        ax.set_title('%s\nmean NEES %s, %s inside the 95 %% ellipse (n %s)'
                      % (title, f.get('mean_nees'), '%.1f %%' % (100 * f['inside_95'])
-                        if f.get('n') else '–', f.get('n')))
+                        if f.get('n') else '–', f.get('n')), fontsize=10)
         ax.set_aspect('equal')
         lim = max(4.0, min(8.0, float(np.abs(pts).max()) if len(pts) else 4.0))
         ax.set_xlim(-lim, lim)
