@@ -186,6 +186,9 @@ NODES = (
              'held (the last 4 s): a call uses the first scan stamped at or after its '
              '`scan_stamp` (0: at or after the call), with the `~rest_scans` - 1 before it '
              'taken from the same pose'),
+            ('{pose_topic}', 'geometry_msgs/PoseWithCovarianceStamped',
+             'held (the last 64): the covariance stamped last at or before a call\'s scan is the '
+             'laser pose\'s when no pose correction was applied'),
         ],
         'published_topics': [
             ('~obstacles', 'visualization_msgs/MarkerArray',

@@ -496,7 +496,7 @@ RASTER_NOISE = 0.01    # [m] a scan point's range noise (TIAGo's laser): the mea
 
 
 def refine_on_raster(field, points, pose, band=None, noise=RASTER_NOISE,
-                     min_points=RASTER_GROUP_MIN, inlier=0.05):
+                     min_points=RASTER_GROUP_MIN, inlier=0.05, widths=False):
     """The translation of ``pose`` that best agrees with where an occupancy grid can put a
     surface, after :func:`register`.
 
@@ -522,14 +522,17 @@ def refine_on_raster(field, points, pose, band=None, noise=RASTER_NOISE,
             band's middle are not on a mapped surface and take no part.
 
     Returns:
-        ``(pose, counts)``: the refined pose and how many surfaces bounded x and y.
+        ``(pose, counts)``: the refined pose and how many surfaces bounded x and y; with
+        ``widths``, ``(pose, counts, widths)``: per axis the width [m] of the intersection of
+        the surfaces' intervals (negative when they do not intersect: by how much the tightest
+        bounds overlap the wrong way; None for an axis no surface bounds).
     """
     band = field.grid.resolution / 2.0 if band is None else band
     q = transform_points(tuple(pose), np.asarray(points, dtype=float))
     r, gx, gy = field(q)
     g = np.hypot(gx, gy)
     ok = (np.abs(r) <= inlier) & (g > 0.5)
-    shift, counts = [0.0, 0.0], [0, 0]
+    shift, counts, width = [0.0, 0.0], [0, 0], [None, None]
     for axis, grad in ((0, gx), (1, gy)):
         face = ok & (np.abs(grad) >= AXIS_COS * g)
         if not np.any(face):
@@ -553,7 +556,9 @@ def refine_on_raster(field, points, pose, band=None, noise=RASTER_NOISE,
         if lo:
             shift[axis] = 0.5 * (max(lo) + min(hi))
             counts[axis] = len(lo)
-    return (float(pose[0] + shift[0]), float(pose[1] + shift[1]), float(pose[2])), tuple(counts)
+            width[axis] = float(min(hi) - max(lo))
+    out = (float(pose[0] + shift[0]), float(pose[1] + shift[1]), float(pose[2])), tuple(counts)
+    return out + (tuple(width),) if widths else out
 
 
 def search(field, points, guess, config, sensor=(0.0, 0.0), keep=4):

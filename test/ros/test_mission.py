@@ -38,6 +38,7 @@ from simtest import distinct_states
 WAIT = 60.0            # wall bound on server waits [s]
 MISSION = 240.0        # bound on one mission [s wall] (a hang guard, not a performance check)
 TOL = 0.05             # every in-view obstacle found within this [m]
+CHI2_2_999 = 13.816    # the chi-square distribution's 99.9 % quantile with 2 degrees of freedom
 
 
 class MissionTest(unittest.TestCase):
@@ -176,11 +177,36 @@ class MissionTest(unittest.TestCase):
                             true_rel))
         for i, j, err in pairs:
             self.assertLessEqual(err, TOL, 'robot-frame centre %d off by %.3f m' % (j, err))
+        self.assert_covariances_hold(result.obstacles, truth, true_rel)
         # nearest the robot first
         d = [math.hypot(o.center_robot.x, o.center_robot.y) for o in result.obstacles]
         self.assertEqual(d, sorted(d))
         self.assertEqual(self.collisions(), 0)
 
+
+
+    def assert_covariances_hold(self, obstacles, truth, true_rel):
+        """Every found centre lies within the 99.9 % chi-square bound (2 degrees of freedom,
+        13.8) of its reported covariance: in map against the world's centre, in the robot frame
+        against the true centre from the true pose (the covariance claims it, so an error
+        beyond it is a covariance too small, whatever the suite's tolerance says)."""
+        for frame, true_xy, found_xy, covs in (
+                ('map', [(tx, ty) for _, tx, ty, _ in truth],
+                 [(o.center.x, o.center.y) for o in obstacles],
+                 [o.center_covariance for o in obstacles]),
+                ('robot', true_rel, [(o.center_robot.x, o.center_robot.y) for o in obstacles],
+                 [o.center_robot_covariance for o in obstacles])):
+            pairs, _, _ = match_obstacles(true_xy, found_xy)
+            for i, j, _ in pairs:
+                e = np.subtract(found_xy[j], true_xy[i])
+                c = np.asarray(covs[j], dtype=float).reshape(2, 2)
+                self.assertTrue(np.all(np.isfinite(c)), '%s covariance %s' % (frame, c))
+                nees = float(e @ np.linalg.solve(c, e))
+                rospy.loginfo('%s frame: centre %d off by %.4f m, std %.4f m, NEES %.2f', frame,
+                              j, math.hypot(*e), math.sqrt(np.linalg.eigvalsh(c)[-1]), nees)
+                self.assertLessEqual(nees, CHI2_2_999, '%s-frame centre %d off by (%.4f, %.4f) '
+                                     'm beyond its covariance %s: NEES %.1f'
+                                     % (frame, j, e[0], e[1], c.ravel(), nees))
 
 
 class MissionFailuresTest(MissionTest):

@@ -97,13 +97,16 @@ def test_argparse_wording_for_a_missing_option_value():
 def test_the_obstacle_table_shows_how_sure_each_obstacle_is():
     from types import SimpleNamespace as NS
     from tiago_nav.mission.client import obstacle_rows, obstacle_table
+    inf = float('inf')
     msg = NS(center=NS(x=10.736, y=-1.665), center_robot=NS(x=1.2, y=-0.5), radius=0.183,
-             num_points=42, center_std=0.0042, radius_std=0.0031)
+             num_points=42, center_std=0.0112, radius_std=0.0031,
+             center_robot_covariance=[0.0016 ** 2, 0.0, 0.0, 0.0027 ** 2])
     far = NS(center=NS(x=8.1, y=1.14), center_robot=NS(x=6.8, y=-1.0), radius=0.29,
-             num_points=6, center_std=0.052, radius_std=float('inf'))
+             num_points=6, center_std=0.052, radius_std=inf,
+             center_robot_covariance=[inf, 0.0, 0.0, inf])
     lines = obstacle_table(obstacle_rows([msg, far]))
-    assert 'centre std' in lines[0] and 'radius std' in lines[0]
-    assert lines[2].split()[-2:] == ['±0.004', '±0.003']
-    assert lines[3].split()[-2:] == ['±0.052', '?']        # not known: said so, not a number
+    assert 'centre std' in lines[0] and 'radius std' in lines[0] and 'robot std' in lines[0]
+    assert lines[2].split()[-3:] == ['±0.011', '±0.003', '±0.003']
+    assert lines[3].split()[-3:] == ['±0.052', '?', '?']   # not known: said so, not a number
     # rows without the stds (6 columns) still print
-    assert obstacle_table([(1.0, 2.0, 0.5, 0.1, 0.2, 9)])[2].split()[-2:] == ['?', '?']
+    assert obstacle_table([(1.0, 2.0, 0.5, 0.1, 0.2, 9)])[2].split()[-3:] == ['?', '?', '?']

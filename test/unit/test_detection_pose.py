@@ -99,8 +99,12 @@ def test_discontinuity_reads_no_map_and_is_not_corrected(scene):
 
 
 class Sensors:
-    def __init__(self, r, laser_in_map, laser_in_robot):
+    def __init__(self, r, laser_in_map, laser_in_robot, covariance=None):
         self.r, self.poses = r, {'map': laser_in_map, 'base_footprint': laser_in_robot}
+        self.covariance = covariance
+
+    def pose_covariance(self, stamp):
+        return self.covariance
 
     def fresh_scan(self, timeout):
         return Scan(tuple(self.r), L.angle_min, L.angle_increment, L.range_min, L.range_max,
@@ -135,3 +139,48 @@ def test_the_service_reports_the_correction(scene, min_static):
     else:
         assert not a.pose_corrected and a.pose_correction == (0.0, 0.0, 0.0)
         assert 'pose not corrected: only' in a.message
+
+
+def test_the_laser_pose_error_is_in_the_map_covariance_only(scene):
+    """Placed with the given pose (no correction), the localisation's covariance reaches each
+    centre in map: its position as it is, its heading across the beam by the range; the robot
+    frame's covariance stays the fit's. With the correction, its own covariance and the raster
+    replace it."""
+    w, grid, r, laser = scene
+    lib = compose(inverse(POSE), laser)
+    sigma_xy, sigma_yaw = 0.02, math.radians(0.5)
+    cov = np.diag([sigma_xy ** 2, sigma_xy ** 2, sigma_yaw ** 2])
+    given = compose(POSE, ERROR)
+    svc = DetectionService(Params(detection=DetectionParams(min_static_points=5000)))
+    svc.set_map(grid)
+    exact = svc.handle('', 0.0, 0.0, Sensors(r, compose(given, lib), lib))
+    unsure = svc.handle('', 0.0, 0.0, Sensors(r, compose(given, lib), lib, cov))
+    assert not unsure.pose_corrected and len(exact.obstacles) == len(unsure.obstacles) == 2
+    for a, b in zip(exact.obstacles, unsure.obstacles):
+        assert a.center == b.center and a.center_robot_covariance == b.center_robot_covariance
+        rng = math.hypot(b.center[0] - given[0], b.center[1] - given[1])
+        fit, position, heading, raster = b.center_variance_terms
+        # along the least certain direction: at most the position's and the heading's whole
+        # variance, at least the larger of them
+        assert max(sigma_xy ** 2, (rng * sigma_yaw) ** 2) * 0.9 <= position + heading
+        assert position + heading <= (sigma_xy + rng * sigma_yaw) ** 2 * 1.01
+        assert raster == pytest.approx(grid.resolution ** 2 / 24, rel=1e-6)
+        assert b.center_std ** 2 == pytest.approx(sum(b.center_variance_terms), rel=1e-6)
+        # without a covariance the pose is exact: the fit alone, the robot frame's rotated
+        assert a.center_variance_terms[1:] == (0.0, 0.0, 0.0)
+        assert a.center_std ** 2 == pytest.approx(a.center_variance_terms[0], rel=1e-6)
+    svc = DetectionService(Params(detection=DetectionParams()))
+    svc.set_map(grid)
+    fixed = svc.handle('', 0.0, 0.0, Sensors(r, compose(given, lib), lib, cov))
+    assert fixed.pose_corrected
+    for o in fixed.obstacles:
+        fit, position, heading, raster = o.center_variance_terms
+        # the registration pins the pose far better than the given 2 cm / 0.5 deg; the raster
+        # leaves about a cell's share along each axis (a cell widened by twice the mean's
+        # noise of 10 points on a wall at 1 cm: refine_on_raster), and its walls' tilts a
+        # share of the heading
+        assert 0 < position + heading < (0.25 * sigma_xy) ** 2
+        rng = math.hypot(o.center_robot[0], o.center_robot[1])
+        most = (grid.resolution + 4 * 0.01 / math.sqrt(10)) ** 2 / 24 * 2 + (
+            rng * math.radians(1.0)) ** 2
+        assert (grid.resolution / 8) ** 2 < raster <= most

@@ -70,6 +70,9 @@ class FakeSensors:
         self.calls.append(('scans_before', scan.stamp, count))
         return self.earlier[:count]
 
+    def pose_covariance(self, stamp):
+        return None             # (a ground-truth localisation: none published)
+
     def transform(self, target, source, stamp, timeout):
         self.calls.append(('tf', target, source, stamp, timeout))
         if target in self.missing:

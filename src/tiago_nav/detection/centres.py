@@ -140,14 +140,33 @@ def radius_std(points, cx, cy, r, noise_floor=0.005):
 
 MIN_SIGMA = 0.001     # [m] least point noise assumed by circle_covariance (1 mm, the range
                       # resolution): a noise-free arc still has finite precision
+MAX_RHO = 0.9         # residual autocorrelation used at most (an inflation of 19)
+
+
+def correlation_inflation(residuals):
+    """How much correlated residuals widen a least-squares covariance: ``(1 + ρ) / (1 - ρ)``,
+    ``ρ`` the lag-1 autocorrelation of ``residuals`` [m] (in scan order, neighbouring beams),
+    clipped to ``[0, MAX_RHO]``. Residuals that run in long same-signed stretches (a mixed
+    pixel's neighbours, a borrowed radius that does not fit, the median of scans at rest) carry
+    fewer independent points than their number: for an AR(1) sequence the mean of ``N`` of them
+    has the variance of ``N (1 - ρ) / (1 + ρ)`` independent ones. 1 for independent residuals
+    (their estimated ``ρ`` is about ``-1/N``, clipped to 0) and for fewer than 3."""
+    r = np.asarray(residuals, dtype=float)
+    r = r - r.mean() if len(r) else r
+    den = float(r @ r)
+    if len(r) < 3 or den <= 0:
+        return 1.0
+    rho = min(max(float(r[1:] @ r[:-1]) / den, 0.0), MAX_RHO)
+    return (1.0 + rho) / (1.0 - rho)
 
 
 def circle_covariance(points, cx, cy, r, fixed=False, radius_prior=None):
     """Covariance ``(3, 3)`` of the circle ``(cx, cy, r)`` [m², map frame] fitted to ``(N, 2)``
-    points, from the fit's Jacobian and its residuals: ``s² (JᵀJ)⁻¹``, one row of ``J`` per
+    points, from the fit's Jacobian and its residuals: ``k s² (JᵀJ)⁻¹``, one row of ``J`` per
     point (``[-u, -1]``, ``u`` the unit vector from the centre to the point), ``s²`` the points'
     residual variance ``Σ res² / (N - p)`` (``p`` fitted parameters; at least
-    :data:`MIN_SIGMA`²). ``radius_prior`` ``(r0, std)`` [m]: the radius was also pulled toward
+    :data:`MIN_SIGMA`²), ``k`` :func:`correlation_inflation` of the residuals in the points'
+    order (the points must be in scan order): correlated residuals count as fewer points. ``radius_prior`` ``(r0, std)`` [m]: the radius was also pulled toward
     ``r0`` with that std (:func:`circle_fit`), which adds ``1/std²`` to its information.
     ``fixed``: the radius was given exactly (its row and column are 0).
 
@@ -166,7 +185,7 @@ def circle_covariance(points, cx, cy, r, fixed=False, radius_prior=None):
     u = d / n[:, None]
     J = np.column_stack((-u, -np.ones(len(p))))
     dof = len(p) - npar
-    s2 = max(float(np.sum((n - r) ** 2)) / dof, MIN_SIGMA ** 2)
+    s2 = max(float(np.sum((n - r) ** 2)) / dof, MIN_SIGMA ** 2) * correlation_inflation(n - r)
     info = J.T @ J / s2
     if fixed:
         info = info[:2, :2]

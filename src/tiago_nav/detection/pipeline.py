@@ -16,11 +16,35 @@ edge seen against a farther background) are looked past: the beams after them st
 passing.
 
 How sure each obstacle is (:class:`Detection`'s ``covariance``, ``center_std``,
-``radius_std``): :func:`tiago_nav.detection.centres.circle_covariance` of the fit that placed it
-(its points' Jacobian and residuals; a radius prior adds its information, a configured radius
-has none to estimate). ``centroid``: the points' spread over their number plus the centroid's
-offset from the fitted centre (its bias), squared. ``discontinuity``: the assumed depth as the
-std of everything (no fit). The laser pose's own error is not in it.
+``radius_std``; map frame), the sum of independent terms (:attr:`Detection.terms`):
+
+* ``fit``: the centre relative to the laser (:attr:`Detection.fit_covariance`):
+  :func:`tiago_nav.detection.centres.circle_covariance` of the fit that placed it (its points'
+  Jacobian and residuals, widened when the residuals are correlated; a radius prior adds its
+  information, a configured radius has none to estimate). ``centroid``: the points' spread over
+  their number plus the centroid's offset from the fitted centre (its bias), squared.
+  ``discontinuity``: the assumed depth as the std of everything (no fit);
+* ``position`` and ``heading``: the laser pose's error carried to the centre,
+  ``G Σ Gᵀ`` with ``G = [I | ℓ]``, ``ℓ = (-(c_y - l_y), c_x - l_x)`` the heading's lever arm
+  (range × σ_yaw across the beam): ``heading`` is ``ℓ ℓᵀ σ_yaw²``, ``position`` the rest
+  (the translation's covariance and its correlation with the heading). ``Σ``: the pose
+  correction's (the registration's, :func:`tiago_nav.localisation.register_with_information`;
+  along directions the scan does not observe the given pose's, which the correction kept)
+  when it was applied, otherwise the given pose's (``pose_covariance`` of :meth:`locate`: the
+  localisation's at the scan's time; None: the pose is taken as exact);
+* ``raster``: what the 5 cm map leaves of the laser's pose. A straight wall lies anywhere
+  within its raster cell, with an unknown offset and tilt that keep it inside the cell over
+  its length (uniform over ``|a| + |t| L / 2 <= w / 2``: the offset at the middle of what is
+  seen is triangular, variance ``w² / 24``). Along an axis the true position is within the
+  intersection of the intervals the walls facing it allow
+  (:func:`tiago_nav.localisation.refine_on_raster`, whose middle the correction takes), of
+  width ``w``: variance ``w² / 24``; ``resolution² / 24`` (one wall's cell) along an axis no
+  wall bounds, and for the given pose of a localisation (which registers to the same raster)
+  when no correction was applied. The walls' offsets and tilts reach the registered heading
+  (:func:`raster_heading_variance`), carried across the beam by the range as the heading's.
+
+The map frame's centre carries all four; the robot frame's (``center_robot``, the laser on the
+robot) the fit's alone.
 ``discontinuity``: the classic pipeline on the raw scan, without the map: range-jump segmentation,
 each segment that stands out in front of its neighbours is an obstacle whose closest point is
 pushed back by a fixed depth along its beam.
@@ -40,11 +64,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from tiago_nav.detection.centres import centroid, circle_covariance, circle_fit, radius_std
+from tiago_nav.detection.centres import (centroid, circle_covariance, circle_fit,
+                                        correlation_inflation, radius_std)
 from tiago_nav.detection.clustering import centroid_clusters
 from tiago_nav.detection.subtraction import MapDistance, subtract
 from tiago_nav.geometry import transform_points, wrap_angle
-from tiago_nav.localisation import DistanceField, LocaliserConfig, refine_on_raster, register
+from tiago_nav.localisation import (DistanceField, LocaliserConfig, refine_on_raster,
+                                    register_with_information)
 from tiago_nav.params import ParamError, param, validate
 from tiago_nav.scan import beam_angles, hits, scan_to_points, usable_ranges
 
@@ -104,16 +130,28 @@ class DetectionParams:
                              % (self.max_radius, self.min_radius), 'min_radius')
 
 
+TERMS = ('fit', 'position', 'heading', 'raster')    # the covariance's terms (module doc)
+
+
 @dataclass
 class Detection:
     """One obstacle: centre ``(x, y)`` [m] in the map frame, radius [m], supporting points,
-    and ``covariance``: ``(3, 3)`` of ``(x, y, radius)`` [m²] (None: not known), see
-    :func:`tiago_nav.detection.centres.circle_covariance` and the module's doc."""
+    and ``covariance``: ``(3, 3)`` of ``(x, y, radius)`` [m², map frame] (None: not known), the
+    sum of the ``(2, 2)`` centre terms ``terms`` (:data:`TERMS`, see the module's doc);
+    ``fit_covariance``: the fit's own ``(3, 3)`` (the centre relative to the laser, map axes)."""
     center: tuple
     radius: float
     num_points: int
     points: np.ndarray = field(repr=False, default=None)
     covariance: np.ndarray = field(repr=False, default=None)
+    fit_covariance: np.ndarray = field(repr=False, default=None)
+    terms: dict = field(repr=False, default=None)
+
+    def __post_init__(self):
+        if self.fit_covariance is None and self.covariance is not None:
+            self.fit_covariance = np.asarray(self.covariance, dtype=float)
+        if self.terms is None and self.fit_covariance is not None:
+            self.terms = {'fit': np.asarray(self.fit_covariance, dtype=float)[:2, :2]}
 
     @property
     def center_covariance(self):
@@ -149,7 +187,10 @@ class PoseCorrection:
     applied); ``delta``: ``laser_pose`` minus the given pose, ``(dx, dy, dyaw)`` [m, m, rad]
     (zeros when not applied); ``static_points``: scan points the map explains; ``inliers``:
     of them, within the localisation's ``inlier_distance`` of the map after registering;
-    ``reason``: why no correction was applied ('' when it was).
+    ``reason``: why no correction was applied ('' when it was); ``covariance``: ``(3, 3)`` of
+    ``laser_pose`` ``(x, y, yaw)`` [m², m·rad, rad²] (None: taken as exact), ``raster``: the
+    variances [m², m², rad²] that the map's raster adds to its x, y and heading (see the
+    module's doc).
     """
     applied: bool
     laser_pose: tuple
@@ -157,6 +198,8 @@ class PoseCorrection:
     static_points: int = 0
     inliers: int = 0
     reason: str = ''
+    covariance: np.ndarray = field(repr=False, default=None, compare=False)
+    raster: tuple = (0.0, 0.0, 0.0)
 
     def describe(self):
         """One phrase for a service answer's message."""
@@ -205,18 +248,20 @@ class ObstacleDetector:
         return self._field
 
     def detect(self, ranges, angle_min, angle_increment, range_min, range_max, laser_pose,
-               method='circle_fit', laser_in_base=None, **overrides):
+               method='circle_fit', laser_in_base=None, pose_covariance=None, **overrides):
         """Obstacles in one scan: the :class:`Detection` s of :meth:`locate` (see there)."""
         return self.locate(ranges, angle_min, angle_increment, range_min, range_max, laser_pose,
-                           method, laser_in_base, **overrides).detections
+                           method, laser_in_base, pose_covariance, **overrides).detections
 
     def locate(self, ranges, angle_min, angle_increment, range_min, range_max, laser_pose,
-               method='circle_fit', laser_in_base=None, **overrides):
+               method='circle_fit', laser_in_base=None, pose_covariance=None, **overrides):
         """Obstacles in one scan, and the pose correction they were placed with.
 
         ``ranges`` [m] of beams from ``angle_min`` [rad] in steps of ``angle_increment`` in
         base_laser_link; ``laser_pose`` ``(x, y, yaw)`` is base_laser_link in the map frame at the
-        scan's time, ``laser_in_base`` in base_footprint (from tf; None: no body to filter).
+        scan's time, ``laser_in_base`` in base_footprint (from tf; None: no body to filter);
+        ``pose_covariance``: ``(3, 3)`` of ``laser_pose`` [m², m·rad, rad²] (the localisation's
+        at the scan's time; None: ``laser_pose`` is exact).
         Only the beams :func:`tiago_nav.scan.usable_ranges` keeps are used (no self-hits, no
         veils; the classic ``discontinuity`` method keeps the veils: it reads the raw scan). ``overrides`` replace fields of the params for this call (0 or None keeps the
         default). Returns a :class:`Result`: :class:`Detection` s sorted by distance from the
@@ -227,6 +272,7 @@ class ObstacleDetector:
             raise ValueError('unknown method %r (expected one of %s)' % (method, ', '.join(METHODS)))
         changed = {k: v for k, v in overrides.items() if v}
         p = replace(self.params, **changed) if changed else self.params
+        given = None if pose_covariance is None else np.asarray(pose_covariance, dtype=float)
         body = (dict(radius=0.0, margin=0.0) if laser_in_base is None
                 else dict(laser_pose=tuple(laser_in_base)))
         raw = np.asarray(ranges, dtype=float)
@@ -245,14 +291,23 @@ class ObstacleDetector:
         else:
             found, correction = self._clusters(r, angle_min, angle_increment, range_min,
                                                range_max, min(range_max, p.max_range),
-                                               tuple(laser_pose), method, p, raw)
+                                               tuple(laser_pose), method, p, raw, given)
+        if not correction.applied and given is not None:
+            # placed with the given pose: the localisation's covariance, and the raster it
+            # registers to (one wall's cell along each axis)
+            cell = self.grid.resolution ** 2 / 24.0
+            correction = replace(correction, covariance=given, raster=(cell, cell, 0.0))
+        for d in found:
+            add_pose_terms(d, correction)
         lx, ly = correction.laser_pose[0], correction.laser_pose[1]
         return Result(sorted(found, key=lambda d: math.hypot(d.center[0] - lx, d.center[1] - ly)),
                       correction)
 
-    def correct(self, local, laser_pose, static, p):
+    def correct(self, local, laser_pose, static, p, given=None):
         """The :class:`PoseCorrection` of the laser pose ``laser_pose`` (map) from the scan
-        points ``local`` [m] (laser frame) the map explains (mask ``static``)."""
+        points ``local`` [m] (laser frame) the map explains (mask ``static``); ``given``: the
+        covariance of ``laser_pose`` (None: exact), which the correction keeps along the
+        directions the scan does not observe."""
         n = int(np.count_nonzero(static))
         if not p.correct_pose:
             return PoseCorrection(False, laser_pose, static_points=n,
@@ -265,10 +320,17 @@ class ObstacleDetector:
         pts = local[static]
         if n > c.max_points:
             pts = pts[np.linspace(0, n - 1, c.max_points).round().astype(int)]
-        pose, _, _ = register(self.field, pts, laser_pose, c)
+        pose, cov, _, info = register_with_information(self.field, pts, laser_pose, c)
+        if info.degenerate and given is not None:
+            weak = info.weak_projector()
+            cov = cov + weak @ given @ weak.T
         # the raster's band with every static point: more of them on each wall than the
         # registration's subsample
-        pose, _ = refine_on_raster(self.field, local[static], pose, noise=p.range_noise)
+        pose, _, widths = refine_on_raster(self.field, local[static], pose, noise=p.range_noise,
+                                           widths=True)
+        cell = self.grid.resolution
+        raster = tuple((cell if w is None else w) ** 2 / 24.0 for w in widths) + (
+            raster_heading_variance(self.field, local[static], pose, c.robust_scale),)
         res = self.field(transform_points(pose, pts))[0]
         # inliers among the points used, scaled to the static part
         inliers = int(round(np.sum(np.abs(res) < c.inlier_distance) * n / len(pts)))
@@ -286,10 +348,10 @@ class ObstacleDetector:
         if reason:
             return PoseCorrection(False, laser_pose, static_points=n, inliers=inliers,
                                   reason=reason)
-        return PoseCorrection(True, pose, delta, n, inliers)
+        return PoseCorrection(True, pose, delta, n, inliers, covariance=cov, raster=raster)
 
     def _clusters(self, r, angle_min, inc, rmin, laser_max, rmax, laser_pose, method, p,
-                  raw=None):
+                  raw=None, given=None):
         """The detections of the circle_fit and centroid methods (see :meth:`locate`): ``r``
         the usable ranges [m], ``raw`` the scan's own (None: ``r``), for the beams beside a
         cluster that the veil filter dropped."""
@@ -300,7 +362,7 @@ class ObstacleDetector:
         holes = np.diff(np.concatenate(([-1], beam))) - 1
         pts = transform_points(laser_pose, local)
         keep = subtract(pts, self.distance, p.scan_minus_map_threshold)
-        correction = self.correct(local, laser_pose, ~keep, p)
+        correction = self.correct(local, laser_pose, ~keep, p, given)
         if correction.applied:
             laser_pose = correction.laser_pose
             pts = transform_points(laser_pose, local)
@@ -386,6 +448,108 @@ class ObstacleDetector:
                 cov = circle_covariance(c, cx, cy, rad)
             out.append(Detection((cx, cy), rad, len(c), c, cov))
         return out, correction
+
+
+def pose_terms(center, laser_pose, covariance, raster=(0.0, 0.0, 0.0)):
+    """The laser pose's share of a centre's covariance [m², map frame]: ``{'position',
+    'heading', 'raster'}`` ``(2, 2)`` each (see the module's doc) for the centre ``(x, y)`` [m]
+    placed with ``laser_pose`` ``(x, y, yaw)`` whose covariance is ``covariance`` ``(3, 3)``
+    (None: exact) and to which the raster adds ``raster`` (variances along x, y [m²] and of the
+    heading [rad²])."""
+    lever = np.array([-(center[1] - laser_pose[1]), center[0] - laser_pose[0]])
+    out = {'position': np.zeros((2, 2)), 'heading': np.zeros((2, 2)),
+           'raster': np.diag([float(raster[0]), float(raster[1])])
+           + np.outer(lever, lever) * float(raster[2] if len(raster) > 2 else 0.0)}
+    if covariance is not None:
+        s = np.asarray(covariance, dtype=float)
+        cross = np.outer(s[:2, 2], lever)
+        out['position'] = s[:2, :2] + cross + cross.T
+        out['heading'] = np.outer(lever, lever) * s[2, 2]
+    return out
+
+
+def raster_heading_variance(field, points, pose, scale, inlier=0.05):
+    """[rad²] the heading's variance that the map's raster leaves in a registration of the
+    ``(N, 2)`` laser-frame ``points`` at ``pose`` (map frame) on ``field``.
+
+    Each axis-aligned wall's surface lies somewhere in its raster cell, unknown: its points
+    share one offset ``a`` and one tilt ``t`` (a wall a little off the axis has the same
+    raster), uniform over what keeps the surface inside the cell over the length ``L`` seen
+    (``|a| + |t| L / 2 <= resolution / 2``: variances ``resolution² / 24`` and
+    ``resolution² / (6 L²)``), independent from wall to wall (:func:`tiago_nav.localisation.refine_on_raster` groups the points into
+    walls the same way: the points facing one raster edge line, at least ``RASTER_GROUP_MIN``);
+    on any other surface (an oblique wall's staircase, a static cylinder's outline) the points
+    of one raster cell share one. Two walls facing one axis at different places turn the registered
+    heading by the difference of their offsets over their distance. The registration's
+    Gauss-Newton step for residual offsets ``b`` is ``-(JᵀWJ)⁻¹ JᵀW b`` (Cauchy weights at
+    ``scale`` [m]), so the offsets' covariance reaches the pose as
+    ``A⁻¹ (Σ_walls σ² s_g s_gᵀ) A⁻¹``, ``s_g`` the sum of ``w J`` over a wall's points; its
+    heading entry is returned (the translation's share is the raster intervals' own)."""
+    from tiago_nav.localisation import AXIS_COS, RASTER_GROUP_MIN
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    if len(p) < 3:
+        return 0.0
+    q = transform_points(tuple(pose), p)
+    r, gx, gy = field(q)
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    dqx = -s * p[:, 0] - c * p[:, 1]
+    dqy = c * p[:, 0] - s * p[:, 1]
+    j = np.column_stack((gx, gy, gx * dqx + gy * dqy))
+    w = 1.0 / (1.0 + (r / scale) ** 2)
+    a = (j * w[:, None]).T @ j
+    res = field.grid.resolution
+    g = np.hypot(gx, gy)
+    ok = (np.abs(r) <= inlier) & (g > 0.5)
+    b = np.zeros((3, 3))
+    wj = j * w[:, None]
+    walled = np.zeros(len(p), dtype=bool)
+    for axis, grad in ((0, gx), (1, gy)):
+        face = ok & (np.abs(grad) >= AXIS_COS * g)
+        if not np.any(face):
+            continue
+        sign = np.sign(grad)
+        line = q[:, axis] - sign * r
+        key = np.round(line / (res / 8.0)).astype(int) * 2 + (sign > 0)
+        for k in np.unique(key[face]):
+            sel = face & (key == k)
+            if np.count_nonzero(sel) < RASTER_GROUP_MIN:
+                continue
+            walled |= sel
+            # the surface within the band: an offset and a tilt, uniform over what keeps it
+            # inside along the length seen (|a| + |t| L / 2 <= res / 2: var a = res² / 24,
+            # var t = res² / (6 L²))
+            along = q[sel, 1 - axis]
+            length = max(float(along.max() - along.min()), res)
+            s0 = wj[sel].sum(axis=0)
+            s1 = (wj[sel] * (along - along.mean())[:, None]).sum(axis=0)
+            b += np.outer(s0, s0) * res * res / 24.0 + np.outer(s1, s1) * res * res / (
+                6.0 * length * length)
+    # any other surface (an oblique wall's staircase, a static cylinder's outline): one
+    # offset per raster cell, independent from cell to cell
+    other = ok & ~walled
+    if np.any(other):
+        cells = np.floor(q[other] / res).astype(int)
+        _, label = np.unique(cells, axis=0, return_inverse=True)
+        sums = np.zeros((int(np.max(label)) + 1, 3))
+        np.add.at(sums, np.ravel(label), wj[other])
+        b += sums.T @ sums * res * res / 12.0
+    if not np.any(b):
+        return 0.0
+    inv = np.linalg.pinv(a)
+    return float(max((inv @ b @ inv)[2, 2], 0.0))
+
+
+def add_pose_terms(d, correction):
+    """Add to the :class:`Detection` ``d`` (its fit's covariance alone) the laser pose's
+    share (:func:`pose_terms`) of the :class:`PoseCorrection` it was placed with."""
+    fit = np.asarray(d.fit_covariance, dtype=float)
+    terms = {'fit': fit[:2, :2]}
+    terms.update(pose_terms(d.center, correction.laser_pose, correction.covariance,
+                            correction.raster))
+    total = fit.copy()
+    if np.all(np.isfinite(fit[:2, :2])):
+        total[:2, :2] = sum(terms[k] for k in TERMS)
+    d.covariance, d.terms = total, terms
 
 
 def _gap(ranges, inc, gap, holes=0):

@@ -21,7 +21,11 @@ seconds.
   newest first (``[]`` when none is held);
 * ``transform(target, source, stamp, timeout)``: the pose ``(x, y, yaw)`` of frame ``source`` in
   frame ``target`` at ``stamp``, waiting up to ``timeout`` wall seconds; raises
-  :class:`LookupError` (its text says why) when there is none.
+  :class:`LookupError` (its text says why) when there is none;
+* ``pose_covariance(stamp)``: the localisation's ``(3, 3)`` covariance of the robot's pose
+  ``(x, y, yaw)`` in the map frame [m², m·rad, rad²] at ``stamp`` (its last estimate stamped at
+  or before it), or None when none is known (a ground-truth localisation publishes none: the
+  pose is then taken as exact).
 
 Scans at rest: the scan a call names is combined with the held scans just before it that were
 taken from the same pose (the laser in the odometry frame within :data:`REST_TRANSLATION` and
@@ -33,6 +37,8 @@ ends the run; a moving robot's call uses its one scan.
 import math
 import time
 from dataclasses import dataclass
+
+import numpy as np
 
 from tiago_nav.detection.pipeline import METHODS, ObstacleDetector
 from tiago_nav.geometry import compose, inverse, wrap_angle
@@ -71,6 +77,9 @@ class Found:
     center_std: float = math.inf           # [m] along the centre's least certain direction
     radius_std: float = math.inf           # [m] (0: the radius was configured)
     center_covariance: tuple = (math.inf, 0.0, 0.0, math.inf)   # [m²] map frame, row-major
+    center_robot_covariance: tuple = (math.inf, 0.0, 0.0, math.inf)  # [m²] robot frame
+    center_variance_terms: tuple = (math.inf, 0.0, 0.0, 0.0)  # [m²] fit, position, heading,
+                                                              # raster along center_std's axis
 
 
 @dataclass(frozen=True)
@@ -120,9 +129,23 @@ def check_scan(scan, min_fraction):
                          100 * min_fraction))
 
 
+def variance_terms(detection):
+    """The variances [m²] of the :class:`tiago_nav.detection.Detection`'s terms
+    (:data:`tiago_nav.detection.pipeline.TERMS`) along the least certain direction of its map
+    covariance: they sum to ``center_std²``."""
+    from tiago_nav.detection.pipeline import TERMS
+    total = np.asarray(detection.center_covariance, dtype=float)
+    if not np.all(np.isfinite(total)):
+        return (math.inf,) + (0.0,) * (len(TERMS) - 1)
+    v = np.linalg.eigh(total)[1][:, -1]
+    return tuple(float(v @ detection.terms[k] @ v) if k in detection.terms else 0.0
+                 for k in TERMS)
+
+
 def found_obstacles(detections, laser_in_map, laser_in_robot):
     """:class:`Found` obstacles from the pipeline's detections (map frame), with their centres
-    in the robot frame too, sorted by distance from the robot.
+    in the robot frame too, sorted by distance from the robot. The robot frame's covariance is
+    the fit's alone (the laser is fixed on the robot), rotated into that frame.
 
     Args:
         detections: :class:`tiago_nav.detection.Detection` s, centres in the map frame.
@@ -130,15 +153,34 @@ def found_obstacles(detections, laser_in_map, laser_in_robot):
         laser_in_robot: ``(x, y, yaw)`` of the laser frame in the robot frame.
     """
     to_robot = compose(laser_in_robot, inverse(laser_in_map))
+    c, s = math.cos(to_robot[2]), math.sin(to_robot[2])
+    rot = np.array([[c, -s], [s, c]])
     out = []
     for d in detections:
         rx, ry, _ = compose(to_robot, (d.center[0], d.center[1], 0.0))
         cov = d.center_covariance
+        fit = np.asarray(d.fit_covariance, dtype=float)[:2, :2]
+        robot = rot @ fit @ rot.T if np.all(np.isfinite(fit)) else np.full((2, 2), np.inf)
         out.append(Found((float(d.center[0]), float(d.center[1])), (rx, ry), float(d.radius),
                          int(d.num_points), d.center_std, d.radius_std,
-                         tuple(float(v) for v in cov.ravel())))
+                         tuple(float(v) for v in cov.ravel()),
+                         tuple(float(v) for v in robot.ravel()), variance_terms(d)))
     out.sort(key=lambda o: math.hypot(*o.center_robot))
     return tuple(out)
+
+
+def laser_covariance(robot_covariance, laser_in_map, laser_in_robot):
+    """The ``(3, 3)`` covariance of the laser's pose in the map frame from the robot's
+    (``robot_covariance``, of base_footprint's ``(x, y, yaw)`` in map; None gives None): the
+    laser sits ``laser_in_robot`` on the robot, so the heading's error moves it across its
+    offset."""
+    if robot_covariance is None:
+        return None
+    robot = compose(laser_in_map, inverse(laser_in_robot))
+    j = np.array([[1.0, 0.0, -(laser_in_map[1] - robot[1])],
+                  [0.0, 1.0, laser_in_map[0] - robot[0]],
+                  [0.0, 0.0, 1.0]])
+    return j @ np.asarray(robot_covariance, dtype=float).reshape(3, 3) @ j.T
 
 
 class DetectionService:
@@ -192,8 +234,10 @@ class DetectionService:
             check_scan(scan, self.params.min_informative_fraction)
             laser_in_map, laser_in_robot = self._poses(scan, sensors)
             rest = self._at_rest(scan, sensors)
+            given = laser_covariance(sensors.pose_covariance(scan.stamp), laser_in_map,
+                                     laser_in_robot)
             return self._detect(detector, scan, rest, laser_in_map, laser_in_robot, method,
-                                scan_minus_map_threshold, cluster_threshold)
+                                scan_minus_map_threshold, cluster_threshold, given)
         except Failure as e:
             return Answer(False, (), str(e))
 
@@ -236,7 +280,7 @@ class DetectionService:
         return out
 
     def _detect(self, detector, scan, rest, laser_in_map, laser_in_robot, method,
-                scan_minus_map_threshold, cluster_threshold):
+                scan_minus_map_threshold, cluster_threshold, given=None):
         t0 = time.perf_counter()
         ranges = scan.ranges if len(rest) == 1 else median_ranges(
             [s.ranges for s in rest], scan.range_min, scan.range_max)
@@ -244,6 +288,7 @@ class DetectionService:
             result = detector.locate(
                 ranges, scan.angle_min, scan.angle_increment, scan.range_min,
                 scan.range_max, laser_in_map, method, laser_in_base=laser_in_robot,
+                pose_covariance=given,
                 scan_minus_map_threshold=scan_minus_map_threshold,
                 cluster_threshold=cluster_threshold)
         except Exception as e:   # never a crash: the caller learns what went wrong

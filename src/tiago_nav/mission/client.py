@@ -148,10 +148,22 @@ def feedback_line(t, state, status, pose=None):
     return '[%7.2f s] %-14s %s%s' % (t, name, status, '   @ %s' % fmt_pose(pose) if pose else '')
 
 
+def largest_std(cov4):
+    """[m] the standard deviation along the least certain direction of a row-major 2 × 2
+    covariance [m²] (None when it is not finite)."""
+    c = [float(v) for v in cov4]
+    if len(c) != 4 or not all(math.isfinite(v) for v in c):
+        return None
+    mean, half = (c[0] + c[3]) / 2.0, math.hypot((c[0] - c[3]) / 2.0, (c[1] + c[2]) / 2.0)
+    return math.sqrt(max(mean + half, 0.0))
+
+
 def obstacle_rows(obstacles):
-    """tiago_nav/Obstacle messages → rows of :func:`obstacle_table` (with the fit's stds)."""
+    """tiago_nav/Obstacle messages → rows of :func:`obstacle_table` (with their stds: the
+    centre's in the map frame, the radius's, the centre's in the robot frame)."""
     return [(o.center.x, o.center.y, o.center_robot.x, o.center_robot.y, o.radius, o.num_points,
-             o.center_std, o.radius_std) for o in obstacles]
+             o.center_std, o.radius_std, largest_std(o.center_robot_covariance))
+            for o in obstacles]
 
 
 def centres_in_frame(rows, frame_pose):
@@ -184,19 +196,22 @@ def obstacle_table(rows):
     """Format obstacles as a text table.
 
     ``rows``: sequence of ``(x, y, x_robot, y_robot, radius, num_points[, center_std,
-    radius_std])`` [m, m, m, m, m, -, m, m] (map frame, or the frame of
+    radius_std[, robot_std]])`` [m, m, m, m, m, -, m, m, m] (map frame, or the frame of
     :func:`centres_in_frame`; then base_footprint at scan time). ``center_std``: the centre's
-    standard deviation along its least certain direction, ``radius_std`` the radius's (the
-    fit's, tiago_nav/Obstacle); rows without them show ``?``.
+    standard deviation along its least certain direction in the map frame (the laser pose's
+    error included), ``radius_std`` the radius's, ``robot_std`` the centre's in the robot frame
+    (the fit's alone; tiago_nav/Obstacle); rows without them show ``?``.
     Returns the lines (header first).
     """
-    lines = [' #   x [m]   y [m]  x_robot  y_robot  radius [m]  points  centre std  radius std',
-             '--  ------  ------  -------  -------  ----------  ------  ----------  ----------']
+    lines = [' #   x [m]   y [m]  x_robot  y_robot  radius [m]  points  centre std  radius std'
+             '  robot std',
+             '--  ------  ------  -------  -------  ----------  ------  ----------  ----------'
+             '  ---------']
     for i, row in enumerate(rows, 1):
         x, y, xr, yr, r, n = row[:6]
-        cs, rs = (tuple(row[6:8]) + (None, None))[:2]
-        lines.append('%2d  %6.2f  %6.2f  %7.2f  %7.2f  %10.3f  %6d  %10s  %10s'
-                     % (i, x, y, xr, yr, r, n, _std(cs), _std(rs)))
+        cs, rs, ws = (tuple(row[6:9]) + (None, None, None))[:3]
+        lines.append('%2d  %6.2f  %6.2f  %7.2f  %7.2f  %10.3f  %6d  %10s  %10s  %9s'
+                     % (i, x, y, xr, yr, r, n, _std(cs), _std(rs), _std(ws)))
     if not rows:
         lines.append('    (no obstacles)')
     return lines

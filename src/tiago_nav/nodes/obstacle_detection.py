@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import rospy
 import tf2_ros
-from geometry_msgs.msg import Point, Pose2D
+from geometry_msgs.msg import Point, Pose2D, PoseWithCovarianceStamped
 from nav_msgs.msg import OccupancyGrid
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
@@ -72,6 +72,10 @@ class Params:
     map_topic: str = param('/map', 'the static map (nav_msgs/OccupancyGrid, latched)',
                            nonempty=True)
     scan_topic: str = param('/scan', 'the laser (sensor_msgs/LaserScan)', nonempty=True)
+    pose_topic: str = param(
+        '/amcl_pose', 'the localisation\'s estimate (geometry_msgs/PoseWithCovarianceStamped): '
+        'its covariance at the scan\'s time is the laser pose\'s when no pose correction was '
+        'applied (none received: the pose is taken as exact)', nonempty=True)
     map_frame: str = param('map', 'frame of the map and of the obstacles\' centres',
                            nonempty=True)
     robot_frame: str = param('base_footprint', 'frame of the obstacles\' center_robot',
@@ -89,19 +93,38 @@ def obstacle_msg(found):
                     center_robot=Point(found.center_robot[0], found.center_robot[1], 0.0),
                     radius=found.radius, num_points=found.num_points,
                     center_std=found.center_std, radius_std=found.radius_std,
-                    center_covariance=list(found.center_covariance))
+                    center_covariance=list(found.center_covariance),
+                    center_robot_covariance=list(found.center_robot_covariance),
+                    center_variance_terms=list(found.center_variance_terms))
 
 
 class RosSensors:
     """The service's sensors (see :mod:`tiago_nav.detection.service`): the newest scan of
-    ``scan_topic`` and tf."""
+    ``scan_topic``, tf, and the localisation's covariances on ``pose_topic``."""
 
-    def __init__(self, scan_topic):
+    def __init__(self, scan_topic, pose_topic='/amcl_pose'):
         self.scans = collections.deque(maxlen=SCANS_HELD)
+        self.poses = collections.deque(maxlen=SCANS_HELD)   # (stamp, 3 x 3 covariance)
         self.cond = threading.Condition()
         self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
         self.listener = tf2_ros.TransformListener(self.tf)
         self.topic = Subscription(scan_topic, LaserScan, self.on_scan, queue_size=SCANS_HELD).name
+        Subscription(pose_topic, PoseWithCovarianceStamped, self.on_pose, queue_size=SCANS_HELD)
+
+    def on_pose(self, msg):
+        c = msg.pose.covariance          # 6 x 6 of (x, y, z, roll, pitch, yaw), row-major
+        cov = tuple(tuple(c[6 * i + j] for j in (0, 1, 5)) for i in (0, 1, 5))
+        with self.cond:
+            if self.poses and msg.header.stamp < self.poses[-1][0]:
+                self.poses.clear()          # ROS time went back (a restarted simulator)
+            self.poses.append((msg.header.stamp, cov))
+
+    def pose_covariance(self, stamp):
+        """The localisation's ``(3, 3)`` covariance of ``(x, y, yaw)`` stamped last at or before
+        ``stamp`` (rospy.Time), None when none is held."""
+        with self.cond:
+            held = [c for t, c in self.poses if t <= stamp]
+        return held[-1] if held else None
 
     @property
     def scan(self):
@@ -198,7 +221,7 @@ class DetectionNode:
         self.params = params
         self.logic = DetectionService(params)
         self.map_ready = threading.Event()
-        self.sensors = RosSensors(params.scan_topic)
+        self.sensors = RosSensors(params.scan_topic, params.pose_topic)
         self.markers = rospy.Publisher('~obstacles', MarkerArray, queue_size=1, latch=True)
         Subscription(params.map_topic, OccupancyGrid, self.on_map, queue_size=1)
         self.service = None
