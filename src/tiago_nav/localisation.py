@@ -476,25 +476,34 @@ def register_with_information(field, points, guess, config, sensor=(0.0, 0.0), a
         jtw = (j * w[:, None]).T
         jtwj = jtw @ j
         wn = w[has_normal]
-        strong, weak, vals, length = _split((jn * wn[:, None]).T @ jn, float(wn @ p2),
-                                            float(np.sum(wn)), config.degenerate_ratio,
-                                            _turn(pose[2]))
-        if weak.shape[1]:
-            pose = _keep_weak(pose, anchor, strong, length)
+        split = ((jn * wn[:, None]).T @ jn, float(wn @ p2), float(np.sum(wn)),
+                 config.degenerate_ratio, pose[2])
+        # every direction observable (the usual case): the step is the whole space's, and the
+        # directions are needed only for the last iteration's Information
+        length = _observable_everywhere(*split[:4])
+        if length is None:
+            strong, weak, vals, length = _split(*split[:4], _turn(split[4]))
+            if weak.shape[1]:
+                pose = _keep_weak(pose, anchor, strong, length)
+        else:
+            strong = weak = None
         dp = prior - pose
         dp[2] = wrap_angle(dp[2])
         h = jtwj / scale ** 2 + info_prior
-        # the step within the observable subspace: pose = pose + B a, B = S⁻¹ strong
-        b = strong / np.array([1.0, 1.0, length])[:, None]
-        if b.shape[1]:
-            a = np.linalg.solve(b.T @ h @ b, b.T @ (-jtw @ r / scale ** 2 + info_prior @ dp))
-            step = b @ a
+        g = -jtw @ r / scale ** 2 + info_prior @ dp
+        if strong is None:
+            step = np.linalg.solve(h, g)
         else:
-            step = np.zeros(3)
+            # the step within the observable subspace: pose = pose + B a, B = S⁻¹ strong
+            b = strong / np.array([1.0, 1.0, length])[:, None]
+            step = b @ np.linalg.solve(b.T @ h @ b, b.T @ g) if b.shape[1] else np.zeros(3)
         pose += step
         pose[2] = wrap_angle(pose[2])
         if abs(step[0]) + abs(step[1]) < 1e-4 and abs(step[2]) < 1e-4 and scale == scales[-1]:
             break
+    if strong is None:
+        strong, weak, vals, length = _split(*split[:4], _turn(split[4]))
+    b = strong / np.array([1.0, 1.0, length])[:, None]
     if config.raster_band:
         pose[:2] = refine_on_raster(field, points, pose)[0][:2]
         if weak.shape[1]:
@@ -507,6 +516,33 @@ def register_with_information(field, points, guess, config, sensor=(0.0, 0.0), a
     cov = b @ np.linalg.inv(b.T @ normal @ b) @ b.T if b.shape[1] else np.zeros((3, 3))
     return ((float(pose[0]), float(pose[1]), float(pose[2])), cov, r,
             Information(strong, weak, vals, length))
+
+
+def _observable_everywhere(info, moment, total, ratio):
+    """The ``length`` of :func:`_split` when every direction is clearly observable (the
+    smallest eigenvalue of the scaled information at least twice ``ratio`` times the
+    largest, from the closed form of a symmetric 3 × 3 matrix's eigenvalues), else None (then
+    :func:`_split` decides, with the eigenvectors)."""
+    length = max(math.sqrt(moment / max(total, 1e-9)), 0.1)
+    if ratio <= 0:
+        return length
+    k = 1.0 / length
+    a00, a11, a22 = info[0, 0], info[1, 1], info[2, 2] * k * k
+    a01, a02, a12 = info[0, 1], info[0, 2] * k, info[1, 2] * k
+    q = (a00 + a11 + a22) / 3.0
+    p1 = a01 * a01 + a02 * a02 + a12 * a12
+    p2 = (a00 - q) ** 2 + (a11 - q) ** 2 + (a22 - q) ** 2 + 2.0 * p1
+    if not p2 > 0.0:                    # a multiple of the identity (or not finite)
+        return length if q > 0.0 else None
+    p = math.sqrt(p2 / 6.0)
+    b00, b11, b22 = (a00 - q) / p, (a11 - q) / p, (a22 - q) / p
+    b01, b02, b12 = a01 / p, a02 / p, a12 / p
+    det = (b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02)
+           + b02 * (b01 * b12 - b11 * b02))
+    phi = math.acos(min(1.0, max(-1.0, det / 2.0))) / 3.0
+    top = q + 2.0 * p * math.cos(phi)
+    least = q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
+    return length if top > 0.0 and least >= 2.0 * ratio * top else None
 
 
 _SCALES = {}
