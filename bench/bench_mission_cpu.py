@@ -3,8 +3,9 @@
 
 The course mission (course world, pose B (11, 0, -45 deg), corridor law on, seed 0) at
 ``real_time_factor:=0`` on this tree ("this tree") and on ``--commit`` (default 07ccd86, the
-release before the robustness work), interleaved: this tree, the commit, this tree, ... for
-``--pairs`` pairs, each run a fresh demo.launch on a private master. The commit is checked out
+release before the robustness work), interleaved for ``--pairs`` pairs in ABBA order (this
+tree then the commit, the commit then this tree, ...: a load that drifts over the runs favours
+neither), each run a fresh demo.launch on a private master. The commit is checked out
 into a git worktree (a temporary one unless ``--worktree`` names one to keep and reuse) and its
 catkin workspace built with its own ``make setup`` (with this tree's virtualenv when both
 Makefiles install the same PyPI packages).
@@ -476,7 +477,7 @@ def table(report):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--commit', default=DEFAULT_COMMIT, help='the earlier commit to compare with')
-    ap.add_argument('--pairs', type=int, default=5, help='interleaved pairs of runs (>= 1)')
+    ap.add_argument('--pairs', type=int, default=6, help='interleaved pairs of runs (>= 1)')
     ap.add_argument('--worktree', help='where the commit is checked out (kept and reused; '
                                        'default: a temporary directory, removed at the end)')
     ap.add_argument('--out', default=os.path.join(RESULTS, 'mission_cpu.json'))
@@ -507,7 +508,10 @@ def main():
         pairs = []
         for k in range(args.pairs):
             pair = []
-            for side, where in ((this, ROOT), (other, tree)):
+            # ABBA: this tree first in even pairs, the commit first in odd ones (a load that
+            # rises or falls over the runs favours neither)
+            order = ((this, ROOT), (other, tree))
+            for side, where in (order if k % 2 == 0 else order[::-1]):
                 log = os.path.join(logs, '%s_%d.log' % ('this' if side is this else 'other', k))
                 rec = judge(run_in(where, log), world)
                 rec['pair'] = k
@@ -522,7 +526,7 @@ def main():
                          '%.4f m' % rec['rms_error_m'], rec['loadavg_at_goal'][0],
                          ' '.join('%s %.2f' % kv for kv in sorted(rec['cpu_by_process_s'].items())
                                   if kv[1] >= 0.05))), flush=True)
-            pairs.append(tuple(pair))
+            pairs.append(tuple(pair) if k % 2 == 0 else tuple(pair[::-1]))
         shutil.rmtree(logs, ignore_errors=True)
     finally:
         if temp:
@@ -530,7 +534,8 @@ def main():
             shutil.rmtree(temp, ignore_errors=True)
     this['summary'], other['summary'] = summarise(this['runs']), summarise(other['runs'])
     report = {'world': WORLD, 'goal': list(COURSE), 'use_corridor_law': True,
-              'real_time_factor': 0.0, 'pairs': args.pairs, 'order': 'this tree first in each pair',
+              'real_time_factor': 0.0, 'pairs': args.pairs,
+              'order': 'this tree first in even pairs (0, 2, ...), the commit first in odd ones',
               'this': this, 'other': other, 'ratios': ratios(pairs, this['summary'], other['summary'])}
     laser, odometry = launch_models()
     report['meta'] = meta({k: v for k, v in vars(args).items() if k not in ('child', 'log')},
