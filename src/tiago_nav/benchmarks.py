@@ -35,6 +35,8 @@ BENCHMARKS = (
         ('bench/bench_corridor.py', ['corridor.json'])]),
     ('mission', 'Whole mission', [
         ('bench/bench_mission.py', ['mission.json'])]),
+    ('mission_cpu', 'Course mission CPU against an earlier release', [
+        ('bench/bench_mission_cpu.py', ['mission_cpu.json'])]),
     ('demo', 'Course mission and localisation (the demo)', [
         ('scripts/run_demo.py', ['demo.json'])]),
     ('lockstep', 'Lockstep', [
@@ -74,6 +76,25 @@ ABOUT = {
         '`center_std`² (fit, laser position, heading, map raster), and the map frame\'s NEES '
         'with the fit\'s term alone. Targets (map frame): mean NEES between 1 and 3, at least '
         '93 % inside the 95 % ellipse, at least 300 detections.'),
+    'mission_cpu': (
+        'The course mission (pose B (11, 0, -45°), corridor law on) at `real_time_factor:=0` '
+        'on this tree and on an earlier commit (`--commit`, default 07ccd86, the release before '
+        'the robustness work; checked out in a git worktree and built with its own `make '
+        'setup`), interleaved for `--pairs` pairs (6) in ABBA order (this tree then the commit, '
+        'the commit then this tree, ...: a load drifting over the runs favours neither), each '
+        'a fresh demo.launch. Each process\'s CPU time (user + system, with its '
+        'waited-for children\'s, from `/proc`) is read at the goal, at every change of the '
+        'mission\'s feedback state and at the result; phases: *corridor* (goal to the first '
+        'NAVIGATING), *navigation* (to the first DETECTING), *detection* (to the result; the '
+        'scans it uses were taken at rest before it). The stack is every process of the launch. '
+        'Reported per tree: the median and range (least–largest) of each figure; the ratio this '
+        'tree / commit of the medians and the median and range of the pairs\' own ratios; the '
+        'result of each run (pose B reached, obstacles found of those in view, centre RMS). '
+        'The load average at each goal is in the JSON and under the table: on a busy machine '
+        'every process\'s CPU time grows (shared caches and cores) and the ranges widen; the '
+        'interleaved pairs keep the comparison fair, the figures are comparable only between '
+        'runs at similar loads. Target: the stack\'s ratio at most 1.0 '
+        'with the same result (pose B, 4/4, RMS at most 1 cm).'),
     'suites': (
         'Every run of the shipped suites through `rosrun tiago_nav evaluate` (2 workers, '
         'lockstep): `suites/course.yaml` (204 runs: the course world, its pose B and four sampled '
@@ -766,7 +787,48 @@ def _suite_rules(s):
     return out + ['']
 
 
-RENDER = {'covariance': render_covariance, 'suites': render_suites, 'evaluate': render_evaluate, 'simulator': render_simulator, 'detection': render_detection,
+def render_mission_cpu(d):
+    a, b = d.get('this', {}), d.get('other', {})
+    sa, sb, r = a.get('summary', {}), b.get('summary', {}), d.get('ratios', {})
+
+    def rng(s):
+        return '–' if not s else '%s (%s–%s)' % (_f(s.get('median')), _f(s.get('min')),
+                                                _f(s.get('max')))
+
+    def ratio(q):
+        p = (q or {}).get('pairs') or {}
+        return (_f((q or {}).get('median_ratio')),
+                '–' if not p else '%s (%s–%s)' % (_f(p.get('median')), _f(p.get('min')),
+                                                  _f(p.get('max'))))
+    rows = [('**stack**', rng(sa.get('cpu_s')), rng(sb.get('cpu_s'))) + ratio(r.get('cpu_s'))]
+    procs = r.get('cpu_by_process_s', {})
+    rows += [(n, rng(sa.get('cpu_by_process_s', {}).get(n)),
+              rng(sb.get('cpu_by_process_s', {}).get(n))) + ratio(procs[n])
+             for n in sorted(procs, key=lambda n: -(((sa.get('cpu_by_process_s') or {}).get(n)
+                                                     or {}).get('median') or 0.0))]
+    for ph, q in r.get('phases', {}).items():
+        rows.append(('phase: %s' % ph, rng(sa.get('phases', {}).get(ph, {}).get('cpu_s')),
+                     rng(sb.get('phases', {}).get(ph, {}).get('cpu_s'))) + ratio(q))
+    rows += [('wall [s]', rng(sa.get('wall_s')), rng(sb.get('wall_s'))) + ratio(r.get('wall_s')),
+             ('simulated [s]', rng(sa.get('sim_s')), rng(sb.get('sim_s'))) + ratio(r.get('sim_s'))]
+    out = ['%s interleaved pairs; this tree `%s`, the other `%s` (%s).'
+           % (_f(d.get('pairs')), a.get('commit'), b.get('commit'), b.get('label')), '']
+    out += _table(('CPU [s]', 'this tree: median (range)', '%s: median (range)' % b.get('label'),
+                   'ratio of medians', 'ratio per pair: median (range)'), rows)
+    loads = [x.get('loadavg_at_goal', [None])[0] for x in a.get('runs', []) + b.get('runs', [])
+             if x.get('loadavg_at_goal')]
+    for label, s in (('this tree', sa), (b.get('label'), sb)):
+        out += ['', '%s: %s/%s missions succeeded, pose B reached within %s m, %s of %s '
+                'obstacles in view found, %s false positives, centre RMS %s m.'
+                % (label, _f(s.get('succeeded')), _f(s.get('runs')),
+                   _f((s.get('goal_error_m') or {}).get('max')), rng(s.get('matched')),
+                   rng(s.get('in_view')), rng(s.get('false_positives')), rng(s.get('rms_error_m')))]
+    if loads:
+        out += ['', 'Load average (1 min) at the goals: %s–%s.' % (_f(min(loads)), _f(max(loads)))]
+    return out
+
+
+RENDER = {'mission_cpu': render_mission_cpu, 'covariance': render_covariance, 'suites': render_suites, 'evaluate': render_evaluate, 'simulator': render_simulator, 'detection': render_detection,
           'navigation': render_navigation, 'corridor': render_corridor,
           'mission': render_mission, 'demo': render_demo, 'lockstep': render_lockstep,
           'soak': render_soak, 'localisation': render_localisation}

@@ -186,18 +186,22 @@ class DistanceField:
         gy, gx = np.gradient(d, fine.resolution)
         self.gx, self.gy = gx, gy
 
-    def _coords(self, pts):
-        g = self.fine
-        col = (pts[:, 0] - g.origin[0]) / g.resolution - 0.5
-        row = (pts[:, 1] - g.origin[1]) / g.resolution - 0.5
-        return np.vstack((row, col))
-
     def __call__(self, pts):
         """``(distance, dx, dy)`` at the ``(N, 2)`` points [m] in map: three ``(N,)`` arrays
         (signed distance [m] to the nearest mapped surface and its gradient)."""
-        c = self._coords(pts)
-        return tuple(ndimage.map_coordinates(a, c, order=1, mode='nearest')
-                     for a in (self.d, self.gx, self.gy))
+        return self.at(pts[:, 0], pts[:, 1])
+
+    def at(self, x, y):
+        """:meth:`__call__` at the points of coordinates ``x``, ``y`` (``(N,)`` arrays [m] in
+        map)."""
+        g = self.fine
+        c = np.empty((2, len(x)))
+        c[0] = (y - g.origin[1]) / g.resolution - 0.5      # row
+        c[1] = (x - g.origin[0]) / g.resolution - 0.5      # column
+        out = np.empty((3, c.shape[1]))     # (given: map_coordinates then skips its checks)
+        for k, a in enumerate((self.d, self.gx, self.gy)):
+            ndimage.map_coordinates(a, c, output=out[k], order=1, mode='nearest')
+        return out[0], out[1], out[2]
 
 
 def beam_directions(points, sensor):
@@ -214,6 +218,15 @@ def _sample(field, poses, points, beams):
     qx = poses[:, 0:1] + c * points[:, 0] - s * points[:, 1]
     qy = poses[:, 1:2] + s * points[:, 0] + c * points[:, 1]
     r, gx, gy = (a.reshape(qx.shape) for a in field(np.column_stack((qx.ravel(), qy.ravel()))))
+    along = gx * (c * beams[:, 0] - s * beams[:, 1]) + gy * (s * beams[:, 0] + c * beams[:, 1])
+    return r, gx, gy, along > BACKFACE_COS
+
+
+def _sample_one(field, pose, points, beams):
+    """:func:`_sample` under one pose ``(x, y, yaw)``: ``(N,)`` arrays."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    px, py = points[:, 0], points[:, 1]
+    r, gx, gy = field.at(pose[0] + c * px - s * py, pose[1] + s * px + c * py)
     along = gx * (c * beams[:, 0] - s * beams[:, 1]) + gy * (s * beams[:, 0] + c * beams[:, 1])
     return r, gx, gy, along > BACKFACE_COS
 
@@ -263,28 +276,23 @@ def scan_normals(points, half_window=4, max_gap=NORMAL_GAP):
     n = len(pts)
     if n < 2:
         return np.zeros((n, 2)), np.zeros(n, dtype=bool)
-    sums = np.zeros((n, 5))     # count, sum x, sum y, and the centred second moments below
-    members = []
-    for k in range(-half_window, half_window + 1):
-        idx = np.arange(n) + k
-        valid = (idx >= 0) & (idx < n)
-        j = np.clip(idx, 0, n - 1)
-        near = valid & (np.hypot(pts[j, 0] - pts[:, 0], pts[j, 1] - pts[:, 1]) <= max_gap)
-        members.append((j, near))
-        sums[:, 0] += near
-        sums[:, 1] += np.where(near, pts[j, 0], 0.0)
-        sums[:, 2] += np.where(near, pts[j, 1], 0.0)
-    mx, my = sums[:, 1] / sums[:, 0], sums[:, 2] / sums[:, 0]
-    sxx = syy = sxy = np.zeros(n)
-    for j, near in members:
-        dx, dy = np.where(near, pts[j, 0] - mx, 0.0), np.where(near, pts[j, 1] - my, 0.0)
-        sxx, syy, sxy = sxx + dx * dx, syy + dy * dy, sxy + dx * dy
+    # every point's window at once: (n, 2 half_window + 1) neighbour indices
+    idx = np.arange(n)[:, None] + np.arange(-half_window, half_window + 1)[None, :]
+    j = np.clip(idx, 0, n - 1)
+    nx, ny = pts[j, 0], pts[j, 1]
+    near = (idx >= 0) & (idx < n) & (np.hypot(nx - pts[:, 0:1], ny - pts[:, 1:2]) <= max_gap)
+    count = np.count_nonzero(near, axis=1)
+    mx = np.where(near, nx, 0.0).sum(axis=1) / count
+    my = np.where(near, ny, 0.0).sum(axis=1) / count
+    dx = np.where(near, nx - mx[:, None], 0.0)
+    dy = np.where(near, ny - my[:, None], 0.0)
+    sxx, syy, sxy = (dx * dx).sum(axis=1), (dy * dy).sum(axis=1), (dx * dy).sum(axis=1)
     # principal axis angle of the neighbourhood; the normal is across it
     phi = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
     tr = sxx + syy
     root = np.sqrt(np.maximum((0.5 * (sxx - syy)) ** 2 + sxy ** 2, 0.0))
     major, minor = 0.5 * tr + root, 0.5 * tr - root
-    ok = (sums[:, 0] >= 2) & (major > 0) & (minor <= NORMAL_FLATNESS ** 2 * major)
+    ok = (count >= 2) & (major > 0) & (minor <= NORMAL_FLATNESS ** 2 * major)
     normals = np.column_stack((-np.sin(phi), np.cos(phi)))
     return normals, ok
 
@@ -303,13 +311,31 @@ def scan_information(points, normals, weights, yaw):
             base_footprint; ``weights`` ``(N,)`` (0 for points without a normal or not on the
             map); ``yaw`` [rad] the pose's heading.
     """
+    j = normal_jacobian(points, normals)
+    return _rotate_information((j * weights[:, None]).T @ j, yaw)
+
+
+def normal_jacobian(points, normals):
+    """The rows ``(nx, ny, n · ∂q/∂yaw)`` of :func:`scan_information`'s ``J`` at heading 0, in
+    base_footprint: ``(N, 3)``. At heading ``yaw`` the normal turns with the pose and the
+    third column does not change (``R n · R' p = n · R₉₀ p``), so the information at any
+    heading is this one's turned (:func:`_rotate_information`): a registration computes it
+    once."""
+    return np.column_stack((normals[:, 0], normals[:, 1],
+                            normals[:, 1] * points[:, 0] - normals[:, 0] * points[:, 1]))
+
+
+def _turn(yaw):
+    """``T = diag(R(yaw), 1)``, which takes ``(x, y, yaw)`` directions from base_footprint's
+    heading to map."""
     c, s = math.cos(yaw), math.sin(yaw)
-    nx = c * normals[:, 0] - s * normals[:, 1]
-    ny = s * normals[:, 0] + c * normals[:, 1]
-    dqx = -s * points[:, 0] - c * points[:, 1]
-    dqy = c * points[:, 0] - s * points[:, 1]
-    j = np.column_stack((nx, ny, nx * dqx + ny * dqy))
-    return (j * weights[:, None]).T @ j
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _rotate_information(info, yaw):
+    """``T info Tᵀ``: an information about ``(x, y, yaw)`` at heading 0 at heading ``yaw``."""
+    t = _turn(yaw)
+    return t @ info @ t.T
 
 
 def observable_directions(info, points, weights, ratio):
@@ -339,11 +365,20 @@ def observable_directions(info, points, weights, ratio):
     """
     w = np.asarray(weights, dtype=float)
     pts = np.asarray(points, dtype=float)
-    length = math.sqrt(float(np.sum(w * np.sum(pts ** 2, axis=1))) / max(float(np.sum(w)), 1e-9))
-    length = max(length, 0.1)
+    return _split(info, float(np.sum(w * np.sum(pts ** 2, axis=1))), float(np.sum(w)), ratio)
+
+
+def _split(info, moment, total, ratio, turn=None):
+    """:func:`observable_directions` from the points' weighted second moment ``moment``
+    (``Σ w |p|²`` [m²]) and weight ``total``; ``turn``: a ``(3, 3)`` ``T`` (:func:`_turn`)
+    taking the result's directions to another frame (``info`` given in base_footprint's heading,
+    the eigenvalues are the same and the directions turn)."""
+    length = max(math.sqrt(moment / max(total, 1e-9)), 0.1)
     s_inv = np.array([1.0, 1.0, 1.0 / length])
     scaled = info * s_inv[:, None] * s_inv[None, :]
     vals, vecs = np.linalg.eigh(0.5 * (scaled + scaled.T))
+    if turn is not None:
+        vecs = turn @ vecs
     top = max(float(vals[-1]), 0.0)
     if ratio <= 0:
         weak = np.zeros(3, dtype=bool)
@@ -420,12 +455,16 @@ def register_with_information(field, points, guess, config, sensor=(0.0, 0.0), a
     pose = prior.copy()
     beams = beam_directions(points, sensor)
     normals, has_normal = scan_normals(points)
+    # what the information split needs that does not change between iterations: the normals'
+    # Jacobian at heading 0 and the points' squared distances (only the weights change)
+    jn = normal_jacobian(points, normals)[has_normal]
+    p2 = np.sum(points[has_normal] ** 2, axis=1)
     info_prior = np.diag([1.0 / config.prior_sigma_xy ** 2] * 2
                          + [1.0 / math.radians(config.prior_sigma_yaw_deg) ** 2])
-    scales = np.geomspace(config.initial_scale, config.robust_scale, max(1, config.iterations // 2))
+    scales = _scales(config)
     for it in range(config.iterations):
         scale = scales[min(it, len(scales) - 1)]
-        r, gx, gy, back = (a[0] for a in _sample(field, pose, points, beams))
+        r, gx, gy, back = _sample_one(field, pose, points, beams)
         c, s = math.cos(pose[2]), math.sin(pose[2])
         # d q / d yaw = R'(yaw) p
         dqx = -s * points[:, 0] - c * points[:, 1]
@@ -436,27 +475,39 @@ def register_with_information(field, points, guess, config, sensor=(0.0, 0.0), a
         # the loss scale stands for the points' range std: their information is 1 / scale²
         jtw = (j * w[:, None]).T
         jtwj = jtw @ j
-        wn = np.where(has_normal, w, 0.0)
-        strong, weak, vals, length = observable_directions(
-            scan_information(points, normals, wn, pose[2]), points, wn, config.degenerate_ratio)
-        pose = _keep_weak(pose, anchor, strong, length)
+        wn = w[has_normal]
+        split = ((jn * wn[:, None]).T @ jn, float(wn @ p2), float(np.sum(wn)),
+                 config.degenerate_ratio, pose[2])
+        # every direction observable (the usual case): the step is the whole space's, and the
+        # directions are needed only for the last iteration's Information
+        length = _observable_everywhere(*split[:4])
+        if length is None:
+            strong, weak, vals, length = _split(*split[:4], _turn(split[4]))
+            if weak.shape[1]:
+                pose = _keep_weak(pose, anchor, strong, length)
+        else:
+            strong = weak = None
         dp = prior - pose
         dp[2] = wrap_angle(dp[2])
         h = jtwj / scale ** 2 + info_prior
-        # the step within the observable subspace: pose = pose + B a, B = S⁻¹ strong
-        b = strong / np.array([1.0, 1.0, length])[:, None]
-        if b.shape[1]:
-            a = np.linalg.solve(b.T @ h @ b, b.T @ (-jtw @ r / scale ** 2 + info_prior @ dp))
-            step = b @ a
+        g = -jtw @ r / scale ** 2 + info_prior @ dp
+        if strong is None:
+            step = np.linalg.solve(h, g)
         else:
-            step = np.zeros(3)
+            # the step within the observable subspace: pose = pose + B a, B = S⁻¹ strong
+            b = strong / np.array([1.0, 1.0, length])[:, None]
+            step = b @ np.linalg.solve(b.T @ h @ b, b.T @ g) if b.shape[1] else np.zeros(3)
         pose += step
         pose[2] = wrap_angle(pose[2])
         if abs(step[0]) + abs(step[1]) < 1e-4 and abs(step[2]) < 1e-4 and scale == scales[-1]:
             break
+    if strong is None:
+        strong, weak, vals, length = _split(*split[:4], _turn(split[4]))
+    b = strong / np.array([1.0, 1.0, length])[:, None]
     if config.raster_band:
         pose[:2] = refine_on_raster(field, points, pose)[0][:2]
-        pose = _keep_weak(pose, anchor, strong, length)
+        if weak.shape[1]:
+            pose = _keep_weak(pose, anchor, strong, length)
     r = field(transform_points(tuple(pose), points))[0]
     w = 1.0 / (1.0 + (r / config.robust_scale) ** 2)
     dof = max(float(np.sum(w)) - 3.0, 1.0)
@@ -465,6 +516,46 @@ def register_with_information(field, points, guess, config, sensor=(0.0, 0.0), a
     cov = b @ np.linalg.inv(b.T @ normal @ b) @ b.T if b.shape[1] else np.zeros((3, 3))
     return ((float(pose[0]), float(pose[1]), float(pose[2])), cov, r,
             Information(strong, weak, vals, length))
+
+
+def _observable_everywhere(info, moment, total, ratio):
+    """The ``length`` of :func:`_split` when every direction is clearly observable (the
+    smallest eigenvalue of the scaled information at least twice ``ratio`` times the
+    largest, from the closed form of a symmetric 3 × 3 matrix's eigenvalues), else None (then
+    :func:`_split` decides, with the eigenvectors)."""
+    length = max(math.sqrt(moment / max(total, 1e-9)), 0.1)
+    if ratio <= 0:
+        return length
+    k = 1.0 / length
+    a00, a11, a22 = info[0, 0], info[1, 1], info[2, 2] * k * k
+    a01, a02, a12 = info[0, 1], info[0, 2] * k, info[1, 2] * k
+    q = (a00 + a11 + a22) / 3.0
+    p1 = a01 * a01 + a02 * a02 + a12 * a12
+    p2 = (a00 - q) ** 2 + (a11 - q) ** 2 + (a22 - q) ** 2 + 2.0 * p1
+    if not p2 > 0.0:                    # a multiple of the identity (or not finite)
+        return length if q > 0.0 else None
+    p = math.sqrt(p2 / 6.0)
+    b00, b11, b22 = (a00 - q) / p, (a11 - q) / p, (a22 - q) / p
+    b01, b02, b12 = a01 / p, a02 / p, a12 / p
+    det = (b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02)
+           + b02 * (b01 * b12 - b11 * b02))
+    phi = math.acos(min(1.0, max(-1.0, det / 2.0))) / 3.0
+    top = q + 2.0 * p * math.cos(phi)
+    least = q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
+    return length if top > 0.0 and least >= 2.0 * ratio * top else None
+
+
+_SCALES = {}
+
+
+def _scales(config):
+    """The loss scales of a registration's iterations (annealed from ``initial_scale`` to
+    ``robust_scale``), computed once per configuration."""
+    key = (config.initial_scale, config.robust_scale, config.iterations)
+    if key not in _SCALES:
+        _SCALES[key] = np.geomspace(config.initial_scale, config.robust_scale,
+                                    max(1, config.iterations // 2))
+    return _SCALES[key]
 
 
 @dataclass(frozen=True)
@@ -755,9 +846,10 @@ class Localiser:
         jp = np.array([[1.0, 0.0, -s * dx - c * dy], [0.0, 1.0, c * dx - s * dy], [0.0, 0.0, 1.0]])
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         dist = math.hypot(dx, dy)
-        q = np.diag([(self.config.odometry_sigma_distance * dist) ** 2] * 2
-                    + [(self.config.odometry_sigma_yaw * abs(dyaw)) ** 2])
-        root = _sqrtm(jp @ self.covariance @ jp.T) + _sqrtm(rot @ q @ rot.T)
+        # √(R Q Rᵀ) = R √Q Rᵀ, and Q is diagonal
+        sq = np.array([self.config.odometry_sigma_distance * dist] * 2
+                      + [self.config.odometry_sigma_yaw * abs(dyaw)])
+        root = _sqrtm(jp @ self.covariance @ jp.T) + (rot * sq[None, :]) @ rot.T
         return root @ root.T
 
     def scan_points(self, ranges, angle_min, angle_increment, range_min, range_max,

@@ -38,8 +38,11 @@ def classify(ranges, range_min, range_max):
 
 
 def hits(ranges, range_min, range_max):
-    """Boolean mask of the beams that measured something within the limits."""
-    return classify(ranges, range_min, range_max) == HIT
+    """Boolean mask of the beams that measured something within the limits (:data:`HIT` of
+    :func:`classify`)."""
+    r = np.asarray(ranges, dtype=float)
+    with np.errstate(invalid='ignore'):
+        return np.isfinite(r) & (r >= range_min) & (r <= range_max)
 
 
 def informative_fraction(ranges, range_min, range_max):
@@ -169,18 +172,29 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
     n = r.size
     if n == 0:
         return r
-    angles = beam_angles(angle_min, angle_increment, n)
+    geo = _geometry(angle_min, angle_increment, n, laser_pose[2])
     hit = hits(r, range_min, range_max)
     # the body lies behind the laser (mounted at the front of the base): a return ahead of it is
     # an obstacle however close, and must stop the robot
-    behind = np.cos(angles + laser_pose[2]) <= 0.0
-    drop = body_returns(r, angles, laser_pose, radius, margin) & hit & behind
+    drop = np.zeros(n, dtype=bool)
+    near = np.flatnonzero(hit & geo.behind)
+    if near.size:       # (body_returns, on the hits behind the laser)
+        rn = r[near]
+        drop[near] = np.hypot(laser_pose[0] + rn * geo.cos_base[near],
+                              laser_pose[1] + rn * geo.sin_base[near]) <= radius + margin
     # a beam with no valid measurement (NaN, e.g. a dropout at a cylinder's tangent) says
     # nothing: the beams either side of it (up to MAX_SKIP beams apart) are neighbours
-    idx = np.flatnonzero(~np.isnan(r))
-    if idx.size > 1:
-        drop[idx] |= _veils(r[idx], angles[idx], hit[idx], np.diff(idx) <= MAX_SKIP,
-                            shadow_angle, shadow_min_jump, range_std)
+    valid = ~np.isnan(r)
+    if valid.all():
+        if n > 1:
+            drop |= _veils(r, geo.angles, geo.cos, geo.sin, hit, True, shadow_angle,
+                           shadow_min_jump, range_std)
+    else:
+        idx = np.flatnonzero(valid)
+        if idx.size > 1:
+            drop[idx] |= _veils(r[idx], geo.angles[idx], geo.cos[idx], geo.sin[idx], hit[idx],
+                                np.diff(idx) <= MAX_SKIP, shadow_angle, shadow_min_jump,
+                                range_std)
     r[drop] = np.nan
     return r
 
@@ -188,40 +202,65 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
 MAX_SKIP = 3    # [beams] neighbours across up to two invalid beams
 
 
-def _veils(r, angles, hit, adjacent, shadow_angle, shadow_min_jump, range_std):
+class _Geometry:
+    """A scan's beam angles [rad] in the laser frame, their cosines and sines, and in
+    base_footprint's heading (laser yaw added): what :func:`usable_ranges` needs of a beam
+    geometry, computed once per geometry (every scan of a laser has the same)."""
+
+    def __init__(self, angle_min, angle_increment, n, yaw):
+        self.angles = beam_angles(angle_min, angle_increment, n)
+        self.cos, self.sin = np.cos(self.angles), np.sin(self.angles)
+        base = self.angles + yaw
+        self.cos_base, self.sin_base = np.cos(base), np.sin(base)
+        self.behind = self.cos_base <= 0.0
+
+
+_GEOMETRIES = {}
+
+
+def _geometry(angle_min, angle_increment, n, yaw):
+    key = (float(angle_min), float(angle_increment), int(n), float(yaw))
+    geo = _GEOMETRIES.get(key)
+    if geo is None:
+        if len(_GEOMETRIES) >= 8:
+            _GEOMETRIES.clear()
+        geo = _GEOMETRIES[key] = _Geometry(angle_min, angle_increment, n, yaw)
+    return geo
+
+
+def _veils(r, angles, c, s, hit, adjacent, shadow_angle, shadow_min_jump, range_std):
     """The veil rule of :func:`usable_ranges` over a sequence of beams (ranges ``r`` [m],
-    directions ``angles`` [rad], ``hit`` mask, ``adjacent[k]``: beams k and k+1 count as
-    neighbours); returns the mask of the points to drop."""
+    directions ``angles`` [rad] with their cosines ``c`` and sines ``s``, ``hit`` mask,
+    ``adjacent[k]``: beams k and k+1 count as neighbours, True: all); returns the mask of the
+    points to drop."""
     n = r.size
-    c, s = np.cos(angles), np.sin(angles)
-    i, j = np.arange(n - 1), np.arange(1, n)
     rh = np.where(hit, r, 0.0)
-    dx, dy = rh[j] * c[j] - rh[i] * c[i], rh[j] * s[j] - rh[i] * s[i]
-    along = np.abs(dx * c[i] + dy * s[i])
-    across = np.abs(dx * s[i] - dy * c[i])
-    step = (adjacent & hit[i] & hit[j] & (across < np.tan(shadow_angle) * along)
-            & (np.abs(rh[j] - rh[i]) > shadow_min_jump))
-    out = np.concatenate(([False], step & (rh[j] > rh[i]), [False]))  # step k -> k+1 goes away
-    back = np.concatenate(([False], step & (rh[i] > rh[j]), [False]))  # step k+1 -> k goes away
+    r0, r1, c0, s0 = rh[:-1], rh[1:], c[:-1], s[:-1]
+    dx, dy = r1 * c[1:] - r0 * c0, r1 * s[1:] - r0 * s0
+    along = np.abs(dx * c0 + dy * s0)
+    across = np.abs(dx * s0 - dy * c0)
+    step = (adjacent & hit[:-1] & hit[1:] & (across < np.tan(shadow_angle) * along)
+            & (np.abs(r1 - r0) > shadow_min_jump))
+    out = np.concatenate(([False], step & (r1 > r0), [False]))  # step k -> k+1 goes away
+    back = np.concatenate(([False], step & (r0 > r1), [False]))  # step k+1 -> k goes away
     # beam k: reached going away from k-1 (out[k]) not continuing out[k-1], or from k+1
     # (back[k+1]) not continuing back[k+2]
-    k = np.arange(n)
-    drop = out[k] & ~out[np.maximum(k - 1, 0)]
-    drop |= back[k + 1] & ~back[np.minimum(k + 2, n)]
+    drop = out[:n] & ~np.concatenate((out[:1], out[:n - 1]))
+    drop |= back[1:] & ~np.concatenate((back[2:], back[n:]))
     # inside a chain, a wall's points lie on a line: three points at angles a0, a1, a2 of a line
     # satisfy sin(a2 - a1) / r0 + sin(a1 - a0) / r2 = sin(a2 - a0) / r1
-    if n > 2:
-        m = np.arange(1, n - 1)
-        inv = np.where(hit, 1.0 / np.where(hit, r, 1.0), 0.0)
+    inside = (out[:n] & out[1:]) | (back[:n] & back[1:])
+    m = np.flatnonzero(inside[1:n - 1]) + 1
+    if m.size:
+        def inv(k):
+            return np.where(hit[k], 1.0 / np.where(hit[k], r[k], 1.0), 0.0)
+        i0, i1, i2 = inv(m - 1), inv(m), inv(m + 1)
         s21, s10 = np.sin(angles[m + 1] - angles[m]), np.sin(angles[m] - angles[m - 1])
         s20 = np.sin(angles[m + 1] - angles[m - 1])
-        resid = inv[m - 1] * s21 + inv[m + 1] * s10 - inv[m] * s20
-        sigma = range_std * np.sqrt((inv[m - 1] ** 2 * s21) ** 2 + (inv[m + 1] ** 2 * s10) ** 2
-                                    + (inv[m] ** 2 * s20) ** 2)
-        straight = np.ones(n, dtype=bool)
-        straight[m] = np.abs(resid) <= 3.0 * np.abs(sigma)
-        inside = (out[k] & out[k + 1]) | (back[k] & back[k + 1])
-        drop |= inside & ~straight
+        resid = i0 * s21 + i2 * s10 - i1 * s20
+        sigma = range_std * np.sqrt((i0 ** 2 * s21) ** 2 + (i2 ** 2 * s10) ** 2
+                                    + (i1 ** 2 * s20) ** 2)
+        drop[m] |= ~(np.abs(resid) <= 3.0 * np.abs(sigma))
     return drop
 
 
