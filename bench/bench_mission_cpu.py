@@ -37,7 +37,6 @@ import json
 import math
 import os
 import shutil
-import signal
 import socket
 import subprocess
 import sys
@@ -130,24 +129,10 @@ def _free_port():
         return s.getsockname()[1]
 
 
-def _stop(proc):
-    if proc is None or proc.poll() is not None:
-        return
-    for sig, wait in ((signal.SIGINT, 15.0), (signal.SIGTERM, 5.0), (signal.SIGKILL, 5.0)):
-        try:
-            os.killpg(proc.pid, sig)
-        except ProcessLookupError:
-            return
-        try:
-            proc.wait(wait)
-            return
-        except subprocess.TimeoutExpired:
-            continue
-
-
 def run_child(tree, log_path):
     """One course mission on the launch of the sourced workspace; prints ``RESULT <json>``."""
-    import tiago_nav
+    import tiago_nav       # the measured tree's (the sourced workspace's), so imported here
+    from tiago_nav.testing.harness import stop_process
     here = [os.path.realpath(p) for p in tiago_nav.__path__]
     if not any(p.startswith(os.path.realpath(tree) + os.sep) for p in here):
         raise SystemExit('bench_mission_cpu: tiago_nav comes from %s, not from %s'
@@ -168,8 +153,8 @@ def run_child(tree, log_path):
     finally:
         import rospy
         rospy.signal_shutdown('done')
-        _stop(launch)
-        _stop(core)
+        stop_process(launch)
+        stop_process(core)
         log.close()
 
 
