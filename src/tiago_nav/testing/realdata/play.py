@@ -111,38 +111,123 @@ def run(cfg):
         log.close()
 
 
-def _run(cfg, env, log, log_path, procs):
-    import rospy
-    from geometry_msgs.msg import PoseWithCovarianceStamped
-    from nav_msgs.msg import OccupancyGrid
-    from rosgraph_msgs.msg import Log
-    from tiago_nav.geometry import quaternion_to_yaw
-    from tiago_nav.testing.realdata.mapping import load_map
-    from tiago_nav.ros.conversions import gridmap_to_msg
+class Recorder:
+    """This process's subscriptions of a run (it must be a node already): every
+    ``/amcl_pose`` as ``(stamp [s], x, y, yaw, var x, var y, var yaw, wall time received)``, and
+    the node's readiness, seen on ``/rosout`` (the message of ``READY[kind]``)."""
+
+    def __init__(self, kind):
+        import rospy
+        from geometry_msgs.msg import PoseWithCovarianceStamped
+        from rosgraph_msgs.msg import Log
+        self.ready_node, self.ready_text = READY[kind]
+        self.ready = threading.Event()
+        self.lock = threading.Lock()
+        self._estimates = []
+        self.subs = [rospy.Subscriber('/rosout', Log, self._on_log, queue_size=50),
+                     rospy.Subscriber('/amcl_pose', PoseWithCovarianceStamped, self._on_pose,
+                                      queue_size=100)]
+
+    def _on_pose(self, msg):
+        from tiago_nav.geometry import quaternion_to_yaw
+        q, c = msg.pose.pose.orientation, msg.pose.covariance
+        with self.lock:
+            self._estimates.append((msg.header.stamp.to_sec(), msg.pose.pose.position.x,
+                                    msg.pose.pose.position.y,
+                                    quaternion_to_yaw(q.x, q.y, q.z, q.w), c[0], c[7], c[35],
+                                    time.monotonic()))
+
+    def _on_log(self, msg):
+        if msg.name == self.ready_node and msg.msg.startswith(self.ready_text):
+            self.ready.set()
+
+    def wait_connected(self, limit, node=None):
+        """Wait (wall ``limit`` s) until the localiser's ``/rosout`` is connected to this
+        process, so that its readiness message cannot pass unheard (PlayError when the time runs
+        out or the process ``node`` (Popen, optional) exits)."""
+        import rosgraph
+        import rospy
+        master = rosgraph.Master(rospy.get_name())
+        end = time.monotonic() + limit
+        while True:
+            try:
+                uri = master.lookupNode(self.ready_node)
+            except rosgraph.MasterError:
+                uri = None
+            if uri and any(c.endpoint_id == uri for c in self.subs[0].impl.connections):
+                return
+            if node is not None and node.poll() is not None:
+                raise PlayError('%s exited with %s' % (self.ready_node, node.returncode))
+            if time.monotonic() > end:
+                raise PlayError('%s: its /rosout not connected within %g s'
+                                % (self.ready_node, limit))
+            time.sleep(0.05)
+
+    def wait_ready(self, limit, node, what):
+        """Wait (wall ``limit`` s) until the node said it took the map in; PlayError if the
+        process ``node`` (Popen) exits first or the time runs out. Returns the seconds waited."""
+        t0 = time.monotonic()
+        while not self.ready.wait(0.5):
+            if node.poll() is not None:
+                raise PlayError('%s exited with %s before it was ready' % (what, node.returncode))
+            if time.monotonic() - t0 > limit:
+                raise PlayError('%s not ready within %g s' % (what, limit))
+        return time.monotonic() - t0
+
+    def drain(self, last_stamp, since, quiet=3.0, limit=60.0):
+        """After the bag: wait until the estimate of the scan stamped ``last_stamp`` [s] has
+        come, or none has come for ``quiet`` s of wall time (a node that publishes only after
+        motion, or dropped that scan), at most ``limit`` s."""
+        end = time.monotonic() + limit
+        while time.monotonic() < end:
+            with self.lock:
+                latest = max((e[0] for e in self._estimates), default=0.0)
+                heard = max((e[7] for e in self._estimates), default=since)
+            if latest >= last_stamp - 1e-4 or time.monotonic() - heard > quiet:
+                return
+            time.sleep(0.1)
+
+    def estimates(self):
+        """``[(stamp, x, y, yaw, var x, var y, var yaw)]`` so far."""
+        with self.lock:
+            return [e[:7] for e in self._estimates]
+
+
+def play_bag(bag, rate, duration, env, log):
+    """``rosbag play --clock -q -r rate bag`` to its end (PlayError when it fails or takes more
+    than three times its playing time plus two minutes)."""
     from tiago_nav.testing.harness import stop_process
+    player = subprocess.Popen(['rosbag', 'play', '--clock', '-q', '-r', '%g' % rate, bag],
+                              env=env, stdout=log, stderr=subprocess.STDOUT,
+                              start_new_session=True)
+    limit = duration / rate * 3.0 + 120.0
+    try:
+        player.wait(limit)
+    except subprocess.TimeoutExpired:
+        stop_process(player)
+        raise PlayError('rosbag play did not finish within %.0f s' % limit)
+    if player.returncode:
+        raise PlayError('rosbag play exited with %d' % player.returncode)
+
+
+def publish_map(path_yaml):
+    """Publish the map file latched on ``/map`` (as map_server does); returns the publisher."""
+    import rospy
+    from nav_msgs.msg import OccupancyGrid
+    from tiago_nav.ros.conversions import gridmap_to_msg
+    from tiago_nav.testing.realdata.mapping import load_map
+    pub = rospy.Publisher('/map', OccupancyGrid, queue_size=1, latch=True)
+    pub.publish(gridmap_to_msg(load_map(path_yaml)))
+    return pub
+
+
+def _run(cfg, env, log, log_path, procs):
+    import rosgraph
+    import rospy
 
     kind = cfg['localiser']
-    ready_node, ready_text = READY[kind]
-    ready = threading.Event()
-    estimates, lock = [], threading.Lock()
-
-    def on_pose(msg):
-        q = msg.pose.pose.orientation
-        c = msg.pose.covariance
-        with lock:
-            estimates.append((msg.header.stamp.to_sec(), msg.pose.pose.position.x,
-                              msg.pose.pose.position.y, quaternion_to_yaw(q.x, q.y, q.z, q.w),
-                              c[0], c[7], c[35], time.monotonic()))
-
-    def on_log(msg):
-        if msg.name == ready_node and msg.msg.startswith(ready_text):
-            ready.set()
-
     rospy.init_node('realdata_player', disable_signals=True)
-    rospy.Subscriber('/rosout', Log, on_log, queue_size=50)
-    rospy.Subscriber('/amcl_pose', PoseWithCovarianceStamped, on_pose, queue_size=100)
-    pub = rospy.Publisher('/map', OccupancyGrid, queue_size=1, latch=True)
-    pub.publish(gridmap_to_msg(load_map(cfg['map'])))
+    rec = Recorder(kind)
 
     x, y, yaw = cfg['start']
     if kind == 'tiago_nav':
@@ -158,62 +243,42 @@ def _run(cfg, env, log, log_path, procs):
     node = subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT,
                             start_new_session=True)
     procs.append(node)
-    t0 = time.monotonic()
-    limit = cfg.get('ready_timeout', 600.0)
-    while not ready.wait(0.5):
-        if node.poll() is not None:
-            raise PlayError('%s exited with %s before it was ready (see %s)'
-                            % (kind, node.returncode, log_path))
-        if time.monotonic() - t0 > limit:
-            raise PlayError('%s not ready within %g s (see %s)' % (kind, limit, log_path))
-    ready_s = time.monotonic() - t0
+    try:
+        rec.wait_connected(60.0, node)
+        map_pub = publish_map(cfg['map'])       # noqa: F841 (kept: the latched map)
+        ready_s = rec.wait_ready(cfg.get('ready_timeout', 600.0), node, kind)
+    except PlayError as e:
+        raise PlayError('%s (see %s)' % (e, log_path))
     pid = node_pid({node.pid}, NODE_NAME[kind])
     if pid is None:
         raise PlayError('no %s process under %d' % (NODE_NAME[kind], node.pid))
     cpu_map = cpu_seconds(pid)
 
+    pubs, _, services = rosgraph.Master('/realdata_player').getSystemState()
+    diagnostics = any(t == '/diagnostics' and rec.ready_node in nodes for t, nodes in pubs)
     offered = None
     if cfg.get('global_localization'):
-        import rosservice
-        offered = '/global_localization' in rosservice.get_service_list()
-        if offered:
-            from std_srvs.srv import Empty
-            rospy.ServiceProxy('/global_localization', Empty)()
+        offered = any(name == '/global_localization' for name, _ in services)
+        if not offered:
+            return {'localiser': kind, 'global_localization_offered': False,
+                    'diagnostics_published': diagnostics, 'log': log_path}
+        from std_srvs.srv import Empty
+        rospy.wait_for_service('/global_localization', 10.0)
+        rospy.ServiceProxy('/global_localization', Empty)()
 
     cpu0, w0 = cpu_seconds(pid), time.monotonic()
-    rate = cfg['rate']
-    player = subprocess.Popen(['rosbag', 'play', '--clock', '-q', '-r', '%g' % rate, cfg['bag']],
-                              env=env, stdout=log, stderr=subprocess.STDOUT,
-                              start_new_session=True)
-    procs.append(player)
     try:
-        player.wait(cfg['duration'] / rate * 3.0 + 120.0)
-    except subprocess.TimeoutExpired:
-        raise PlayError('rosbag play did not finish within %.0f s (see %s)'
-                        % (cfg['duration'] / rate * 3.0 + 120.0, log_path))
-    if player.returncode:
-        raise PlayError('rosbag play exited with %d (see %s)' % (player.returncode, log_path))
-    # the last scans still being processed: until the estimate of the last scan comes, or no
-    # estimate has come for DRAIN s (a node that publishes only after motion, or dropped it)
-    last, drain, end = cfg['last_stamp'], 3.0, time.monotonic() + 60.0
-    while time.monotonic() < end:
-        with lock:
-            latest = max((e[0] for e in estimates), default=0.0)
-            quiet = time.monotonic() - max((e[7] for e in estimates), default=w0)
-        if latest >= last - 1e-4 or quiet > drain:
-            break
-        time.sleep(0.1)
+        play_bag(cfg['bag'], cfg['rate'], cfg['duration'], env, log)
+    except PlayError as e:
+        raise PlayError('%s (see %s)' % (e, log_path))
+    rec.drain(cfg['last_stamp'], w0)
     wall = time.monotonic() - w0
     cpu1 = cpu_seconds(pid)
     rss = peak_rss_mb(pid)
-    alive = node.poll() is None
-    stop_process(player)
-    with lock:
-        est = [e[:7] for e in estimates]
-    return {'localiser': kind, 'estimates': est, 'cpu_s': cpu1 - cpu0,
+    return {'localiser': kind, 'estimates': rec.estimates(), 'cpu_s': cpu1 - cpu0,
             'cpu_map_s': cpu_map, 'ready_s': ready_s, 'wall_s': wall, 'peak_rss_mb': rss,
-            'node_alive_at_end': alive, 'global_localization_offered': offered,
-            'log': log_path}
+            'node_alive_at_end': node.poll() is None, 'global_localization_offered': offered,
+            'diagnostics_published': diagnostics, 'log': log_path}
 
 
 def run_child(cfg, timeout):
