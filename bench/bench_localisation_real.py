@@ -18,16 +18,20 @@ scans in a row within 30 scans of the start or the kidnap, 60 after ``/global_lo
 
 ``--amcl-setup PATH/devel/setup.bash``: also ROS's amcl (ros-planning/navigation, built by
 the user against the platform's ROS 1) on the same bags, with its defaults and with the tuned
-set (:data:`AMCL_TUNED`); only the frames, the initial pose and ``use_map_topic`` are set
+set (:data:`AMCL_TUNED`) (``$AMCL_SETUP`` when the option is not given); only the frames, the initial pose and ``use_map_topic`` are set
 besides.
 
-The bag plays at the rate that brings one scan every ``--scan-period`` (0.1 s) of wall time.
+The bag plays at the rate that brings one scan every ``--scan-period`` (0.5 s) of wall time, at
+least at real time (a faster one makes a node on a busy machine drop scans, and amcl's tf cache,
+10 s of the bag's time, run out).
 Without the data (``--data``, default ``../shared/data/real`` beside the repository) it says
-so and writes nothing. Writes bench/results/localisation_real.json and .png (``--merge``: keeps
-the runs of the last JSON that this one does not repeat).
+so and writes nothing. Writes bench/results/localisation_real.json and .png (``--merge [JSON ...]``:
+keeps the runs of the last JSON, or of the files given, that this one does not repeat; each run
+carries its date and load).
 
 Usage: bench/bench_localisation_real.py [--logs intel,freiburg-079,aces]
     [--scenarios tracking,offset,kidnap,global] [--amcl-setup PATH] [--localisers ...]
+    [--scan-period 0.1] [--merge [JSON ...]] [--data DIR] [--work DIR]
 """
 import argparse
 import json
@@ -121,17 +125,20 @@ def main():
     ap.add_argument('--localisers', default=None,
                     help='of: %s (default: tiago_nav, and both amcl ones with --amcl-setup)'
                          % ', '.join(LOCALISERS))
-    ap.add_argument('--amcl-setup', default=None,
-                    help='setup.bash of a catkin workspace where amcl is built')
-    ap.add_argument('--scan-period', type=float, default=0.1,
-                    help='[s] wall time between scans: the bag plays at median scan interval / this')
+    ap.add_argument('--amcl-setup', default=os.environ.get('AMCL_SETUP') or None,
+                    help='setup.bash of a catkin workspace where amcl is built (default: '
+                         '$AMCL_SETUP)')
+    ap.add_argument('--scan-period', type=float, default=0.5,
+                    help='[s] wall time between scans: the bag plays at median scan interval / '
+                         'this, at least at real time')
     ap.add_argument('--seed', type=int, default=0, help='of the odometry noise')
     ap.add_argument('--work', default=os.path.join(os.path.expanduser('~'), '.cache', 'tiago_nav',
                                                    'realdata'),
                     help='where the bags and maps are made (kept between runs)')
     ap.add_argument('--out', default=os.path.join(RESULTS, 'localisation_real.json'))
-    ap.add_argument('--merge', action='store_true',
-                    help='keep the runs of the existing JSON that this invocation does not make')
+    ap.add_argument('--merge', nargs='*', metavar='JSON',
+                    help='keep the runs of these JSON files (none given: --out) that this '
+                         'invocation does not make')
     args = ap.parse_args()
     if os.path.join(ROOT, 'src') not in sys.path:
         sys.path.append(os.path.join(ROOT, 'src'))
@@ -162,10 +169,14 @@ def main():
             ap.error('amcl needs --amcl-setup PATH/devel/setup.bash')
         args.amcl_setup = os.path.abspath(args.amcl_setup)
 
-    old = {}
-    if args.merge and os.path.exists(args.out):
-        with open(args.out) as f:
-            old = json.load(f)
+    old = {'logs': {}, 'runs': []}
+    merge = ([args.out] if not args.merge else args.merge) if args.merge is not None else []
+    for path in merge:
+        if os.path.exists(path):
+            with open(path) as f:
+                d = json.load(f)
+            old['logs'].update(d.get('logs', {}))
+            old['runs'] += d.get('runs', [])
     out = {'data': 'Radish building logs (CARMEN, SLAM-corrected poses), %s'
                    % os.path.relpath(os.path.abspath(args.data), ROOT),
            'odometry': 'translation x (1 + N(0, 0.02)) per step, rotation + N(0, 1) x (2 %% of '
@@ -182,7 +193,7 @@ def main():
         t, ref, odom = read_reference(prep[scenarios[0]]['reference'])
         dr = summary(t, ref, dead_reckoning(ref[0], odom))
         dts = np.diff(t)
-        rate = float(np.median(dts)) / args.scan_period
+        rate = max(1.0, float(np.median(dts)) / args.scan_period)
         info = dict(prep['log'])
         info.update({'rate': rate, 'median_scan_interval_s': float(np.median(dts)),
                      'dead_reckoning_p95_m': dr['p95_m'], 'dead_reckoning_max_m': dr['max_m']})
@@ -200,7 +211,9 @@ def main():
                 print('   %-8s %-13s ...' % (scenario, loc), end=' ', flush=True)
                 run = run_child(cfg, timeout=p['duration_s'] / rate * 3 + 900)
                 rec = {'log': name, 'scenario': scenario, 'localiser': loc,
-                       'params': params if kind == 'amcl' else 'defaults (config/localisation.yaml)'}
+                       'params': params if kind == 'amcl' else 'defaults (config/localisation.yaml)',
+                       'date': time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime()),
+                       'loadavg_1min': round(os.getloadavg()[0], 2)}
                 if 'error' in run:
                     rec['error'] = run['error']
                     print('ERROR %s' % run['error'], flush=True)
@@ -221,8 +234,14 @@ def main():
                              time.monotonic() - t0), flush=True)
                 out['runs'].append(rec)
                 done.add((name, scenario, loc))
-    out['runs'] += [r for r in old.get('runs', [])
-                    if (r['log'], r['scenario'], r['localiser']) not in done]
+    for r in old['runs']:       # the latest of each (log, scenario, localiser) kept
+        key = (r['log'], r['scenario'], r['localiser'])
+        if key not in done:
+            out['runs'] = [x for x in out['runs']
+                           if (x['log'], x['scenario'], x['localiser']) != key
+                           or x.get('date', '') > r.get('date', '')]
+            if not any((x['log'], x['scenario'], x['localiser']) == key for x in out['runs']):
+                out['runs'].append(r)
     order = {n: i for i, n in enumerate(LOGS)}
     out['runs'].sort(key=lambda r: (order.get(r['log'], 99), SCENARIOS.index(r['scenario']),
                                     list(LOCALISERS).index(r['localiser'])))
