@@ -218,3 +218,24 @@ def test_summary_lost_time_and_recovery():
     assert s['max_m'] == pytest.approx(1.0) and s['converged_after_scans'] == 0
     assert scoring.recovery(np.array([1, 1, 0.1, 1, 0.1, 0.1, 0.1]), 0) == 4
     assert scoring.recovery(np.array([1, 0.1, 0.1]), 0) is None
+
+
+# --- the converter's command line ----------------------------------------------------------
+def test_converter_writes_map_and_references(tmp_path, capsys):
+    from tiago_nav.testing.realdata.__main__ import main
+    slice_path = os.path.join(DATA, 'intel-corrected-slice.log.gz')
+    assert main([slice_path, str(tmp_path), '--scenarios', 'tracking,kidnap', '--no-bags']) == 0
+    g = mapping.load_map(str(tmp_path / 'map.yaml'))
+    assert g.resolution == 0.05 and (g.data == OCCUPIED).sum() > 1000
+    t, ref, odom = convert.read_reference(str(tmp_path / 'tracking_reference.csv'))
+    log = carmen.read_log(slice_path)
+    assert np.allclose(t, log.times, atol=1e-6) and np.allclose(ref, log.poses, atol=1e-6)
+    assert odom[0] == pytest.approx([0, 0, 0])
+    # every scan's end points at its reference pose fall on occupied cells or next to them
+    pts, _ = mapping.scan_endpoints(log.poses[50], log.ranges[50], log.angles())
+    d = g.distance_field()[tuple(g.world_to_cell(pts).T)]
+    assert np.median(d) <= 0.05
+    tk, refk, _ = convert.read_reference(str(tmp_path / 'kidnap_reference.csv'))
+    assert len(tk) < len(t)
+    assert main([str(tmp_path / 'nope.log'), str(tmp_path)]) == 2
+    assert 'nope.log' in capsys.readouterr().err
