@@ -27,7 +27,7 @@ least at real time (a faster one makes a node on a busy machine drop scans, and 
 Without the data (``--data``, default ``../shared/data/real`` beside the repository) it says
 so and writes nothing. Writes bench/results/localisation_real.json and .png (``--merge [JSON ...]``:
 keeps the runs of the last JSON, or of the files given, that this one does not repeat; each run
-carries its date and load).
+carries its date and load; ``--scenarios ''`` runs nothing and only merges).
 
 Usage: bench/bench_localisation_real.py [--logs intel,freiburg-079,aces]
     [--scenarios tracking,offset,kidnap,global] [--amcl-setup PATH] [--localisers ...]
@@ -177,8 +177,8 @@ def main():
                 d = json.load(f)
             old['logs'].update(d.get('logs', {}))
             old['runs'] += d.get('runs', [])
-    out = {'data': 'Radish building logs (CARMEN, SLAM-corrected poses), %s'
-                   % os.path.relpath(os.path.abspath(args.data), ROOT),
+    out = {'data': 'Radish building logs (CARMEN, SLAM-corrected poses) of the real data '
+                   'folder (shared/data/real)',
            'odometry': 'translation x (1 + N(0, 0.02)) per step, rotation + N(0, 1) x (2 %% of '
                        'the turn + 0.5 deg per metre), composed; seed %d' % args.seed,
            'map_resolution_m': 0.05, 'lost_m': 0.3, 'converged_m': 0.2,
@@ -186,7 +186,7 @@ def main():
            'logs': dict(old.get('logs', {})), 'runs': []}
     preps, estimates = {}, {}
     done = set()
-    for name in logs:
+    for name in logs if scenarios else ():     # no scenario: merge and plot only
         print('== %s: preparing (map, bags) in %s' % (name, args.work), flush=True)
         prep = prepare(paths[name], os.path.join(args.work, name), scenarios, args.seed)
         preps[name] = prep
