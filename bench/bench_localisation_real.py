@@ -253,7 +253,8 @@ def main():
         json.dump(out, f, indent=1)
     # the trajectories of every log's tracking runs made so far (this invocation's or earlier)
     for name in out['logs']:
-        if name not in preps and os.path.exists(os.path.join(args.data, '%s-corrected.log.gz' % name)):
+        if 'tracking' not in preps.get(name, {}) and \
+                os.path.exists(os.path.join(args.data, '%s-corrected.log.gz' % name)):
             preps[name] = prepare(os.path.join(args.data, '%s-corrected.log.gz' % name),
                                   os.path.join(args.work, name), ['tracking'], args.seed, bags=False)
         for loc in LOCALISERS:
