@@ -50,6 +50,8 @@ BENCHMARKS = (
          '--out bench/results/lockstep_nav.json', ['lockstep_nav.json'])]),
     ('localisation', 'Localisation along the course route and through corridors', [
         ('bench/bench_localisation.py', ['localisation.json'])]),
+    ('localisation_real', 'Localisation on real building logs', [
+        ('bench/bench_localisation_real.py', ['localisation_real.json'])]),
     ('soak', 'Soak', [
         ('bench/bench_soak.py', ['soak.json'])]),
     ('evaluate', 'Batch evaluation', [
@@ -230,6 +232,36 @@ ABOUT = {
         'over 2 cm between consecutive estimates over the whole run, re-acquisition of the axis '
         'included, which the published estimate approaches by at most `max_correction_step` '
         'per estimate).'),
+    'localisation_real': (
+        'Real laser data: the Radish building logs in `../shared/data/real/` (Intel Research '
+        'Lab, Freiburg building 079, ACES; CARMEN format, SLAM-corrected poses as the reference; '
+        'skipped with a message when absent, `--data DIR`), each turned by '
+        '`tiago_nav.testing.realdata` into a bag (/scan in `base_laser_link`, /odom and tf '
+        '`odom → base_footprint` at each scan, odometry synthesised from the reference\'s steps: '
+        'translation × (1 + N(0, 0.02)) per step, rotation + N(0, 1) × (2 % of the turn + 0.5° '
+        'per metre), composed so that it drifts, seed 0) and a map built from the scans at '
+        'their reference poses (0.05 m, map_server YAML + PGM, published latched on /map). The '
+        'node is started with `localisation.launch` at the given pose on simulated time, and '
+        'once it has taken the map in the bag is played with `rosbag play --clock`, at the rate '
+        'that brings one scan every 0.5 s of wall time, at least real time. Each /amcl_pose is scored at every '
+        'scan against the reference (the last estimate carried by the odometry since, as tf '
+        'gives it): error RMS, p95, max, yaw p95, the share of time lost (error > 0.3 m, each '
+        'scan weighted by the time to the next), the time to recover from a lost stretch, '
+        'CPU per scan (the node\'s process, tf and ROS included, over the playback) and its '
+        'peak resident memory. Scenarios: started on the reference (`tracking`), 2 m to its '
+        'left and turned 90° (`offset`), carried 3 m in one step at 40 % of the log with the '
+        'odometry reporting no motion (`kidnap`), `/global_localization` called before the '
+        'bag plays (`global`, "not offered" when the node has no such service). Targets '
+        '(issue 48): never lost after the first converged estimate, p95 ≤ 10 cm, at least as '
+        'good as tuned amcl on p95 and time lost; back within 0.2 m of the reference (3 '
+        'scans in a row) within 30 scans of an offset start or a kidnap, 60 after '
+        '`/global_localization`; peak memory ≤ 300 MB; CPU per scan no more than tuned '
+        'amcl\'s. ROS\'s amcl (ros-planning/navigation, noetic-devel, built from source by '
+        'the user against the platform\'s ROS 1; `--amcl-setup PATH/devel/setup.bash` or '
+        '`AMCL_SETUP`) runs on the same bags with its defaults and with the tuned set '
+        '(`laser_max_beams` 90, `odom_alpha1`-`4` 0.05, `min_particles` 500, '
+        '`laser_sigma_hit` 0.1, `update_min_a` 0.2), only the frames, the initial pose and '
+        '`use_map_topic` set besides.'),
     'soak': (
         'Many whole missions over `demo.launch`, one launch (a private master) per world, each '
         'mission starting where the last ended: `--n` (10; 2 with `--quick`) seeded random '
@@ -828,10 +860,56 @@ def render_mission_cpu(d):
     return out
 
 
+def render_localisation_real(d):
+    """localisation_real.json: per log its size and dead reckoning, then per log, scenario
+    and localiser the figures of the run."""
+    logs = d.get('logs', {})
+    out = ['%s; odometry: %s; lost: error > %s m. Scans with an estimate: how many the node '
+           'answered (a node that drops scans under load, or publishes only after motion as '
+           'amcl does, answers fewer; every scan is scored).'
+           % (d.get('data'), d.get('odometry'), _f(d.get('lost_m'))), '']
+    out += _table(('log', 'scans', 'beams', 'driven [m]', 'duration [s]',
+                   'timestamps repaired', 'played at [× real time]',
+                   'dead reckoning p95 [m]', 'dead reckoning max [m]'),
+                  [(n, v.get('scans'), v.get('beams'), _f(v.get('path_m'), '%.0f'),
+                    _f(v.get('duration_s'), '%.0f'), v.get('repaired_times'),
+                    _f(v.get('rate'), '%.1f'), v.get('dead_reckoning_p95_m'),
+                    v.get('dead_reckoning_max_m')) for n, v in logs.items()])
+    rows = []
+    for r in d.get('runs', []):
+        if r.get('error'):
+            rows.append((r['log'], r['scenario'], r['localiser'], 'error: %s' % r['error'])
+                        + ('',) * 12)
+            continue
+        if r.get('global_localization') == 'not offered':
+            rows.append((r['log'], r['scenario'], r['localiser'],
+                         '/global_localization not offered') + ('',) * 12)
+            continue
+        back = r.get('back_within_0_2_m_after_scans', '')
+        if 'limit_scans' in r:
+            back = '%s (limit %s)' % ('never' if back is None else back, r['limit_scans'])
+        recover = r.get('time_to_recover_max_s')
+        if r.get('never_recovered_from_scan') is not None:
+            recover = 'never (from scan %d)' % r['never_recovered_from_scan']
+        rows.append((r['log'], r['scenario'], r['localiser'],
+                     '%s/%s' % (r.get('estimates'), r.get('scans')), r.get('rms_m'),
+                     r.get('median_m'), r.get('p95_m'), r.get('max_m'), r.get('yaw_p95_deg'),
+                     _pct(r.get('lost_time_share')), recover, back,
+                     _f(r.get('cpu_ms_per_scan'), '%.1f'), _f(r.get('peak_rss_mb'), '%.0f'),
+                     r.get('sigma_xy_median_m'), 'yes' if r.get('diagnostics_published') else 'no'))
+    out += [''] + _table(('log', 'scenario', 'localiser', 'scans with an estimate', 'RMS [m]',
+                          'median [m]', 'p95 [m]', 'max [m]', 'yaw p95 [deg]', 'time lost',
+                          'time to recover [s]', 'back within 0.2 m after [scans]',
+                          'CPU per scan [ms]', 'peak RSS [MB]', 'σ claimed, median [m]',
+                          '/diagnostics'), rows)
+    return out
+
+
 RENDER = {'mission_cpu': render_mission_cpu, 'covariance': render_covariance, 'suites': render_suites, 'evaluate': render_evaluate, 'simulator': render_simulator, 'detection': render_detection,
           'navigation': render_navigation, 'corridor': render_corridor,
           'mission': render_mission, 'demo': render_demo, 'lockstep': render_lockstep,
-          'soak': render_soak, 'localisation': render_localisation}
+          'soak': render_soak, 'localisation': render_localisation,
+          'localisation_real': render_localisation_real}
 # a JSON whose structure is not its benchmark's usual one: rendered by its own function
 def render_short_arcs(d):
     """short_arcs.json: per cut of the arc, profile and count of usable beams, how often the
