@@ -534,9 +534,17 @@ class LockstepParticipant:
                     self.stamp = self.tick_msg.stamp if tick is not None else rospy.Time.from_sec(stamp)
                     self._answered = False
                     return True
+                asked = watch.asked
                 self.reason = watch.check(now)
                 if self.reason:
                     return False
+                if watch.asked != asked and self.joined.is_set():
+                    # ROS time has stood still for `stall` wall seconds and the simulator
+                    # lives: it may have dropped this participant (no answer within its
+                    # lockstep timeout, on a starved machine) and, waiting for work, be
+                    # waiting for it. Announce it again so that it rejoins; a simulator that
+                    # still holds it only takes the announcement's busy flag.
+                    self.pub.publish(self.join_msg())
                 self.cond.wait(self._nap(now))
         self.reason = 'node shutting down'
         return False
