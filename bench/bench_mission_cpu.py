@@ -76,25 +76,11 @@ def _stat(pid):
     return int(fields[1]), sum(int(v) for v in fields[11:15]) / tick
 
 
-def _name(pid):
-    """A process's ROS node name (its ``__name:=`` argument) or its program's name."""
-    try:
-        with open('/proc/%d/cmdline' % pid, 'rb') as f:
-            args = [a.decode(errors='replace') for a in f.read().split(b'\0') if a]
-    except OSError:
-        return str(pid)
-    for a in args:
-        if a.startswith('__name:='):
-            return a[len('__name:='):]
-    for a in args:
-        base = os.path.basename(a)
-        if base and not base.startswith('python'):
-            return base
-    return os.path.basename(args[0]) if args else str(pid)
-
-
 def descendants(roots):
     """``{pid: name}`` of the live processes ``roots`` and everything under them."""
+    # the measured tree's harness (this runs in the child, on that tree's workspace); both
+    # this tree and the earlier commits compared with have it
+    from tiago_nav.testing.harness import _process_name
     parent = {}
     for d in os.listdir('/proc'):
         if d.isdigit():
@@ -108,7 +94,7 @@ def descendants(roots):
         while p not in roots and p in parent:
             p = parent[p]
         if p in roots:
-            out[pid] = _name(pid)
+            out[pid] = _process_name(pid)
     return out
 
 

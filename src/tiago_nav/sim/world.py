@@ -86,8 +86,21 @@ class Cylinder:
         return [self.outline(sides)]
 
 
+class _Rectangle:
+    """What the rectangular movable shapes (:class:`Box`, :class:`Furniture`) share: the
+    heading [rad] of their length and their centre [m]."""
+
+    @property
+    def yaw(self):
+        return math.radians(self.yaw_deg)
+
+    @property
+    def centre(self):
+        return (self.x, self.y)
+
+
 @dataclass(frozen=True)
-class Box:
+class Box(_Rectangle):
     """The movable shape ``box``: a ``length`` × ``width`` [m] rectangle centred at ``(x, y)``
     [m], its length along ``yaw_deg``; solid from the floor up (the laser sees its faces)."""
     x: float
@@ -98,14 +111,6 @@ class Box:
 
     shape = 'box'
     leg_radius = 0.0
-
-    @property
-    def yaw(self):
-        return math.radians(self.yaw_deg)
-
-    @property
-    def centre(self):
-        return (self.x, self.y)
 
     @property
     def radius(self):
@@ -137,7 +142,7 @@ FURNITURE_LEG_RADIUS = {'table': 0.03, 'chair': 0.015}   # [m] defaults of leg_r
 
 
 @dataclass(frozen=True)
-class Furniture:
+class Furniture(_Rectangle):
     """The movable shapes ``table`` and ``chair``: four vertical legs of ``leg_radius`` [m]
     centred on the corners of a ``length`` × ``width`` [m] rectangle centred at ``(x, y)``,
     its length along ``yaw_deg``, under a top higher than the laser and the robot's base
@@ -149,14 +154,6 @@ class Furniture:
     width: float
     yaw_deg: float = 0.0
     leg_radius: float = 0.03
-
-    @property
-    def yaw(self):
-        return math.radians(self.yaw_deg)
-
-    @property
-    def centre(self):
-        return (self.x, self.y)
 
     @property
     def radius(self):
