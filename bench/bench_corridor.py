@@ -46,7 +46,7 @@ except ImportError:        # not sourced: the library from the source tree (in-p
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
 from tiago_nav.benchmarks import launch_models, meta  # noqa: E402
-from tiago_nav.corridor import CorridorParams  # noqa: E402
+from tiago_nav.corridor.law import CorridorParams  # noqa: E402
 from tiago_nav.geometry import wrap_angle  # noqa: E402
 from tiago_nav.robot import ROBOT_RADIUS  # noqa: E402
 from tiago_nav.sim.worlds import corridor_world  # noqa: E402

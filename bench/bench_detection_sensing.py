@@ -9,7 +9,7 @@ scans at rest before it by their per-beam median, tiago_nav.scan.median_ranges).
 The localisation's error is emulated with the localisation library, as the live chain makes
 it at a stop: the odometry's drift leaves a predicted pose off by a random error (std
 ``DRIFT``), then the localisation registers ``REST_SCANS`` scans taken at rest
-(tiago_nav.localisation.register, LocaliserConfig defaults, each scan subsampled by
+(tiago_nav.localisation.localiser.register, LocaliserConfig defaults, each scan subsampled by
 Localiser.scan_points), and the detection's scan is the next one, placed with that estimate.
 This stands in for a live mission (its p95 localisation error along the mission is 2.4 cm); the
 figures give the emulated error too.
@@ -52,7 +52,7 @@ import bench_detection  # noqa: E402
 import bench_soak  # noqa: E402
 from tiago_nav.detection import DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.geometry import compose, inverse  # noqa: E402
-from tiago_nav.localisation import Localiser, LocaliserConfig, register  # noqa: E402
+from tiago_nav.localisation.localiser import Localiser, LocaliserConfig, register  # noqa: E402
 from tiago_nav.nodes.obstacle_detection import Params  # noqa: E402
 from tiago_nav.scan import median_ranges  # noqa: E402
 from tiago_nav.sim.inview import MIN_BEAMS, judge_view  # noqa: E402

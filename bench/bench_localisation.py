@@ -2,7 +2,7 @@
 """Localisation benchmark (library level, no ROS): the in-process simulator drives the course
 world's route (start room, corridor, a loop in the big room and back; the nine cylinders present
 and unmapped) with drifting odometry (distance x 1.02, rotation x 1.03, 1 % noise per step), and
-the localiser (:mod:`tiago_nav.localisation`) registers each scan it finds due, as the node
+the localiser (:mod:`tiago_nav.localisation.localiser`) registers each scan it finds due, as the node
 does. Its error against the truth, and dead reckoning's, over five seeds, with the ideal laser
 and with the default ``tiago`` laser.
 

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from tiago_nav.corridor import (CorridorFollower, CorridorParams, Scan, control_law, find_corridor,
+from tiago_nav.corridor.law import (CorridorFollower, CorridorParams, Scan, control_law, find_corridor,
                                 fit_walls, front_free_distance, wall_end)
 from tiago_nav.geometry import inverse, transform_points, wrap_angle
 from tiago_nav.robot import ROBOT_RADIUS
@@ -247,7 +247,7 @@ def test_scan_hits_become_odom_points():
 def test_corridor_toward_needs_a_corridor_leading_to_the_target():
     import os
     from conftest import WORLDS
-    from tiago_nav.corridor import corridor_toward
+    from tiago_nav.corridor.law import corridor_toward
     from tiago_nav.scan import scan_to_points
     from tiago_nav.sim.scene import Scene
     from tiago_nav.sim.world import load_world

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tiago_nav import mission
-from tiago_nav.corridor import CorridorParams, Walls, stop_distance
+from tiago_nav.corridor.law import CorridorParams, Walls, stop_distance
 from tiago_nav.mission import SUCCEEDED, ABORTED, MissionRunner, Poll
 from tiago_nav.mission.sentences import handoff_sentence
 from tiago_nav.geometry import wrap_angle

@@ -10,7 +10,7 @@ import pytest
 
 from conftest import ROOT
 from tiago_nav.geometry import compose, wrap_angle
-from tiago_nav.localisation import Localiser, LocaliserConfig
+from tiago_nav.localisation.localiser import Localiser, LocaliserConfig
 from tiago_nav.params import ParamError
 from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.sim.raster import rasterise_world
@@ -153,7 +153,7 @@ def test_tracking_around_pose_b_finds_no_false_minimum(world, grid):
     registered from a prediction 2 cm off (more than odometry drifts between two scans), each
     scan ends within 5 cm of the truth. Annealing from a 0.3 m loss scale, 11 to 13 of these
     144 ended about 0.5 m away, in a false minimum (some within the gate's 0.5 m)."""
-    from tiago_nav.localisation import register
+    from tiago_nav.localisation.localiser import register
     from tiago_nav.sim.laser import LaserModel
     sim = Simulator(world, SimConfig(laser_model=LaserModel(laser_model='tiago'), seed=1))
     las = sim.config.laser
@@ -331,7 +331,7 @@ def room_of_walls(rng, inner=1, res=0.05):
 
 
 def test_the_field_reads_the_signed_distance_to_the_raster_boundary_with_slope_one():
-    from tiago_nav.localisation import DistanceField
+    from tiago_nav.localisation.localiser import DistanceField
     from tiago_nav.sim.world import Wall, World
     # a wall whose west face is at x = 2.012: its cells start at the cell edge x = 2.0
     world = World('wall', 0.05, (0.0, 0.0, 4.0, 2.0), (1.0, 1.0, 0.0),
@@ -347,7 +347,7 @@ def band_and_plain_errors(inner, n=30, seed=11):
     """Position errors [m] of registration alone and with the raster band, over ``n`` random
     rooms (:func:`room_of_walls`), each from a start 1 cm off."""
     from tiago_nav.geometry import transform_points
-    from tiago_nav.localisation import DistanceField, refine_on_raster, register
+    from tiago_nav.localisation.localiser import DistanceField, refine_on_raster, register
     rng = np.random.default_rng(seed)
     plain, banded = [], []
     for _ in range(n):
@@ -382,7 +382,7 @@ def test_raster_band_with_few_walls_per_axis_is_no_worse():
 
 
 def test_register_applies_the_band_unless_told_not_to():
-    from tiago_nav.localisation import DistanceField, register
+    from tiago_nav.localisation.localiser import DistanceField, register
     world, pts = room_of_walls(np.random.default_rng(2))
     field = DistanceField(rasterise_world(world))
     local = pts - (3.0, 2.5)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from tiago_nav.geometry import compose, inverse, wrap_angle
-from tiago_nav.localisation import (Localiser, LocaliserConfig, register_with_information,
+from tiago_nav.localisation.localiser import (Localiser, LocaliserConfig, register_with_information,
                                     search, weak_description)
 from tiago_nav.params import ParamError
 from tiago_nav.robot import LASER_OFFSET
@@ -82,7 +82,7 @@ def test_corridor_keeps_the_prediction_along_and_corrects_across(angle_deg):
     truth = (8.0 * math.cos(a) - 0.06 * math.sin(a), 8.0 * math.sin(a) + 0.06 * math.cos(a),
              a + math.radians(2.0))
     pts = corridor_scan(truth, angle_deg)
-    from tiago_nav.localisation import DistanceField
+    from tiago_nav.localisation.localiser import DistanceField
     field = DistanceField(grid)
     # the prediction: 0.25 m ahead along the corridor, 5 cm across, 3 deg off
     off_along, off_across = 0.25, -0.05
@@ -104,7 +104,7 @@ def test_corridor_keeps_the_prediction_along_and_corrects_across(angle_deg):
 
 
 def test_the_corridor_axis_has_no_information_and_ratio_0_turns_the_split_off():
-    from tiago_nav.localisation import DistanceField
+    from tiago_nav.localisation.localiser import DistanceField
     field = DistanceField(corridor())
     truth = (8.0, 0.06, math.radians(2.0))
     pts = corridor_scan(truth)
@@ -132,7 +132,7 @@ def test_first_search_after_a_reset_does_not_move_along_the_corridor():
         assert math.sqrt(up.covariance[0, 0]) >= LocaliserConfig().search_radius - 1e-9
         assert math.sqrt(up.covariance[1, 1]) < 0.01
     # the plain search alone, from the given pose: the same
-    from tiago_nav.localisation import DistanceField
+    from tiago_nav.localisation.localiser import DistanceField
     res = search(DistanceField(grid), pts, (8.3, 0.0, 0.0), LocaliserConfig(), SENSOR)
     assert abs(res[0][0] - 8.3) < 1e-3
 

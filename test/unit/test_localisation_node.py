@@ -63,7 +63,7 @@ def test_a_tick_needs_a_re_send_only_when_no_send_reaches_past_it():
 
 def test_degenerate_geometry_is_logged_once_and_its_recovery_after_three_registrations():
     import types
-    from tiago_nav.localisation import Update
+    from tiago_nav.localisation.localiser import Update
     from tiago_nav.nodes.localisation import RECOVERED_AFTER, LocalisationNode
 
     def up(weak, x):

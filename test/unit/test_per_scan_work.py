@@ -7,7 +7,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from tiago_nav.localisation import (DistanceField, observable_directions, scan_information,
+from tiago_nav.localisation.localiser import (DistanceField, observable_directions, scan_information,
                                     scan_normals)
 from tiago_nav import scan as scan_module
 from tiago_nav.scan import beam_angles, body_returns, usable_ranges

@@ -221,7 +221,7 @@ def test_same_ranges_takes_nan_for_nan_and_nothing_else():
 
 
 def test_the_corridor_law_blocks_on_a_frozen_laser():
-    from tiago_nav.corridor import CorridorFollower, CorridorParams, Scan
+    from tiago_nav.corridor.law import CorridorFollower, CorridorParams, Scan
     rng = np.random.default_rng(1)
     f = CorridorFollower(CorridorParams())
     a = np.linspace(-1.92, 1.92, 666)

@@ -28,7 +28,7 @@ How sure each obstacle is (:class:`Detection`'s ``covariance``, ``center_std``,
   ``G Σ Gᵀ`` with ``G = [I | ℓ]``, ``ℓ = (-(c_y - l_y), c_x - l_x)`` the heading's lever arm
   (range × σ_yaw across the beam): ``heading`` is ``ℓ ℓᵀ σ_yaw²``, ``position`` the rest
   (the translation's covariance and its correlation with the heading). ``Σ``: the pose
-  correction's (the registration's, :func:`tiago_nav.localisation.register_with_information`;
+  correction's (the registration's, :func:`tiago_nav.localisation.localiser.register_with_information`;
   along directions the scan does not observe the given pose's, which the correction kept)
   when it was applied, otherwise the given pose's (``pose_covariance`` of :meth:`locate`: the
   localisation's at the scan's time; None: the pose is taken as exact);
@@ -37,7 +37,7 @@ How sure each obstacle is (:class:`Detection`'s ``covariance``, ``center_std``,
   its length (uniform over ``|a| + |t| L / 2 <= w / 2``: the offset at the middle of what is
   seen is triangular, variance ``w² / 24``). Along an axis the true position is within the
   intersection of the intervals the walls facing it allow
-  (:func:`tiago_nav.localisation.refine_on_raster`, whose middle the correction takes), of
+  (:func:`tiago_nav.localisation.localiser.refine_on_raster`, whose middle the correction takes), of
   width ``w``: variance ``w² / 24``; ``resolution² / 24`` (one wall's cell) along an axis no
   wall bounds, and for the given pose of a localisation (which registers to the same raster)
   when no correction was applied. The walls' offsets and tilts reach the registered heading
@@ -53,7 +53,7 @@ Pose correction (``correct_pose``, circle_fit and centroid): a centre in the map
 the error of the laser pose it is placed with (the localisation's estimate at the scan's time).
 The scan's static part (the points the map subtraction explains) is already matched to the map,
 so before clustering it is registered to the map's distance field with the localisation's own
-registration (:func:`tiago_nav.localisation.register`, started from the given pose) and the
+registration (:func:`tiago_nav.localisation.localiser.register`, started from the given pose) and the
 obstacles are placed with the corrected pose. Too few static points (``min_static_points``) or
 a registration its gate rejects leave the given pose (:class:`PoseCorrection` says why).
 ``discontinuity`` is the classic map-free baseline: it reads no map, so it places its centres
@@ -69,7 +69,7 @@ from tiago_nav.detection.centres import (centroid, circle_covariance, circle_fit
 from tiago_nav.detection.clustering import centroid_clusters
 from tiago_nav.detection.subtraction import MapDistance, subtract
 from tiago_nav.geometry import transform_points, wrap_angle
-from tiago_nav.localisation import (DistanceField, LocaliserConfig, refine_on_raster,
+from tiago_nav.localisation.localiser import (DistanceField, LocaliserConfig, refine_on_raster,
                                     register_with_information)
 from tiago_nav.params import ParamError, param, validate
 from tiago_nav.scan import beam_angles, hits, scan_to_points, usable_ranges
@@ -241,7 +241,7 @@ class ObstacleDetector:
 
     @property
     def field(self):
-        """The map's :class:`tiago_nav.localisation.DistanceField` (built once, when first
+        """The map's :class:`tiago_nav.localisation.localiser.DistanceField` (built once, when first
         needed)."""
         if self._field is None:
             self._field = DistanceField(self.grid)
@@ -476,7 +476,7 @@ def raster_heading_variance(field, points, pose, scale, inlier=0.05):
     share one offset ``a`` and one tilt ``t`` (a wall a little off the axis has the same
     raster), uniform over what keeps the surface inside the cell over the length ``L`` seen
     (``|a| + |t| L / 2 <= resolution / 2``: variances ``resolution² / 24`` and
-    ``resolution² / (6 L²)``), independent from wall to wall (:func:`tiago_nav.localisation.refine_on_raster` groups the points into
+    ``resolution² / (6 L²)``), independent from wall to wall (:func:`tiago_nav.localisation.localiser.refine_on_raster` groups the points into
     walls the same way: the points facing one raster edge line, at least ``RASTER_GROUP_MIN``);
     on any other surface (an oblique wall's staircase, a static cylinder's outline) the points
     of one raster cell share one. Two walls facing one axis at different places turn the registered
@@ -485,7 +485,7 @@ def raster_heading_variance(field, points, pose, scale, inlier=0.05):
     ``scale`` [m]), so the offsets' covariance reaches the pose as
     ``A⁻¹ (Σ_walls σ² s_g s_gᵀ) A⁻¹``, ``s_g`` the sum of ``w J`` over a wall's points; its
     heading entry is returned (the translation's share is the raster intervals' own)."""
-    from tiago_nav.localisation import AXIS_COS, RASTER_GROUP_MIN
+    from tiago_nav.localisation.localiser import AXIS_COS, RASTER_GROUP_MIN
     p = np.asarray(points, dtype=float).reshape(-1, 2)
     if len(p) < 3:
         return 0.0

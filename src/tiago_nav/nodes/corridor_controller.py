@@ -1,5 +1,5 @@
 """Action server ``corridor_controller`` (tiago_nav/CorridorAction): drives the narrow corridor
-ahead from the laser alone (no map, no plan) and stops at its end. Law: :mod:`tiago_nav.corridor`.
+ahead from the laser alone (no map, no plan) and stops at its end. Law: :mod:`tiago_nav.corridor.law`.
 
 Subscribes ``~scan_topic``; publishes ``~cmd_vel_topic``; uses tf ``~odom_frame`` ->
 ``~base_frame`` and -> the scan's frame (``~map_frame`` for the result's exit pose). Feedback at
@@ -26,7 +26,7 @@ from geometry_msgs.msg import Twist
 from sensor_msgs.msg import LaserScan
 
 from tiago_nav import clock as rclock
-from tiago_nav.corridor import (ABORTED, PREEMPTED, SUCCEEDED, CorridorFollower, CorridorParams,
+from tiago_nav.corridor.law import (ABORTED, PREEMPTED, SUCCEEDED, CorridorFollower, CorridorParams,
                                 GoalJudge, Scan)
 from tiago_nav.motion import MotionMonitor, wait_until_still
 from tiago_nav.msg import CorridorAction, CorridorFeedback, CorridorResult
@@ -48,7 +48,7 @@ STOP_TIMEOUT = 2.0          # [s] after a stop command, wait at most this long f
 class Params:
     """Defaults of nodes/corridor_controller (private parameters). Units: m, rad, s (ROS time), m/s.
 
-    The law and its gains are documented in src/tiago_nav/corridor.py."""
+    The law and its gains are documented in src/tiago_nav/corridor/law.py."""
     law: CorridorParams = nested(CorridorParams)
     control_rate: float = param(20.0, '[Hz, ROS time] commands and feedback', ge=5)
     timeout: float = param(60.0, '[s] abort a goal after this long', gt=0)
@@ -111,7 +111,7 @@ class CorridorServer:
         server: the SimpleActionServer (``is_preempt_requested``, ``publish_feedback``,
             ``set_succeeded/aborted/preempted(result, text)``, ``is_active``).
         cmd_pub: publisher of geometry_msgs/Twist to the base.
-        io: ``latest_scan()`` -> the newest :class:`tiago_nav.corridor.Scan` or None;
+        io: ``latest_scan()`` -> the newest :class:`tiago_nav.corridor.law.Scan` or None;
             ``lookup(parent, child, stamp=None)`` -> pose ``(x, y, yaw)`` of ``child`` in
             ``parent`` at ROS time ``stamp`` [s] (None: the latest), raising ``LookupError``.
         participant: the lockstep participant (``tick``, ``answer``, ``claim``, ``release``,
@@ -277,7 +277,7 @@ class CorridorServer:
 
 
 def _scan(msg):
-    """sensor_msgs/LaserScan -> :class:`tiago_nav.corridor.Scan`."""
+    """sensor_msgs/LaserScan -> :class:`tiago_nav.corridor.law.Scan`."""
     return Scan(msg.header.stamp.to_sec(), msg.header.frame_id, np.asarray(msg.ranges, float),
                 msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max)
 

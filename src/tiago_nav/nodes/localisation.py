@@ -1,5 +1,5 @@
 """localisation node: ``map → odom`` on tf from scans matched to the static map
-(library: :mod:`tiago_nav.localisation`).
+(library: :mod:`tiago_nav.localisation.localiser`).
 
 Subscribes ``/scan`` (sensor_msgs/LaserScan), ``/map`` (nav_msgs/OccupancyGrid, latched) and
 ``/initialpose`` (geometry_msgs/PoseWithCovarianceStamped, as AMCL takes it: resets the pose);
@@ -30,7 +30,7 @@ from tf2_msgs.msg import TFMessage
 
 from tiago_nav.clock import Ticker
 from tiago_nav.geometry import compose
-from tiago_nav.localisation import DistanceField, Localiser, LocaliserConfig
+from tiago_nav.localisation.localiser import DistanceField, Localiser, LocaliserConfig
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as rosparams
 from tiago_nav.ros.clock import RosClock
@@ -114,7 +114,7 @@ _FIELD = []     # [(map key, DistanceField)]: the last map's field
 
 
 def distance_field(grid):
-    """``grid``'s :class:`tiago_nav.localisation.DistanceField`, built once per map: a reset
+    """``grid``'s :class:`tiago_nav.localisation.localiser.DistanceField`, built once per map: a reset
     builds the node's state again for the same map, and the field (read only; 23 MB and a
     fifth of a second for the course world) is the same."""
     key = (grid.data.tobytes(), grid.resolution, tuple(grid.origin))

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from tiago_nav.corridor import Command, CorridorFollower, CorridorParams, GoalJudge, Scan
+from tiago_nav.corridor.law import Command, CorridorFollower, CorridorParams, GoalJudge, Scan
 from tiago_nav.geometry import compose, wrap_angle
 from tiago_nav.robot import LASER_OFFSET
 from tiago_nav.sim.world import World
@@ -18,7 +18,7 @@ def run_in_simulator(sim, params=CorridorParams(), max_speed=None, max_distance=
                      timeout=60.0, blocked_timeout=2.0, on_step=None):
     """Closed loop without ROS: ``sim`` (:class:`tiago_nav.sim.simulator.Simulator`) scans at
     its scan rate, the law commands at its odometry rate; the goal ends as the server's does
-    (:class:`tiago_nav.corridor.GoalJudge`). Returns ``(command, follower)`` with the final
+    (:class:`tiago_nav.corridor.law.GoalJudge`). Returns ``(command, follower)`` with the final
     :class:`Command`; ``on_step(sim, cmd)`` is called after every physics step."""
     f = CorridorFollower(params, max_speed, max_distance)
     judge = GoalJudge(blocked_timeout)

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tiago_nav.geometry import compose, inverse, wrap_angle
-from tiago_nav.localisation import Localiser, LocaliserConfig
+from tiago_nav.localisation.localiser import Localiser, LocaliserConfig
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
 
@@ -87,7 +87,7 @@ class RouteResult:
 def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=LocaliserConfig(),
               seed=0, drift=(0.02, 0.03, 0.01), scan_hook=None, max_time=120.0, laser=None):
     """Drive the simulator along ``route`` and localise at every scan (registering the ones
-    the localiser finds :meth:`~tiago_nav.localisation.Localiser.due`, as the node does).
+    the localiser finds :meth:`~tiago_nav.localisation.localiser.Localiser.due`, as the node does).
 
     Args:
         world: a :class:`tiago_nav.sim.world.World` (its movable obstacles are unmapped).

@@ -1,0 +1,1 @@
+"""Localisation: scan-to-map registration and the pose filter (no ROS)."""
