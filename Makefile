@@ -26,18 +26,18 @@ APT_PACKAGES += $(APT_PACKAGES_$(DEBIAN_CODENAME))
 # pybullet 3.2.7 on Debian 11, 12 and 13: its cp39 and cp311 wheels import with Debian's numpy
 # (1.19, 1.24; it is the cp38 wheel that needs numpy >= 1.23's C API, see README's Noetic line),
 # and on 13 pip builds it (see venv).
-# dask[distributed]: the batch evaluator's engine (tiago_nav.evaluate only; nothing else imports it),
+# dask[distributed]: the batch evaluator's engine (tiago_nav_tools.evaluate only; nothing else imports it),
 # pinned by the system's Python (so evaluated after `apt`): 2026.8.0 needs Python >= 3.10, and
 # 2024.8.0 is the last release for Debian 11's 3.9.
 # vermin: `make lint`'s check that the code needs no Python newer than Noetic's 3.8.
 DASK_VERSION = $(shell $(SYS_PY) -c 'import sys; print("2026.8.0" if sys.version_info >= (3, 10) else "2024.8.0")')
 PIP_PACKAGES = pybullet==3.2.7 dask[distributed]==$(DASK_VERSION) distributed==$(DASK_VERSION) vermin==1.9.2
 # What the workspace build depends on (file(GLOB) lists are re-read when these change).
-WS_INPUTS := CMakeLists.txt package.xml setup.py $(wildcard msg/* srv/* action/* nodes/* test/*.test env-hooks/*)
+WS_INPUTS := CMakeLists.txt package.xml setup.py $(wildcard msg/* srv/* action/* nodes/* scripts/evaluate test/*.test env-hooks/*)
 ROS_ENV := source $(WS)/devel/setup.bash
 # tysik/obstacle_detector for the detection benchmark's comparison (`make obstacle-detector`)
 OD_WS := $(ROOT)/.od_ws
-# `make bench BENCH=detection` runs one benchmark (names: src/tiago_nav/benchmarks.py)
+# `make bench BENCH=detection` runs one benchmark (names: src/tiago_nav_tools/benchmarks.py)
 BENCH ?= all
 SUITE ?= suites/smoke.yaml
 EVAL_OUT ?= eval-results
@@ -125,7 +125,7 @@ test-platforms:
 bench: setup
 	@mkdir -p bench/results
 	@$(ROS_ENV) && { [ ! -f $(OD_WS)/devel/setup.bash ] || source $(OD_WS)/devel/setup.bash --extend; } \
-	  && $(SYS_PY) -m tiago_nav.benchmarks $(BENCH) && $(SYS_PY) -m tiago_nav.docs
+	  && $(SYS_PY) -m tiago_nav_tools.benchmarks $(BENCH) && $(SYS_PY) -m tiago_nav_tools.docs
 
 # builds tysik/obstacle_detector in .od_ws (not a Debian package), for `make bench BENCH=detection`
 obstacle-detector: setup
@@ -133,7 +133,7 @@ obstacle-detector: setup
 
 # the generated pages: docs/ros_api.md (from the code) and docs/benchmarks.md (from bench/results)
 docs: setup
-	@$(ROS_ENV) && $(SYS_PY) -m tiago_nav.docs
+	@$(ROS_ENV) && $(SYS_PY) -m tiago_nav_tools.docs
 
 # The batch evaluator: make evaluate SUITE=suites/course.yaml EVAL_OUT=dir [EVAL_ARGS="--workers 2"]
 evaluate: setup
@@ -142,11 +142,11 @@ evaluate: setup
 # catkin_test_changelog parses CHANGELOG.rst (REP 132) but skips sections it cannot read, so the
 # next line also checks that the topmost version section is package.xml's version.
 # vermin: no Python feature (syntax, stdlib module, function or argument) newer than Noetic's 3.8,
-# annotations included as if evaluated; nodes/ has no .py suffixes: named one by one.
+# annotations included as if evaluated; nodes/ and scripts/evaluate have no .py suffixes: named one by one.
 lint: setup
 	@$(ROS_ENV) && catkin_lint --strict -W2 $(WS)/src/tiago_nav
 	@$(VENV)/bin/vermin -q -t=3.8- --violations --no-tips --eval-annotations --pessimistic \
-	  setup.py src $(wildcard nodes/*) test bench scripts docs/make_graph.py \
+	  setup.py src $(wildcard nodes/*) scripts/evaluate test bench scripts docs/make_graph.py \
 	  || { echo "vermin: the code above needs a Python newer than 3.8 (Noetic's)"; exit 1; }
 	@catkin_test_changelog $(ROOT)/CHANGELOG.rst 2>&1 >/dev/null \
 	  | { grep -v '^DEBUG:changelog:Ignored non-compliant title' || true; } >&2

@@ -9,7 +9,7 @@ no contact), time to exit (goal sent -> the base centre passes the first wall en
 time to stop (goal sent -> standstill), RMS lateral offset from the centre line after the
 corridor's first metre, minimum wall clearance of the base's disc.
 
-1. the law in process (tiago_nav.testing.corridor.run_in_simulator with the simulator library's laser);
+1. the law in process (tiago_nav_tools.testing.corridor.run_in_simulator with the simulator library's laser);
 2. through ROS (navigation.launch): the corridor_controller action, then move_base with a goal
    at the pose where the law stopped (same start, same end), when nodes/navigation is a real
    node (not the placeholder).
@@ -45,13 +45,13 @@ except ImportError:        # not sourced: the library from the source tree (in-p
     sys.path.insert(0, os.path.join(ROOT, 'src'))
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
-from tiago_nav.benchmarks import launch_models, meta  # noqa: E402
+from tiago_nav_tools.benchmarks import launch_models, meta  # noqa: E402
 from tiago_nav.corridor.law import CorridorParams  # noqa: E402
 from tiago_nav.geometry import wrap_angle  # noqa: E402
 from tiago_nav.robot import ROBOT_RADIUS  # noqa: E402
 from tiago_nav.sim.worlds import corridor_world  # noqa: E402
-from tiago_nav.testing.corridor import run_in_simulator  # noqa: E402
-from tiago_nav.testing.harness import free_port, stop_process  # noqa: E402
+from tiago_nav_tools.testing.corridor import run_in_simulator  # noqa: E402
+from tiago_nav_tools.testing.harness import free_port, stop_process  # noqa: E402
 from tiago_nav.sim.simulator import SimConfig, Simulator  # noqa: E402
 from tiago_nav.sim.world import World, clearance, load_world  # noqa: E402
 

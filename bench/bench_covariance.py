@@ -48,10 +48,10 @@ TERMS = ('fit', 'position', 'heading', 'raster')
 TARGET = {'nees_low': 1.0, 'nees_high': 3.0, 'inside_95': 0.93, 'detections': 300}
 
 sys.path.insert(0, os.path.join(ROOT, 'src'))
-from tiago_nav.benchmarks import meta  # noqa: E402
+from tiago_nav_tools.benchmarks import meta  # noqa: E402
 from tiago_nav.geometry import compose, inverse  # noqa: E402
 from tiago_nav.sim.world import load_world  # noqa: E402
-from tiago_nav.testing.evaluation import match_obstacles  # noqa: E402
+from tiago_nav_tools.evaluate.matching import match_obstacles  # noqa: E402
 
 
 def nees(err, cov4):

@@ -6,7 +6,7 @@ Over seeded random robot poses (reachable, clear of every body) in the shipped w
 (ias_lab_room_full: cylinders of r = 0.183 m; open_hall: r = 0.10-0.30 m), each scan is the
 pybullet ray cast plus seeded 0.01 m Gaussian range noise, exactly what the simulator publishes.
 Ground truth: the world file's movable obstacles; "in view" is the one definition the
-evaluator and the tests use (tiago_nav.sim.inview, Scene.visible_obstacles: >= 7 usable beams
+evaluator and the tests use (tiago_nav_tools.evaluate.inview, Scene.visible_obstacles: >= 7 usable beams
 of the noise-free cast for the laser profile); a found centre on a glimpsed obstacle (reached by
 a beam, not in view) is no false positive. "In clear view" also asks the obstacle to be within
 the detector's max_range and unoccluded (hit by >= 80 % of the beams its silhouette spans).
@@ -36,11 +36,11 @@ if os.path.join(ROOT, 'src') not in sys.path:
     sys.path.append(os.path.join(ROOT, 'src'))   # after the workspace's (which has the messages)
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
-from tiago_nav.testing.harness import Harness, free_port, stop_process  # noqa: E402
+from tiago_nav_tools.testing.harness import Harness, free_port, stop_process  # noqa: E402
 from tiago_nav.detection import METHODS, DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.detection.subtraction import MapDistance, brute_force_distance  # noqa: E402
 from tiago_nav import robot  # noqa: E402
-from tiago_nav.benchmarks import meta  # noqa: E402
+from tiago_nav_tools.benchmarks import meta  # noqa: E402
 from tiago_nav.geometry import compose, inverse, transform_points, wrap_angle  # noqa: E402
 from tiago_nav.scan import scan_to_points  # noqa: E402
 from tiago_nav.sim.laser import LaserModel  # noqa: E402
@@ -396,7 +396,7 @@ def _judge_centres(truth, found, near_map):
     """Errors of the found centres ``[(x, y)]`` matched one-to-one (Hungarian, within the
     evaluator's gate) to ``truth`` ``[(x, y)]``; unmatched ones are false positives, those
     ``near_map`` says are on the static map counted apart."""
-    from tiago_nav.testing.evaluation import match_obstacles
+    from tiago_nav_tools.evaluate.matching import match_obstacles
     pairs, missed, fps = match_obstacles(truth, found)
     off = [j for j in fps if not near_map(found[j])]
     return [e for _, _, e in pairs], len(missed), len(fps), len(off)
@@ -412,7 +412,7 @@ def live_comparison(laser_model, scans):
     with the beams :func:`tiago_nav.scan.usable_ranges` drops set to NaN: the robot's own body and
     the veils, filtered for it as for this package; its circles come out in map through tf at
     the scan's stamp). All are judged against the world file: the movable obstacles in view
-    from the true pose (:mod:`tiago_nav.sim.inview`) must be found; a found centre matching
+    from the true pose (:mod:`tiago_nav_tools.evaluate.inview`) must be found; a found centre matching
     none (within 0.3 m) is a false positive, counted apart when it lies on the static map (a wall or a
     mapped cylinder, which the map subtraction of this package removes by design)."""
     import rospy

@@ -23,7 +23,7 @@ Scenes:
 * ``missions``: random reachable poses B with obstacles in view (bench_detection.sample_poses)
   in the shipped worlds, test/worlds and the soak's generated corridor worlds.
 
-Judged per scene against the world file: an obstacle in view (tiago_nav.sim.inview, the one
+Judged per scene against the world file: an obstacle in view (tiago_nav_tools.evaluate.inview, the one
 definition the evaluator and the tests use: >= 7 usable beams of the exact cast, an outline
 edge seen) must be found; every found centre of those within 3 cm; a false positive is a found
 centre that matches no obstacle a beam reaches (a glimpsed one may be found). Latency: one library call (ObstacleDetector.locate), wall
@@ -55,12 +55,12 @@ from tiago_nav.geometry import compose, inverse  # noqa: E402
 from tiago_nav.localisation.localiser import Localiser, LocaliserConfig, register  # noqa: E402
 from tiago_nav.nodes.obstacle_detection import Params  # noqa: E402
 from tiago_nav.scan import median_ranges  # noqa: E402
-from tiago_nav.sim.inview import MIN_BEAMS, judge_view  # noqa: E402
+from tiago_nav_tools.evaluate.inview import MIN_BEAMS, judge_view  # noqa: E402
 from tiago_nav.sim.laser import LaserModel  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.scene import LaserConfig, Scene  # noqa: E402
 from tiago_nav.sim.world import load_world  # noqa: E402
-from tiago_nav.testing.evaluation import match_obstacles  # noqa: E402
+from tiago_nav_tools.evaluate.matching import match_obstacles  # noqa: E402
 
 NOISE = 0.01                                  # [m] range noise std (the simulator's default)
 DRIFT = (0.03, 0.03, math.radians(1.0))       # [m, m, rad] std of the prediction's error at a stop
@@ -138,7 +138,7 @@ class Sensing:
 
 
 def judge(world, view, found):
-    """Scores of one detection against the :class:`tiago_nav.sim.inview.View` ``view``: errors
+    """Scores of one detection against the :class:`tiago_nav_tools.evaluate.inview.View` ``view``: errors
     of the obstacles in view, misses, FPs."""
     # every obstacle a beam reaches may be found (not a false positive); in view: must be
     seen = sorted(view.in_view + view.glimpsed)
@@ -185,7 +185,7 @@ def main():
     cfg, lm = LaserConfig(), LaserModel()
     out = {'laser_model': 'tiago', 'noise_std_m': NOISE, 'drift_std': [DRIFT[0], DRIFT[1],
            math.degrees(DRIFT[2])], 'rest_scans': REST_SCANS, 'min_beams': MIN_BEAMS,
-           'in_view_rule': 'tiago_nav.sim.inview',
+           'in_view_rule': 'tiago_nav_tools.evaluate.inview',
            'tolerance_m': TOL, 'seed': args.seed}
     rng = np.random.default_rng(args.seed)
     # the course scene at pose B
@@ -269,7 +269,7 @@ def main():
     out['load_average_1_5_15'] = [round(v, 2) for v in os.getloadavg()]
     out['cores'] = os.cpu_count()
     print('load average %s on %d cores' % (out['load_average_1_5_15'], out['cores']))
-    from tiago_nav.benchmarks import meta
+    from tiago_nav_tools.benchmarks import meta
     out['meta'] = meta(vars(args), real_time_factor='library (no ROS)', laser_model='tiago',
                        odometry_model='drift')
     os.makedirs(RESULTS, exist_ok=True)

@@ -3,9 +3,9 @@
 on a separately started Dask cluster (a ``dask scheduler`` and a ``dask worker`` process with two
 worker processes), through ``rosrun tiago_nav evaluate`` as a user runs it. Reports missions per
 minute per setting and whether every run's result is the same in every setting (all but the
-wall-clock figures, ``tiago_nav.evaluate.run.WALL_CLOCK_FIELDS``: wall and CPU seconds,
+wall-clock figures, ``tiago_nav_tools.evaluate.run.WALL_CLOCK_FIELDS``: wall and CPU seconds,
 simulated/wall ratio, start-up time, the worker's host, slot and port).
-Per setting it also reports where the time goes (``tiago_nav.evaluate.timing``): the runs'
+Per setting it also reports where the time goes (``tiago_nav_tools.evaluate.timing``): the runs'
 start-up, mission, teardown and judging wall time and CPU (totals and medians) and the share
 of the setting's worker time (wall time x workers) spent in missions; and the runs' isolation.
 ``--warm``: each worker count runs the same rows a second time right after, with warm stacks
@@ -54,12 +54,12 @@ def pick(suite, n):
 
 
 def pick_stacks(suite, n, per=None):
-    """``n`` run ids in whole stack groups (:func:`tiago_nav.evaluate.warm.group_by_stack` of the
+    """``n`` run ids in whole stack groups (:func:`tiago_nav_tools.evaluate.warm.group_by_stack` of the
     suite's rows, each cut to its first ``per`` rows when given), the groups taken at an even
     stride over the suite so that the picked rows span its worlds, profiles and corridor
     settings; every row when ``n`` is at least the suite's size."""
-    from tiago_nav.evaluate import suite as S
-    from tiago_nav.evaluate.warm import group_by_stack
+    from tiago_nav_tools.evaluate import suite as S
+    from tiago_nav_tools.evaluate.warm import group_by_stack
     data, base = S.load(suite)
     runs, _ = S.expand(data, suite, base)
     if n >= len(runs):
@@ -170,10 +170,10 @@ def main():
         ap.error('--per-stack: must be >= 1')
     if os.path.join(ROOT, 'src') not in sys.path:
         sys.path.append(os.path.join(ROOT, 'src'))
-    from tiago_nav.benchmarks import meta
-    from tiago_nav.evaluate.run import WALL_CLOCK_FIELDS, differences
-    from tiago_nav.evaluate.report import isolations, stacks
-    from tiago_nav.evaluate.timing import PHASES, batch
+    from tiago_nav_tools.benchmarks import meta
+    from tiago_nav_tools.evaluate.run import WALL_CLOCK_FIELDS, differences
+    from tiago_nav_tools.evaluate.report import isolations, stacks
+    from tiago_nav_tools.evaluate.timing import PHASES, batch
     for var, value in (('ROS_HOSTNAME', 'localhost'), ('ROS_IP', '127.0.0.1')):
         os.environ.setdefault(var, value)
     base = args.keep or tempfile.mkdtemp(prefix='bench_evaluate_')

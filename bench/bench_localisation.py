@@ -11,7 +11,7 @@ Then the corridors, with the ``tiago`` laser and the same drift: worlds/corridor
 worlds/corridor_long.yaml (through a 20 m featureless corridor: along it, the localised error's
 growth against dead reckoning's over the stretch where the scan leaves the axis unobservable,
 the steps between consecutive estimates (in that stretch and over the whole run, where the
-axis is re-acquired) and how many estimates a re-acquired correction took to converge; :func:`tiago_nav.testing.localisation.corridor_figures`).
+axis is re-acquired) and how many estimates a re-acquired correction took to converge; :func:`tiago_nav_tools.testing.localisation.corridor_figures`).
 Writes bench/results/localisation.json.
 
 Usage: bench/bench_localisation.py [--seeds 5] [--only course|corridors]
@@ -30,7 +30,7 @@ RESULTS = os.path.join(ROOT, 'bench', 'results')
 
 
 def summary(runs):
-    """Pooled figures of :class:`tiago_nav.testing.localisation.RouteResult` s."""
+    """Pooled figures of :class:`tiago_nav_tools.testing.localisation.RouteResult` s."""
     cat = {k: np.concatenate([getattr(r, k) for r in runs])
            for k in ('loc_xy', 'loc_yaw', 'odo_xy', 'odo_yaw')}
     secs = [t for r in runs for t in r.seconds]
@@ -53,10 +53,10 @@ def main():
     args = ap.parse_args()
     if os.path.join(ROOT, 'src') not in sys.path:
         sys.path.append(os.path.join(ROOT, 'src'))
-    from tiago_nav.benchmarks import meta
+    from tiago_nav_tools.benchmarks import meta
     from tiago_nav.sim.laser import LaserModel
     from tiago_nav.sim.world import load_world
-    from tiago_nav.testing.localisation import run_route
+    from tiago_nav_tools.testing.localisation import run_route
     path = os.path.join(RESULTS, 'localisation.json')
     out = {}
     if args.only and os.path.exists(path):
@@ -78,7 +78,7 @@ def corridors(args, out):
     """The two corridor worlds (tiago laser), per seed and pooled, into ``out['corridors']``."""
     from tiago_nav.sim.laser import LaserModel
     from tiago_nav.sim.world import load_world
-    from tiago_nav.testing.localisation import (CORRIDOR_LONG_ROUTE, CORRIDOR_START_ROUTE,
+    from tiago_nav_tools.testing.localisation import (CORRIDOR_LONG_ROUTE, CORRIDOR_START_ROUTE,
                                                 corridor_figures, run_route)
     res = {}
     print('| world | seed | scans | featureless (m) | localised along growth | dead reckoning '
@@ -116,7 +116,7 @@ def course(args, out):
     """The course route with both lasers, into ``out``."""
     from tiago_nav.sim.laser import LaserModel
     from tiago_nav.sim.world import load_world
-    from tiago_nav.testing.localisation import run_route
+    from tiago_nav_tools.testing.localisation import run_route
     world = load_world(os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml'))
     out.update({'world': world.name, 'seeds': args.seeds, 'lasers': {}})
     print('| laser | scans | registered | rejected | localised p95 / max | dead reckoning p95 | '

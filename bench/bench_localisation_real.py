@@ -56,9 +56,9 @@ WITHIN_SCANS = {'offset': 30, 'kidnap': 30, 'global': 60}
 
 
 def score(prep, run, scenario):
-    """The figures of one run (:mod:`tiago_nav.testing.realdata.scoring`)."""
-    from tiago_nav.testing.realdata import scoring
-    from tiago_nav.testing.realdata.convert import read_reference
+    """The figures of one run (:mod:`tiago_nav_tools.testing.realdata.scoring`)."""
+    from tiago_nav_tools.testing.realdata import scoring
+    from tiago_nav_tools.testing.realdata.convert import read_reference
     t, ref, odom = read_reference(prep[scenario]['reference'])
     e = np.array(run['estimates'], dtype=float).reshape(-1, 7)
     est = scoring.estimates_at_scans(t, odom, e[:, 0], e[:, 1:4])
@@ -85,8 +85,8 @@ def plot(path, out, estimates, maps):
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    from tiago_nav.testing.realdata.convert import read_reference
-    from tiago_nav.testing.realdata.mapping import load_map
+    from tiago_nav_tools.testing.realdata.convert import read_reference
+    from tiago_nav_tools.testing.realdata.mapping import load_map
     names = [n for n in out['logs'] if n in maps]
     if not names:
         return
@@ -142,11 +142,11 @@ def main():
     args = ap.parse_args()
     if os.path.join(ROOT, 'src') not in sys.path:
         sys.path.append(os.path.join(ROOT, 'src'))
-    from tiago_nav.benchmarks import meta
-    from tiago_nav.testing.realdata.convert import SCENARIOS, prepare, read_reference
-    from tiago_nav.testing.realdata.odometry import dead_reckoning
-    from tiago_nav.testing.realdata.play import run_child
-    from tiago_nav.testing.realdata.scoring import summary
+    from tiago_nav_tools.benchmarks import meta
+    from tiago_nav_tools.testing.realdata.convert import SCENARIOS, prepare, read_reference
+    from tiago_nav_tools.testing.realdata.odometry import dead_reckoning
+    from tiago_nav_tools.testing.realdata.play import run_child
+    from tiago_nav_tools.testing.realdata.scoring import summary
 
     logs = [n for n in args.logs.split(',') if n]
     paths = {n: os.path.join(args.data, '%s-corrected.log.gz' % n) for n in logs}

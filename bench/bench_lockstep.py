@@ -118,8 +118,8 @@ def run_one(lockstep, nav_goals, seed, task, launch_args=(), delay=0.0):
     from move_base_msgs.msg import MoveBaseAction
     from nav_msgs.msg import Odometry
     from tiago_nav.sim.world import load_world
-    from tiago_nav.testing.evaluation import sample_goals
-    from tiago_nav.testing.harness import Harness
+    from tiago_nav_tools.evaluate.matching import sample_goals
+    from tiago_nav_tools.testing.harness import Harness
 
     h = Harness(WORLD, real_time_factor=0.0, observe=False,
                 extra_args=['lockstep:=%s' % ('true' if lockstep else 'false')] + list(launch_args))
@@ -354,7 +354,7 @@ def main():
                                          'summary': s, 'runs': runs})
             print('  => %s' % json.dumps(s), flush=True)
     report['bench_wall_s'] = time.monotonic() - t0
-    from tiago_nav.benchmarks import launch_models, meta
+    from tiago_nav_tools.benchmarks import launch_models, meta
     laser, odometry = launch_models(args.launch_args.split())
     report['meta'] = meta({k: v for k, v in vars(args).items() if k != 'run'}, quick=False,
                           real_time_factor=0.0, laser_model=laser, odometry_model=odometry)

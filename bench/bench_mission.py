@@ -31,8 +31,8 @@ TARGET_WALL = 20.0
 def run_world(world_file, n, seed, rtf):
     """Child process: one launch, the world's missions; prints ``RESULT <json>`` last."""
     import numpy as np
-    from tiago_nav.testing.evaluation import sample_goals
-    from tiago_nav.testing.harness import Harness, mission_record
+    from tiago_nav_tools.evaluate.matching import sample_goals
+    from tiago_nav_tools.testing.harness import Harness, mission_record
     from tiago_nav.sim.world import load_world
 
     path = os.path.join(ROOT, 'worlds', world_file)
@@ -170,7 +170,7 @@ def main():
         report['runs'].append({'real_time_factor': rtf, 'summary': s, 'missions': missions})
     report['bench_wall_s'] = time.monotonic() - t0
     os.makedirs(RESULTS, exist_ok=True)
-    from tiago_nav.benchmarks import launch_models, meta
+    from tiago_nav_tools.benchmarks import launch_models, meta
     laser, odometry = launch_models()
     report['meta'] = meta({k: v for k, v in vars(args).items() if k != 'run'}, quick=args.quick,
                           real_time_factor=rtfs, laser_model=laser, odometry_model=odometry)

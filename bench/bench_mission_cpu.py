@@ -23,7 +23,7 @@ the tree's library but its messages, so the same code measures both trees.
 Reported per tree: the median, least and largest CPU seconds of each process and each phase
 (the stack: every process of the launch, roscore's included), wall and simulated seconds, the
 result (succeeded, final pose, obstacles found and matched, centre RMS against the world file:
-:mod:`tiago_nav.sim.inview` from the true final pose); the ratios this tree / commit of the
+:mod:`tiago_nav_tools.evaluate.inview` from the true final pose); the ratios this tree / commit of the
 medians, and of each pair's runs (median and range), with the load average at each run. The
 machine may be busy: the pairs and the medians are there for that; the load says how busy.
 
@@ -80,7 +80,7 @@ def descendants(roots):
     """``{pid: name}`` of the live processes ``roots`` and everything under them."""
     # the measured tree's harness (this runs in the child, on that tree's workspace); both
     # this tree and the earlier commits compared with have it
-    from tiago_nav.testing.harness import _process_name
+    from tiago_nav_tools.testing.harness import _process_name
     parent = {}
     for d in os.listdir('/proc'):
         if d.isdigit():
@@ -118,7 +118,7 @@ def _free_port():
 def run_child(tree, log_path):
     """One course mission on the launch of the sourced workspace; prints ``RESULT <json>``."""
     import tiago_nav       # the measured tree's (the sourced workspace's), so imported here
-    from tiago_nav.testing.harness import stop_process
+    from tiago_nav_tools.testing.harness import stop_process
     here = [os.path.realpath(p) for p in tiago_nav.__path__]
     if not any(p.startswith(os.path.realpath(tree) + os.sep) for p in here):
         raise SystemExit('bench_mission_cpu: tiago_nav comes from %s, not from %s'
@@ -305,8 +305,8 @@ def _quote(s):
 # --- judging and summarising ---------------------------------------------------------------
 def judge(rec, world):
     """The record's detection figures against the world file, from the true final pose."""
-    from tiago_nav.evaluate.metrics import detection_score
-    from tiago_nav.sim.inview import truth as view_truth
+    from tiago_nav_tools.evaluate.metrics import detection_score
+    from tiago_nav_tools.evaluate.inview import truth as view_truth
     if 'true_final_pose' not in rec:
         return rec
     in_view, glimpsed = view_truth(world, tuple(rec['true_final_pose']))
@@ -468,7 +468,7 @@ def main():
     else:
         temp = tempfile.mkdtemp(prefix='tiago_nav_cpu_')
         worktree = os.path.join(temp, 'tree')
-    from tiago_nav.benchmarks import commit as this_commit, launch_models, meta
+    from tiago_nav_tools.benchmarks import commit as this_commit, launch_models, meta
     from tiago_nav.sim.world import load_world
     world = load_world(os.path.join(ROOT, 'worlds', WORLD))
     try:

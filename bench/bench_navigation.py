@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Navigation benchmark: the move_base node's goal runner and navigator (tiago_nav.nav, the exact
-code the node runs, through tiago_nav.testing.navigation.ClosedLoop) drives the simulator (tiago_nav.sim.Simulator: pybullet scene, diff-drive
+code the node runs, through tiago_nav_tools.testing.navigation.ClosedLoop) drives the simulator (tiago_nav.sim.Simulator: pybullet scene, diff-drive
 base with TIAGo's limits, 0.01 m laser noise) to N seeded random reachable goals in each shipped
 world, one after the other from robot_start, in simulated time at 10 Hz control / 15 Hz scans.
 
@@ -27,7 +27,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
-from tiago_nav.benchmarks import meta  # noqa: E402
+from tiago_nav_tools.benchmarks import meta  # noqa: E402
 from tiago_nav.gridmap import distance_to_mask  # noqa: E402
 from tiago_nav.nav.costmap import MapScan  # noqa: E402
 from tiago_nav.nav.navigator import SUCCEEDED, NavConfig, Navigator  # noqa: E402
@@ -37,7 +37,7 @@ from tiago_nav.robot import ROBOT_RADIUS  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.simulator import SimConfig, Simulator  # noqa: E402
 from tiago_nav.sim.world import load_world  # noqa: E402
-from tiago_nav.testing.navigation import ClosedLoop  # noqa: E402
+from tiago_nav_tools.testing.navigation import ClosedLoop  # noqa: E402
 
 WORLDS = ['ias_lab_room_full.yaml', 'open_hall.yaml']
 SPEED = 1.0

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Short arcs: how well detection places a cylinder that few usable beams hit, against the
-count of usable beams that "in view" asks for (tiago_nav.sim.inview: the evaluator's 7, the
+count of usable beams that "in view" asks for (tiago_nav_tools.evaluate.inview: the evaluator's 7, the
 plain rule's 5). A 0.12 m cylinder 3.6 m from the laser, in a 10 m x 8 m mapped room, its arc cut
 three ways: (1) behind a nearer cylinder (2 m away) of another radius (0.183 m) or (2) of the
 same radius, the bearing stepped across its silhouette edge; (3) at the end of the usable fan,
@@ -25,17 +25,17 @@ import yaml
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
-from tiago_nav.benchmarks import meta  # noqa: E402
+from tiago_nav_tools.benchmarks import meta  # noqa: E402
 from tiago_nav.detection.pipeline import DetectionParams, ObstacleDetector  # noqa: E402
-from tiago_nav.evaluate.suite import DEFAULTS  # noqa: E402
+from tiago_nav_tools.evaluate.suite import DEFAULTS  # noqa: E402
 from tiago_nav.geometry import compose, inverse  # noqa: E402
 from tiago_nav.scan import median_ranges  # noqa: E402
-from tiago_nav.sim.inview import MIN_BEAMS, PLAIN_BEAMS, judge_view  # noqa: E402
+from tiago_nav_tools.evaluate.inview import MIN_BEAMS, PLAIN_BEAMS, judge_view  # noqa: E402
 from tiago_nav.sim.laser import LaserModel  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.scene import LaserConfig, Scene  # noqa: E402
 from tiago_nav.sim.world import World  # noqa: E402
-from tiago_nav.testing.evaluation import MATCH_GATE  # noqa: E402
+from tiago_nav_tools.evaluate.matching import MATCH_GATE  # noqa: E402
 
 NOISE = 0.01                          # [m] range noise std (the simulator's default)
 with open(os.path.join(ROOT, 'config', 'detection.yaml')) as _f:

@@ -19,10 +19,10 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
-from tiago_nav.benchmarks import launch_models, meta  # noqa: E402
+from tiago_nav_tools.benchmarks import launch_models, meta  # noqa: E402
 from tiago_nav.geometry import transform_points  # noqa: E402
 from tiago_nav.scan import scan_to_points  # noqa: E402
-from tiago_nav.testing.harness import free_port, stop_process  # noqa: E402
+from tiago_nav_tools.testing.harness import free_port, stop_process  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.simulator import SimConfig, Simulator  # noqa: E402
 from tiago_nav.sim.world import load_world  # noqa: E402

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Soak benchmark: many whole missions over the real chain (demo.launch), one after the other,
-over seeded random reachable poses B (tiago_nav.testing.evaluation.sample_goals) in the shipped
+over seeded random reachable poses B (tiago_nav_tools.evaluate.matching.sample_goals) in the shipped
 worlds and in generated ones (tiago_nav.sim.worlds.corridor_world variants), alternating the
 corridor law on and off.
 
@@ -54,8 +54,8 @@ def run_world(name, n, seed, rtf, limit):
     """Child process: one launch, ``n`` missions in world ``name``; prints ``RESULT <json>``."""
     import numpy as np
     from tiago_nav.sim.world import load_world
-    from tiago_nav.testing.evaluation import sample_goals
-    from tiago_nav.testing.harness import Harness, mission_record
+    from tiago_nav_tools.evaluate.matching import sample_goals
+    from tiago_nav_tools.testing.harness import Harness, mission_record
 
     tmp = tempfile.mkdtemp(prefix='soak_')
     path = world_path(name, tmp)
@@ -67,7 +67,7 @@ def run_world(name, n, seed, rtf, limit):
         h.connect(timeout=120.0)
         for k, goal in enumerate(goals):
             corridor = k % 2 == 0          # the first mission (from the start) with the law
-            # in view: tiago_nav.sim.inview (obstacles behind the robot's own body are not)
+            # in view: tiago_nav_tools.evaluate.inview (obstacles behind the robot's own body are not)
             rec = mission_record(h, world, goal, corridor, limit=limit)
             rec['world'] = name
             rec['dead_nodes'] = [d for d in h.dead_nodes() if d not in dead]
@@ -93,7 +93,7 @@ def run_world(name, n, seed, rtf, limit):
 
 
 def summarise(missions):
-    """Counts over ``missions`` (records of :func:`tiago_nav.testing.harness.mission_record`)."""
+    """Counts over ``missions`` (records of :func:`tiago_nav_tools.testing.harness.mission_record`)."""
     failed = [m for m in missions if not m.get('succeeded')]
     return {'missions': len(missions),
             'succeeded': len(missions) - len(failed),
@@ -199,7 +199,7 @@ def main():
     print('target (0 hangs, 0 collisions, 0 node deaths, every non-success explained): %s'
           % ('met' if met else 'MISSED'))
     os.makedirs(RESULTS, exist_ok=True)
-    from tiago_nav.benchmarks import launch_models, meta
+    from tiago_nav_tools.benchmarks import launch_models, meta
     laser, odometry = launch_models()
     report['meta'] = meta({k: v for k, v in vars(args).items() if k != 'run'}, quick=args.quick,
                           real_time_factor=args.rtf, laser_model=laser, odometry_model=odometry)

@@ -10,9 +10,9 @@ Writes bench/results/suites.json.
 
 ``--from SUITE=DIR`` reads an evaluate output folder of that suite instead of running it: each
 run is judged again from its raw record (``runs/ID/raw.json``) with the current metrics
-(``tiago_nav.evaluate.run.judge``), as the evaluator would judge it now.
+(``tiago_nav_tools.evaluate.run.judge``), as the evaluator would judge it now.
 
-Every suite is judged under two rules of "in view" (tiago_nav.sim.inview): the evaluator's
+Every suite is judged under two rules of "in view" (tiago_nav_tools.evaluate.inview): the evaluator's
 (at least MIN_BEAMS = 7 usable beams of the noise-free cast hit the obstacle) and a plain one
 (at least PLAIN_BEAMS = 5, detection's smallest cluster). Each rule's success rate, detection
 totals (in view, glimpsed, found, missed, false positives, centre errors of every matched
@@ -37,11 +37,11 @@ SUITES = ('suites/course.yaml', 'suites/robustness.yaml')
 TARGET = 0.99           # success rate per suite
 
 sys.path.insert(0, os.path.join(ROOT, 'src'))
-from tiago_nav.benchmarks import meta  # noqa: E402
-from tiago_nav.evaluate import metrics as M  # noqa: E402
-from tiago_nav.evaluate.report import detection_totals  # noqa: E402
-from tiago_nav.evaluate.run import judge  # noqa: E402
-from tiago_nav.sim.inview import MIN_BEAMS, PLAIN_BEAMS  # noqa: E402
+from tiago_nav_tools.benchmarks import meta  # noqa: E402
+from tiago_nav_tools.evaluate import metrics as M  # noqa: E402
+from tiago_nav_tools.evaluate.report import detection_totals  # noqa: E402
+from tiago_nav_tools.evaluate.run import judge  # noqa: E402
+from tiago_nav_tools.evaluate.inview import MIN_BEAMS, PLAIN_BEAMS  # noqa: E402
 
 RULES = (('evaluator', MIN_BEAMS), ('plain', PLAIN_BEAMS))   # name, usable beams for "in view"
 
@@ -109,7 +109,7 @@ def summarise(results):
 
 def rule_figures(results, min_beams):
     """One rule's figures: success rate with its Wilson interval, the detection totals
-    (:func:`tiago_nav.evaluate.report.detection_totals`, per profile) and the runs that did not
+    (:func:`tiago_nav_tools.evaluate.report.detection_totals`, per profile) and the runs that did not
     succeed."""
     s = summarise(results)
     det = detection_totals(results)

@@ -24,9 +24,9 @@ import sys
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 try:            # from the workspace (source .ws/devel/setup.bash): tiago_nav with its messages
-    from tiago_nav.testing.evaluation import plot_run, truth_table, visible_truth
-    from tiago_nav.testing.harness import Harness, HarnessError
-    from tiago_nav.benchmarks import launch_models, meta
+    from tiago_nav_tools.evaluate.matching import plot_run, truth_table, visible_truth
+    from tiago_nav_tools.testing.harness import Harness, HarnessError
+    from tiago_nav_tools.benchmarks import launch_models, meta
     from tiago_nav.sim.world import load_world
     import tiago_nav.msg  # noqa: F401
 except ImportError as e:
@@ -118,7 +118,7 @@ def main():
 def isolated(argv):
     """This script again with ``argv``, in a network namespace of its own (loopback only)."""
     import subprocess
-    from tiago_nav.evaluate.isolation import IsolationError, command, resolve
+    from tiago_nav_tools.evaluate.isolation import IsolationError, command, resolve
     try:
         cmd = command(resolve('netns'), [sys.executable, os.path.abspath(__file__)] + argv)
     except IsolationError as e:

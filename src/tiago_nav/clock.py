@@ -6,7 +6,7 @@ A *clock* is any object with ``now()`` (ROS time [s]: simulated under ``/use_sim
 time (the simulator, through ``/clock``) lives and is connected to this process, else a
 sentence saying why it is dead (its publisher unregistered, the connection closed, its process
 gone). :class:`tiago_nav.ros.clock.RosClock` is the ROS one (it gathers those facts and
-:func:`source_verdict` judges them), :class:`tiago_nav.testing.fakes.FakeClock` a simulated one
+:func:`source_verdict` judges them), :class:`tiago_nav_tools.testing.fakes.FakeClock` a simulated one
 for unit tests.
 
 ROS time standing still is not by itself a verdict: on a loaded machine a live simulator can

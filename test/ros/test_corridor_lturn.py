@@ -10,7 +10,8 @@ import rostest
 from nav_msgs.msg import Odometry
 
 from tiago_nav.ros.conversions import pose_from_msg
-from tiago_nav.testing.corridor import clearance
+from tiago_nav.robot import ROBOT_RADIUS
+from tiago_nav.sim.world import clearance
 
 from test_mission import MissionTest
 
@@ -30,7 +31,7 @@ class LTurnTest(MissionTest):
         super().test_1_mission_reaches_pose_b_and_finds_the_obstacles_in_view()
         track = list(self.track[start:])
         self.assertGreater(len(track), 100, 'too few ground-truth poses recorded')
-        c = clearance(self.world, track)
+        c = clearance(self.world, track, ROBOT_RADIUS)
         rospy.loginfo('L-turn mission: minimum clearance %.3f m over %d ground-truth poses',
                       c, len(track))
         self.assertGreaterEqual(c, MIN_CLEARANCE, 'came %.3f m from a wall' % c)

@@ -5,7 +5,7 @@ the robot: no service until the map arrives (and a fatal exit when it never does
 zero), bad requests and an unusable map. Every failure must answer success=false, no obstacles
 and a message naming the cause; the node must keep serving afterwards. The scans are the
 pybullet cast of test/worlds/detection_row.yaml with seeded noise; ground truth is the world
-file and Scene.visible_obstacles."""
+file and tiago_nav_tools.evaluate.inview.view_from."""
 import math
 import subprocess
 import threading
@@ -27,6 +27,7 @@ from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.scene import LaserConfig, Scene, noisy
 from tiago_nav.sim.world import load_world
 from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
+from tiago_nav_tools.evaluate.inview import view_from
 
 TIMEOUT = 20.0
 POSE = (0.3, -0.2, math.radians(10.0))     # base_footprint in map
@@ -40,7 +41,7 @@ class DetectionErrorsTest(unittest.TestCase):
         cls.laser = LaserConfig()
         with Scene(cls.world) as scene:
             cls.clean, _ = scene.cast(POSE)
-            cls.visible = scene.visible_obstacles(POSE)
+            cls.visible = view_from(scene, POSE).in_view
         cls.rng = np.random.default_rng(5)
         cls.corrupt = None
         cls.pub_map = rospy.Publisher('/map', OccupancyGrid, queue_size=1, latch=True)

@@ -8,8 +8,9 @@ import rostest
 
 from tiago_nav.geometry import compose, inverse
 from tiago_nav.sim.scene import Scene
-from tiago_nav.testing.evaluation import MATCH_GATE
+from tiago_nav_tools.evaluate.matching import MATCH_GATE
 from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
+from tiago_nav_tools.evaluate.inview import view_from
 
 from simtest import SimTestCase
 
@@ -24,7 +25,7 @@ class DetectionNodeTest(SimTestCase):
         super().setUpClass()
         cls.pose = cls.base_pose()
         with Scene(cls.world) as scene:
-            cls.visible = scene.visible_obstacles(cls.pose)
+            cls.visible = view_from(scene, cls.pose).in_view
         rospy.wait_for_service('obstacle_detection', timeout=TIMEOUT)
         cls.call = rospy.ServiceProxy('obstacle_detection', DetectObstacles)
 

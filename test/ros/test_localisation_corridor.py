@@ -34,7 +34,7 @@ from tiago_nav.msg import TiagoTaskGoal
 from tiago_nav.ros.actions import TaskClient
 from tiago_nav.ros.conversions import pose_from_msg
 from tiago_nav.sim.world import load_world
-from tiago_nav.testing.evaluation import score, visible_truth
+from tiago_nav_tools.evaluate.matching import score, visible_truth
 
 WAIT = 60.0            # wall bound on server waits [s]
 MISSION = 240.0        # bound on the mission [s wall] (a hang guard)

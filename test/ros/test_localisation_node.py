@@ -15,7 +15,7 @@ from tf2_msgs.msg import TFMessage
 
 from tiago_nav.geometry import compose, wrap_angle
 from tiago_nav.ros.conversions import pose_from_msg, pose_from_transform, pose_msg
-from tiago_nav.testing.localisation import steer
+from tiago_nav_tools.testing.localisation import steer
 
 from simtest import TIMEOUT, SimTestCase
 

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Rostest of the localisation node on real laser data (test/localisation_real.test): the
 first 200 scans of the Intel Research Lab log (test/data/intel-corrected-slice.log.gz, Radish)
-turned into a bag and a map as the benchmark does (tiago_nav.testing.realdata), the map given on
+turned into a bag and a map as the benchmark does (tiago_nav_tools.testing.realdata), the map given on
 /map, the bag played with ``rosbag play --clock``; /amcl_pose is scored against the log's
 SLAM-corrected poses. The node tracks this stretch today; the bounds fail if it stops doing so
 (dead reckoning over the slice is checked to be far outside them)."""
@@ -14,10 +14,10 @@ import numpy as np
 import rospy
 import rostest
 
-from tiago_nav.testing.realdata import scoring
-from tiago_nav.testing.realdata.convert import prepare, read_reference
-from tiago_nav.testing.realdata.odometry import dead_reckoning
-from tiago_nav.testing.realdata.play import Recorder, play_bag, publish_map
+from tiago_nav_tools.testing.realdata import scoring
+from tiago_nav_tools.testing.realdata.convert import prepare, read_reference
+from tiago_nav_tools.testing.realdata.odometry import dead_reckoning
+from tiago_nav_tools.testing.realdata.play import Recorder, play_bag, publish_map
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SLICE = os.path.join(os.path.dirname(HERE), 'data', 'intel-corrected-slice.log.gz')

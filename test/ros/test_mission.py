@@ -26,7 +26,7 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import UInt32
 
 from tiago_nav.geometry import compose, inverse
-from tiago_nav.testing.evaluation import match_obstacles, score, visible_truth
+from tiago_nav_tools.evaluate.matching import match_obstacles, score, visible_truth
 from tiago_nav.msg import TiagoTaskFeedback as FB, TiagoTaskGoal
 from tiago_nav.ros.actions import TaskClient
 from tiago_nav.ros.conversions import pose_from_msg

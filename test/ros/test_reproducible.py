@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Rostest: a mission's outcome is a function of (world, seed, launch arguments, goal), not of
 when the goal is sent. Two fresh launches of demo.launch at ``real_time_factor:=0``
-(:mod:`tiago_nav.testing.repro`, each in a child process with its own master); in each, plain
+(:mod:`tiago_nav_tools.testing.repro`, each in a child process with its own master); in each, plain
 SimpleActionClients send a corridor_controller goal (3 m of the course corridor), the course
 mission from where it ended, a second mission from its end and then a move_base goal, each
 after a wall delay that differs between the runs (0.1 s and 2.5 s). Every result field (the
@@ -14,7 +14,7 @@ import unittest
 import rostest
 from actionlib_msgs.msg import GoalStatus
 
-from tiago_nav.testing.repro import differences, run_child
+from tiago_nav_tools.testing.repro import differences, run_child
 
 
 class Reproducible(unittest.TestCase):

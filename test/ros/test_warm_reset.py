@@ -5,11 +5,11 @@ and a reset that does not (a planted fault) is reported.
 Three rows of the course world that share a stack key (the ``tiago`` sensing profile, with
 the scan-matching localisation) but differ in seed, pose B and corridor law (on, off, on: a
 row after one with the other setting) run on one warm stack with every reset verified
-(:func:`tiago_nav.evaluate.warm.run_group`, ``verify_reset`` 1): the first on a fresh stack, the
+(:func:`tiago_nav_tools.evaluate.warm.run_group`, ``verify_reset`` 1): the first on a fresh stack, the
 two others after a reset, each of those two run again on a fresh stack of its own while the
-warm stack stays up (:func:`tiago_nav.evaluate.warm.verify`). Both must come out equal
-(:func:`tiago_nav.evaluate.run.differences`: every field but
-:data:`~tiago_nav.evaluate.run.WALL_CLOCK_FIELDS`: outcome, path, feedback with its stamps, final
+warm stack stays up (:func:`tiago_nav_tools.evaluate.warm.verify`). Both must come out equal
+(:func:`tiago_nav_tools.evaluate.run.differences`: every field but
+:data:`~tiago_nav_tools.evaluate.run.WALL_CLOCK_FIELDS`: outcome, path, feedback with its stamps, final
 pose, every field of the obstacles found with their uncertainties, the localisation's
 covariance, ...), and the missions must have done what the course asks (succeeded, no contact).
 
@@ -30,9 +30,9 @@ import unittest
 import rostest
 import yaml
 
-from tiago_nav.evaluate import run as R
-from tiago_nav.evaluate.suite import expand
-from tiago_nav.evaluate.warm import run_group, stack_key
+from tiago_nav_tools.evaluate import run as R
+from tiago_nav_tools.evaluate.suite import expand
+from tiago_nav_tools.evaluate.warm import run_group, stack_key
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 WORLD = os.path.join(os.path.dirname(os.path.dirname(HERE)), 'worlds', 'ias_lab_room_full.yaml')
@@ -113,7 +113,7 @@ class WarmReset(unittest.TestCase):
             yaml.safe_dump(LEAK_SUITE, f)
         out = os.path.join(self.out, 'eval')
         env = dict(os.environ, TIAGO_NAV_TEST_RESET_LEAK='laser_noise')
-        p = subprocess.run([sys.executable, '-c', 'import sys; from tiago_nav.evaluate.cli import '
+        p = subprocess.run([sys.executable, '-c', 'import sys; from tiago_nav_tools.evaluate.cli import '
                             'main; sys.exit(main())', suite, '--out', out, '--workers', '1',
                             '--warm', '--verify-reset', '1'], env=env, stdout=subprocess.PIPE,
                            stderr=subprocess.STDOUT, universal_newlines=True, timeout=900)

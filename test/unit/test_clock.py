@@ -8,7 +8,7 @@ import pytest
 
 from tiago_nav.clock import StallWatch, Ticker, source_verdict, sleep_until, wait_until
 from tiago_nav.motion import MotionMonitor, wait_until_still
-from tiago_nav.testing.fakes import FakeClock
+from tiago_nav_tools.testing.fakes import FakeClock
 
 
 # --- the verdict from facts -------------------------------------------------------------------

@@ -12,7 +12,7 @@ from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.world import World
 from tiago_nav.sim.worlds import corridor_world
-from tiago_nav.testing.corridor import run_in_simulator
+from tiago_nav_tools.testing.corridor import run_in_simulator
 
 P = CorridorParams()
 ROBOT_R = ROBOT_RADIUS
@@ -167,7 +167,7 @@ def drive(world_dict, seed=0, **kw):
         sim.close()
 
 
-def clearance(track, width, bend_at=None, bend_deg=0.0):
+def track_clearance(track, width, bend_at=None, bend_deg=0.0):
     """Minimum distance [m] of the base's edge to the straight corridor's walls, from x = 0."""
     inside = track[(track[:, 0] > 0.0) & (track[:, 0] < (bend_at or 1e9))]
     return float((width / 2 - np.abs(inside[:, 1])).min() - ROBOT_R)
@@ -184,7 +184,7 @@ def test_closed_loop_straight_corridors(width, start):
     # stopped just past the exit (x = 5), on the centre line, facing along the corridor
     assert 5.0 + 0.1 < x < 5.0 + 0.7
     assert abs(y) < 0.05 and abs(yaw) < math.radians(5)
-    assert clearance(track, width) > 0.05
+    assert track_clearance(track, width) > 0.05
     after_first_metre = track[(track[:, 0] > 1.0) & (track[:, 0] < 5.0)]
     assert np.sqrt(np.mean(after_first_metre[:, 1] ** 2)) < 0.03
 

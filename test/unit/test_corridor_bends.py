@@ -17,9 +17,9 @@ from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.sim.laser import LaserModel
 from tiago_nav.sim.odometry import OdometryNoise
 from tiago_nav.sim.simulator import SimConfig, Simulator
-from tiago_nav.sim.world import World, load_world
+from tiago_nav.sim.world import World, clearance, load_world
 from tiago_nav.sim.worlds import corridor_world
-from tiago_nav.testing.corridor import clearance, ray_cast, run_in_simulator, world_segments
+from tiago_nav_tools.testing.corridor import ray_cast, run_in_simulator, world_segments
 
 from test_mission import CFG, FakeBackend
 
@@ -45,7 +45,7 @@ def test_stops_before_the_bend_centred_and_clear(bend, width):
     cmd, track, collisions, world = drive(corridor_world(width, 6.0, bend, 3.0, mitre=True), seed=2)
     assert cmd.state == 'done', cmd.reason
     assert collisions == 0
-    assert clearance(world, track[:, :2]) >= 0.05
+    assert clearance(world, track[:, :2], ROBOT_RADIUS) >= 0.05
     x, y, yaw = track[-1]
     b = math.radians(bend)
     ex, ey = 3.0 + 3.0 * math.cos(b), 3.0 * math.sin(b)
@@ -111,7 +111,7 @@ def test_tiago_profile_stops_end_clearance_before_the_bend(bend, seed):
     assert cmd.state == 'done', cmd.reason
     assert 'stopped %.2f m before a wall ahead past its end' % P.end_clearance in cmd.reason
     assert collisions == 0
-    assert clearance(world, track[:, :2]) >= LAW_CLEARANCE[bend]
+    assert clearance(world, track[:, :2], ROBOT_RADIUS) >= LAW_CLEARANCE[bend]
     x, y, yaw = track[-1]
     assert abs(y) < 0.05                                     # centred in the first leg
     assert _ahead(world, track[-1]) == pytest.approx(P.end_clearance, abs=0.05)
@@ -226,7 +226,7 @@ def test_shipped_bend_worlds_are_what_their_generator_writes(bend, tmp_path):
     import subprocess
     import sys
     from tiago_nav.sim.world import load_world
-    from tiago_nav.testing.evaluation import visible_truth
+    from tiago_nav_tools.evaluate.matching import visible_truth
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     shipped = os.path.join(root, 'worlds', 'corridor_bend_%d.yaml' % bend)
     subprocess.run([sys.executable, os.path.join(root, 'scripts', 'make_bend_worlds.py'),

@@ -1,6 +1,6 @@
 """The corridor_controller node's decisions (tiago_nav.nodes.corridor_controller.CorridorServer)
 driven without ROS: a fake clock, action server and publisher, and a fake robot with an ideal
-laser in generated corridor worlds (tiago_nav.testing.corridor.FakeCorridorRobot)."""
+laser in generated corridor worlds (tiago_nav_tools.testing.corridor.FakeCorridorRobot)."""
 import math
 from dataclasses import replace
 
@@ -11,8 +11,8 @@ from tiago_nav.nodes.corridor_controller import CorridorServer, Params, wait_rea
 from tiago_nav.params import ParamError
 from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.sim.worlds import corridor_world
-from tiago_nav.testing.corridor import FakeCorridorRobot
-from tiago_nav.testing.fakes import FakeActionServer, FakeClock, FakePublisher
+from tiago_nav_tools.testing.corridor import FakeCorridorRobot
+from tiago_nav_tools.testing.fakes import FakeActionServer, FakeClock, FakePublisher
 
 # needs ROS: the node module imports rospy; its messages need the built workspace
 pytestmark = pytest.mark.ros

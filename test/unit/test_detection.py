@@ -11,6 +11,7 @@ from tiago_nav.detection.subtraction import MapDistance, brute_force_distance, s
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.scene import LaserConfig, Scene, noisy
 from tiago_nav.sim.world import World
+from tiago_nav_tools.evaluate.inview import view_from
 
 L = LaserConfig()
 
@@ -29,7 +30,7 @@ def scan_of(w, pose=(0.0, 0.0, 0.0), noise=0.01, seed=0):
     with Scene(w) as s:
         r, _ = s.cast(pose)
         laser = s.laser_pose(pose)
-        visible = s.visible_obstacles(pose)
+        visible = view_from(s, pose).in_view
     return noisy(r, noise, np.random.default_rng(seed), L.range_min, L.range_max), laser, visible
 
 

@@ -1,4 +1,4 @@
-"""The one definition of "in view" (tiago_nav.sim.inview) that the evaluator, the benchmarks,
+"""The one definition of "in view" (tiago_nav_tools.evaluate.inview) that the evaluator, the benchmarks,
 the harness and the tests judge detection by: enough usable beams hit the obstacle (detection's
 smallest cluster plus the veil filter's edge losses, within the profile's usable fan and the
 detector's range), whatever its edges."""
@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from tiago_nav.detection import DetectionParams
-from tiago_nav.evaluate import metrics as M
-from tiago_nav.sim import inview
-from tiago_nav.sim.inview import MIN_BEAMS, PLAIN_BEAMS, USABLE_ANGLE, judge_view, truth
+from tiago_nav_tools.evaluate import metrics as M
+from tiago_nav_tools.evaluate import inview
+from tiago_nav_tools.evaluate.inview import (MIN_BEAMS, PLAIN_BEAMS, USABLE_ANGLE, judge_view, truth,
+                                         view_from)
 from tiago_nav.sim.laser import LaserModel
 from tiago_nav.sim.scene import LaserConfig, Scene
 from tiago_nav.sim.world import World
@@ -103,7 +104,7 @@ def test_scene_half_hidden_and_fully_flanked_are_in_view():
     # the far cylinder half behind a near one: in view
     w = _world([(2.0, 0.0, 0.2), (5.0, 0.55, 0.25)])
     with Scene(w) as s:
-        assert s.visible_obstacles((0.0, 0.0, 0.0)) == [0, 1]
+        assert view_from(s, (0.0, 0.0, 0.0)).in_view == [0, 1]
         assert inview.view_from(s, (0.0, 0.0, 0.0)).usable_beams[1] < 15   # about half
     # the far cylinder's middle seen between two near ones that hide both its edges: in view too
     w = _world([(2.0, -0.19, 0.12), (2.0, 0.19, 0.12), (6.0, 0.0, 0.45)])

@@ -1,6 +1,6 @@
 """Detection where the classic pipeline goes wrong: partly hidden cylinders (short arcs), range
 spreading of the beams, dropouts beside an obstacle. Synthetic scans: pybullet cast of known
-cylinders plus seeded noise; ground truth from the world and Scene.visible_obstacles."""
+cylinders plus seeded noise; ground truth from the world and tiago_nav_tools.evaluate.inview.view_from."""
 import math
 
 import numpy as np
@@ -9,10 +9,11 @@ import pytest
 from tiago_nav.detection import DetectionParams, ObstacleDetector
 from tiago_nav.detection.centres import circle_fit, radius_std
 from tiago_nav.detection.clustering import centroid_clusters
-from tiago_nav.evaluate.suite import DEFAULTS
+from tiago_nav_tools.evaluate.suite import DEFAULTS
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.scene import LaserConfig, Scene, noisy
 from tiago_nav.sim.world import World
+from tiago_nav_tools.evaluate.inview import view_from
 
 L = LaserConfig()
 TOLERANCE = DEFAULTS['detection_tolerance']     # [m] the evaluator's centre tolerance (0.05)
@@ -29,7 +30,7 @@ def run(w, seed, pose=(0.0, 0.0, 0.0), **params):
     with Scene(w) as s:
         clean, ids = s.cast(pose)
         laser = s.laser_pose(pose)
-        visible = s.visible_obstacles(pose)
+        visible = view_from(s, pose).in_view
         hits = {i: int(np.sum(ids == b)) for i, b in enumerate(s.movable_ids)}
     r = noisy(clean, 0.01, np.random.default_rng(seed), L.range_min, L.range_max)
     det = ObstacleDetector(rasterise_world(w), DetectionParams(**params))

@@ -20,6 +20,7 @@ from tiago_nav.robot import LASER_OFFSET
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.scene import LaserConfig, Scene, noisy
 from tiago_nav.sim.world import load_world
+from tiago_nav_tools.evaluate.inview import view_from
 
 # needs ROS: the node's Params: tiago_nav.nodes.obstacle_detection imports rospy
 pytestmark = pytest.mark.ros
@@ -88,7 +89,7 @@ class FakeSensors:
 def clean():
     with Scene(WORLD) as scene:
         r, _ = scene.cast(POSE)
-        return r, scene.visible_obstacles(POSE)
+        return r, view_from(scene, POSE).in_view
 
 
 @pytest.fixture(scope='module')

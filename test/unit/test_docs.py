@@ -8,9 +8,9 @@ import re
 
 import pytest
 
-from tiago_nav import benchmarks, docs
+from tiago_nav_tools import benchmarks, docs
 from tiago_nav.params import param_fields
-from tiago_nav.interfaces import NODES, SECTIONS
+from tiago_nav_tools.interfaces import NODES, SECTIONS
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 README_MAX_LINES = 300
@@ -43,7 +43,7 @@ def test_every_interface_parameter_is_declared(entry):
     cls = docs.node_params(entry)
     declared = docs.referenced_params(entry)
     missing = [n for n in docs.interface_params(cls) if n not in declared]
-    assert not missing, '%s: parameters %s name ROS interfaces that src/tiago_nav/interfaces.py ' \
+    assert not missing, '%s: parameters %s name ROS interfaces that src/tiago_nav_tools/interfaces.py ' \
         'does not declare' % (entry['node'], missing)
     unknown = declared - {n for n, _ in param_fields(cls)}
     assert not unknown, '%s: interfaces.py names {%s}, not parameters of %s.Params' \
@@ -55,9 +55,7 @@ def test_every_node_module_is_declared():
     """A node module with a Params dataclass is on the page (the client has none)."""
     modules = {os.path.splitext(os.path.basename(p))[0]
                for p in glob.glob(os.path.join(ROOT, 'src', 'tiago_nav', 'nodes', '*.py'))}
-    # the batch evaluator and its per-run supervisor are tools, not nodes of the mission: their
-    # command line and outputs are docs/evaluation.md's
-    modules -= {'__init__', '__main__', 'evaluate', 'evaluate_run', 'evaluate_warm'}
+    modules -= {'__init__', '__main__'}
     declared = {e['params'].rsplit('.', 1)[1] for e in NODES if e['params']} | \
         {e['executable'] for e in NODES if not e['params']}
     assert modules <= declared | {e['executable'] for e in NODES}, modules - declared

@@ -6,7 +6,7 @@ import shutil
 import pytest
 
 from conftest import ROOT
-from tiago_nav.evaluate import run, suite
+from tiago_nav_tools.evaluate import run, suite
 
 pytestmark = [pytest.mark.ros, pytest.mark.skipif(
     shutil.which('roscore') is None or 'tiago_nav' not in os.environ.get('ROS_PACKAGE_PATH', '')

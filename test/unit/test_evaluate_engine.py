@@ -1,4 +1,4 @@
-"""The evaluator's Dask engine (tiago_nav.evaluate.engine.run_all) on a real in-process Dask
+"""The evaluator's Dask engine (tiago_nav_tools.evaluate.engine.run_all) on a real in-process Dask
 cluster, with the runs themselves faked: every run is submitted and its result returned; a
 candidate's other runs wait for its first, and are not run when that one fails its interface
 check. Checks the engine against whichever dask[distributed] is installed (2023.5.0, the last
@@ -8,7 +8,7 @@ import pytest
 pytest.importorskip('distributed')
 from distributed import LocalCluster                          # noqa: E402
 
-from tiago_nav.evaluate import engine, run                    # noqa: E402
+from tiago_nav_tools.evaluate import engine, run                    # noqa: E402
 
 
 def spec(run_id, candidate):

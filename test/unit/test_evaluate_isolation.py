@@ -1,4 +1,4 @@
-"""Runs isolated from each other and from the network (tiago_nav.evaluate.isolation): the
+"""Runs isolated from each other and from the network (tiago_nav_tools.evaluate.isolation): the
 probe, forcing a mode, and the audit of what a process in a run's namespace holds. The real
 run in a namespace is test_evaluate_e2e.py's."""
 import os
@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from conftest import ROOT
-from tiago_nav.evaluate import isolation
+from tiago_nav_tools.evaluate import isolation
 
 SRC = os.path.join(ROOT, 'src')
 DENIED = 'unshare -n: exit 1: Operation not permitted'
@@ -70,7 +70,7 @@ def test_a_process_in_the_run_namespace_listens_only_there():
 @needs_netns
 def test_nested_namespaces():
     """Inside a namespace (as CI's chroots run), a run's namespace still comes up."""
-    code = ('import subprocess, sys; sys.path.insert(0, %r); from tiago_nav.evaluate import isolation as i; '
+    code = ('import subprocess, sys; sys.path.insert(0, %r); from tiago_nav_tools.evaluate import isolation as i; '
             'sys.exit(subprocess.call(i.command(i.resolve("netns"), ["true"])))' % SRC)
     outer = isolation.unshare_prefixes()[0]
     assert subprocess.call(outer + [sys.executable, '-I', isolation.SCRIPT, '--', sys.executable, '-c', code],
@@ -78,7 +78,7 @@ def test_nested_namespaces():
 
 
 def test_evaluator_refuses_a_forced_netns_it_cannot_give(monkeypatch, tmp_path, capsys):
-    from tiago_nav.evaluate import cli
+    from tiago_nav_tools.evaluate import cli
     monkeypatch.setattr(isolation, '_PROBED', {'prefix': None, 'why': DENIED})
     rc = cli.main([os.path.join(ROOT, 'suites', 'smoke.yaml'), '--out', str(tmp_path / 'out'),
                    '--isolation', 'netns'])

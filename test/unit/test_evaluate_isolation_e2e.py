@@ -10,7 +10,7 @@ import time
 import pytest
 
 from conftest import ROOT
-from tiago_nav.evaluate import isolation, run, suite
+from tiago_nav_tools.evaluate import isolation, run, suite
 
 pytestmark = [pytest.mark.ros, pytest.mark.skipif(
     shutil.which('roscore') is None or 'tiago_nav' not in os.environ.get('ROS_PACKAGE_PATH', '')

@@ -3,7 +3,7 @@ import math
 
 import pytest
 
-from tiago_nav.evaluate import metrics as M
+from tiago_nav_tools.evaluate import metrics as M
 
 
 def test_success():
@@ -107,7 +107,7 @@ def test_shortest_path_and_clearance():
 
 
 def test_same_and_differences():
-    from tiago_nav.evaluate.run import differences, same
+    from tiago_nav_tools.evaluate.run import differences, same
     assert same(0.1 + 0.2, 0.3) and not same(0.3, 0.3 + 1e-6)
     assert same([1.0, {'a': [2.0]}], [1.0, {'a': [2.0 + 1e-13]}])
     assert not same([1.0], [1.0, 2.0]) and not same({'a': 1}, {'b': 1})

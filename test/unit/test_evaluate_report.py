@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 import pytest
 
 from conftest import ROOT
-from tiago_nav.evaluate import report, run
+from tiago_nav_tools.evaluate import report, run
 
 COURSE = os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml')
 SPEC = {'id': 'abc', 'pair': 'p1', 'world': {'name': 'ias_lab_room_full', 'group': 'course'},
@@ -98,7 +98,7 @@ def test_slots_never_shared(tmp_path):
     import subprocess
     import sys
     code = ('import sys, tempfile; sys.path.insert(0, %r); tempfile.gettempdir = lambda: %r; '
-            'from tiago_nav.evaluate import run; print(run.claim_slot())') % (
+            'from tiago_nav_tools.evaluate import run; print(run.claim_slot())') % (
         os.path.join(ROOT, 'src'), str(tmp_path))
     holder = subprocess.Popen([sys.executable, '-c', code + '; sys.stdout.flush(); sys.stdin.read()'],
                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)

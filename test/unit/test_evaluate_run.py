@@ -1,13 +1,13 @@
-"""The evaluation run's end of a mission (tiago_nav.nodes.evaluate_run.mission_over): a goal is over
+"""The evaluation run's end of a mission (tiago_nav_tools.evaluate.supervisor.mission_over): a goal is over
 when its result has come, not when the status topic first names its end state."""
 import pytest
 
-pytestmark = pytest.mark.ros         # actionlib, tiago_nav.nodes.evaluate_run
+pytestmark = pytest.mark.ros         # actionlib, tiago_nav_tools.evaluate.supervisor
 pytest.importorskip('actionlib')
 from actionlib import SimpleGoalState                       # noqa: E402
 from actionlib_msgs.msg import GoalStatus                   # noqa: E402
 
-from tiago_nav.nodes.evaluate_run import END_WAIT, mission_over   # noqa: E402
+from tiago_nav_tools.evaluate.supervisor import END_WAIT, mission_over   # noqa: E402
 
 
 class Client:

@@ -8,8 +8,8 @@ import pytest
 import yaml
 
 from conftest import ROOT
-from tiago_nav.evaluate import cli, suite
-from tiago_nav.evaluate.suite import SuiteError
+from tiago_nav_tools.evaluate import cli, suite
+from tiago_nav_tools.evaluate.suite import SuiteError
 
 COURSE = os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml')
 SMALL = {'name': 't', 'worlds': [{'file': COURSE, 'poses': [[11.0, 0.0, -45.0]]}],
@@ -110,7 +110,7 @@ def test_resume_skips_finished_runs(tmp_path, capsys, monkeypatch):
     path = write(tmp_path, SMALL)
     out = tmp_path / 'o'
     runs, _ = suite.expand(SMALL, path, str(tmp_path))
-    from tiago_nav.evaluate import engine
+    from tiago_nav_tools.evaluate import engine
     calls = []
 
     def fake_run_all(todo, out_dir, **kw):

@@ -1,5 +1,5 @@
 """Where a run's time goes: the phases from the supervisor's stage marks, the batch's
-breakdown and summary.md's "Where the time goes" (tiago_nav.evaluate.timing, report)."""
+breakdown and summary.md's "Where the time goes" (tiago_nav_tools.evaluate.timing, report)."""
 import os
 import subprocess
 import sys
@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from tiago_nav.evaluate import report, run, timing
+from tiago_nav_tools.evaluate import report, run, timing
 
 
 def test_phases_of_a_whole_run():
@@ -99,7 +99,7 @@ def test_phases_and_isolation_are_wall_clock_fields():
 
 
 def test_benchmarks_page_shows_where_the_time_goes():
-    from tiago_nav import benchmarks
+    from tiago_nav_tools import benchmarks
     rs = [result('a', 4.0, 2.0, 1.8), result('b', 3.8, 1.8, 2.0)]
     setting = {'setting': '2 workers', 'runs': 2, 'results': 2, 'wall_s': 8.0, 'missions_per_minute': 15.0,
                'outcomes': {'succeeded': 2}, 'isolation': report.isolations(rs),

@@ -1,4 +1,4 @@
-"""Warm stacks without ROS: which rows share a stack (tiago_nav.evaluate.warm.stack_key,
+"""Warm stacks without ROS: which rows share a stack (tiago_nav_tools.evaluate.warm.stack_key,
 group_by_stack), the engine sending each group to one worker in order (faked runs), a row whose
 reset failed run again on a fresh stack and counted, the verdict on a reset row against its
 fresh run (every field but the wall-clock ones compared; different: diverged, with the fresh
@@ -11,8 +11,8 @@ import sys
 
 import pytest
 
-from tiago_nav.evaluate import run as R
-from tiago_nav.evaluate import warm as W
+from tiago_nav_tools.evaluate import run as R
+from tiago_nav_tools.evaluate import warm as W
 
 
 def spec(run_id, world='w', profile='tiago', law=True, seed=1, goal=(1.0, 0.0, 0.0), candidate='own'):
@@ -44,7 +44,7 @@ def test_groups_keep_the_suite_order_within_a_key():
 def test_the_engine_sends_each_group_to_one_worker_in_order(tmp_path, monkeypatch):
     pytest.importorskip('distributed')
     from distributed import LocalCluster
-    from tiago_nav.evaluate import engine
+    from tiago_nav_tools.evaluate import engine
     calls = []
 
     def fake_group(specs, out_dir, record=False, verify_reset=0):
@@ -234,7 +234,7 @@ def test_a_warm_row_has_its_isolation_and_phases_counted_from_its_start(tmp_path
 
 
 class FakeClock:
-    """``time`` for :mod:`tiago_nav.evaluate.warm`: its monotonic clock moves when told."""
+    """``time`` for :mod:`tiago_nav_tools.evaluate.warm`: its monotonic clock moves when told."""
 
     def __init__(self):
         self.now = 1000.0
@@ -247,7 +247,7 @@ class FakeClock:
 
 
 def test_a_new_stack_is_isolated_as_a_fresh_run(tmp_path, monkeypatch):
-    from tiago_nav.evaluate import isolation as iso
+    from tiago_nav_tools.evaluate import isolation as iso
     started = []
 
     class Proc:
@@ -258,13 +258,13 @@ def test_a_new_stack_is_isolated_as_a_fresh_run(tmp_path, monkeypatch):
     monkeypatch.setattr(R, 'claim_slot', lambda: 3)
     st = W.Stack('k', str(tmp_path), dict(spec('a1'), isolation='netns'))
     assert st.isolation == 'netns' and started[-1][:2] == ['unshare', '-n']
-    assert started[-1][-2:] == ['tiago_nav.nodes.evaluate_warm', st.dir]
+    assert started[-1][-2:] == ['tiago_nav_tools.evaluate.warm_supervisor', st.dir]
     st = W.Stack('k', str(tmp_path), dict(spec('a1'), isolation='loopback'))
     assert st.isolation == 'loopback' and started[-1][0] == sys.executable
 
 
 def test_the_summary_says_how_the_warm_runs_got_their_stack(tmp_path):
-    from tiago_nav.evaluate import report
+    from tiago_nav_tools.evaluate import report
     ph = {k: {'wall_s': 1.0, 'cpu_s': 1.0} for k in ('startup', 'mission', 'teardown', 'judging')}
     rs = [{'run_id': 'a', 'stack': 'fresh', 'isolation': 'netns', 'phases': dict(ph, startup={'wall_s': 4.0, 'cpu_s': 3.0})},
           {'run_id': 'b', 'stack': 'reset', 'isolation': 'netns', 'phases': ph, 'verified': True},
@@ -285,7 +285,7 @@ def test_the_summary_says_how_the_warm_runs_got_their_stack(tmp_path):
     assert report.divergence_lines(rs[:3]) == []
     assert report.stacks([{'run_id': 'a'}]) is None
     meta = {'isolation': report.isolations(rs), 'stacks': w,
-            'time': __import__('tiago_nav.evaluate.timing', fromlist=['batch']).batch(rs, 10.0, 1)}
+            'time': __import__('tiago_nav_tools.evaluate.timing', fromlist=['batch']).batch(rs, 10.0, 1)}
     text = '\n'.join(report.isolation_lines(meta) + report.time_lines(rs, meta))
     assert 'each stack (master and nodes) in a network namespace of its own' in text
     assert 'Warm stacks: 3 runs after a reset (median start-up 1.00 s), 2 on a stack' in text
@@ -311,7 +311,7 @@ def test_tree_cpu_counts_the_processes_carrying_the_token():
 
 
 def test_benchmarks_page_shows_warm_against_fresh():
-    from tiago_nav import benchmarks
+    from tiago_nav_tools import benchmarks
     w = {'workers': 2, 'fresh': '2 workers', 'warm': '2 workers, warm',
          'fresh_missions_per_minute': 12.5, 'warm_missions_per_minute': 31.0, 'speedup': 2.48,
          'runs_compared': 4, 'runs_differing': {'x': ['path']}, 'all_equal': False,
@@ -327,7 +327,7 @@ def test_benchmarks_page_shows_warm_against_fresh():
 def test_benchmarks_page_holds_each_setting_to_the_first():
     """A warm-only run of the benchmark (2 workers fresh, then warm) compares with its first
     setting, not with a 1-worker one it did not run, and claims no best local setting."""
-    from tiago_nav import benchmarks
+    from tiago_nav_tools import benchmarks
     s = [{'setting': '2 workers', 'results': 3, 'runs': 3},
          {'setting': '2 workers, warm', 'results': 3, 'runs': 3, 'runs_compared': 3,
           'runs_differing_from_2_workers': {'b': ['path']}}]
@@ -341,7 +341,7 @@ def test_benchmarks_page_holds_each_setting_to_the_first():
 def test_bench_picks_rows_in_whole_stack_groups():
     import importlib.util
     from conftest import ROOT
-    from tiago_nav.evaluate import suite
+    from tiago_nav_tools.evaluate import suite
     path = os.path.join(ROOT, 'bench', 'bench_evaluate.py')
     spec_ = importlib.util.spec_from_file_location('bench_evaluate', path)
     B = importlib.util.module_from_spec(spec_)

@@ -11,8 +11,8 @@ import time
 import pytest
 
 from conftest import ROOT
-from tiago_nav.evaluate import isolation, run, suite
-from tiago_nav.evaluate import warm as W
+from tiago_nav_tools.evaluate import isolation, run, suite
+from tiago_nav_tools.evaluate import warm as W
 
 pytestmark = [pytest.mark.ros, pytest.mark.skipif(
     shutil.which('roscore') is None or 'tiago_nav' not in os.environ.get('ROS_PACKAGE_PATH', '')

@@ -1,11 +1,11 @@
-"""Ground-truth judging of missions (tiago_nav.testing.evaluation): matching, scores, goal sampling."""
+"""Ground-truth judging of missions (tiago_nav_tools.evaluate.matching): matching, scores, goal sampling."""
 import math
 import os
 
 import numpy as np
 import pytest
 
-from tiago_nav.testing.evaluation import match_obstacles, sample_goals, score, truth_table, visible_truth
+from tiago_nav_tools.evaluate.matching import match_obstacles, sample_goals, score, truth_table, visible_truth
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.world import load_world
 
@@ -60,8 +60,8 @@ def test_obstacles_behind_the_robots_body_are_out_of_view():
     """The soak's open_hall mission that ended at (1.24, 4.06, -24 deg) counted cylinder 5 as
     in view and missed: all 16 beams that reach it are the fan's last ones, beyond the real
     laser's self-hit angle (its own shell). One definition for every laser model
-    (tiago_nav.sim.inview): not in view, only glimpsed (a detector may report it)."""
-    from tiago_nav.sim.inview import truth
+    (tiago_nav_tools.evaluate.inview): not in view, only glimpsed (a detector may report it)."""
+    from tiago_nav_tools.evaluate.inview import truth
     world = load_world(os.path.join(WORLDS, 'open_hall.yaml'))
     pose = (1.2373, 4.0634, -0.42264)
     in_view = [i for i, *_ in visible_truth(world, pose)]

@@ -3,7 +3,7 @@ import os
 import subprocess
 import sys
 
-from tiago_nav.testing.harness import tree_cpu_seconds
+from tiago_nav_tools.testing.harness import tree_cpu_seconds
 
 BURN = 0.4      # [s of CPU] each process burns
 # A child that starts a grandchild in a session of its own (as roslaunch starts its nodes); each

@@ -1,4 +1,4 @@
-"""Every module under src/tiago_nav imports. Where ROS 1 is absent (Noetic's Python emulated
+"""Every module under src/tiago_nav and src/tiago_nav_tools imports. Where ROS 1 is absent (Noetic's Python emulated
 without ROS, test/platforms/noetic_python.sh) a module may fail only for want of a ROS package
 listed here: it is then skipped by name, with the package it needs. Where rospy imports, every
 module must, and so must the generated messages once the workspace is built."""
@@ -23,14 +23,15 @@ GENERATED = ('tiago_nav.msg', 'tiago_nav.srv')
 
 
 def modules():
-    """Dotted names of every module under src/tiago_nav, sorted."""
+    """Dotted names of every module under src/tiago_nav and src/tiago_nav_tools, sorted."""
     names = []
-    for d, dirs, files in os.walk(os.path.join(SRC, 'tiago_nav')):
-        dirs[:] = sorted(x for x in dirs if x != '__pycache__')
-        for f in files:
-            if f.endswith('.py'):
-                rel = os.path.relpath(os.path.join(d, f), SRC)[:-3].split(os.sep)
-                names.append('.'.join(rel[:-1] if rel[-1] == '__init__' else rel))
+    for package in ('tiago_nav', 'tiago_nav_tools'):
+        for d, dirs, files in os.walk(os.path.join(SRC, package)):
+            dirs[:] = sorted(x for x in dirs if x != '__pycache__')
+            for f in files:
+                if f.endswith('.py'):
+                    rel = os.path.relpath(os.path.join(d, f), SRC)[:-3].split(os.sep)
+                    names.append('.'.join(rel[:-1] if rel[-1] == '__init__' else rel))
     return sorted(names)
 
 
@@ -64,7 +65,7 @@ def try_import(name):
 
 
 def test_the_module_list_is_complete():
-    assert 'tiago_nav' in modules() and 'tiago_nav.nodes.simulator' in modules()
+    assert {'tiago_nav', 'tiago_nav.nodes.simulator', 'tiago_nav_tools.evaluate.main'} <= set(modules())
 
 
 @pytest.mark.parametrize('name', modules())

@@ -7,6 +7,7 @@ import pytest
 
 from tiago_nav.sim.scene import LaserConfig, Scene, noisy
 from tiago_nav.sim.world import World
+from tiago_nav_tools.evaluate.inview import view_from
 
 BOX = {
     'name': 'box', 'resolution': 0.05, 'bounds': [-5, -5, 5, 5], 'robot_start': [0, 0, 0],
@@ -82,8 +83,8 @@ def test_cylinder_range_and_visibility():
         # front of the cylinder: 2.0 - 0.2 - 0.2 (laser offset) = 1.6 m
         assert ranges[333] == pytest.approx(1.6, abs=2e-3)
         assert ids[333] == s.movable_ids[0]
-        assert s.visible_obstacles((0, 0, 0)) == [0]
-        assert s.visible_obstacles((0, 0, math.pi)) == [1]
+        assert view_from(s, (0, 0, 0)).in_view == [0]
+        assert view_from(s, (0, 0, math.pi)).in_view == [1]
 
 
 def test_noise_statistics_and_limits():

@@ -16,7 +16,7 @@ from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.world import Cylinder, load_world
-from tiago_nav.testing.localisation import run_route
+from tiago_nav_tools.testing.localisation import run_route
 
 # the quality bar (docs/design-decisions.md): localisation error at the 95th percentile
 BAR_XY, BAR_YAW = 0.05, math.radians(2.0)

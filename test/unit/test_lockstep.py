@@ -11,7 +11,7 @@ import pytest
 from tiago_nav.lockstep import Ack, Gate, ParticipantCore, Schedule, Tick, grid_after
 from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.world import World
-from tiago_nav.testing.lockstep import ThreadParticipant, run_lockstep
+from tiago_nav_tools.testing.lockstep import ThreadParticipant, run_lockstep
 
 RATE = 60.0
 DT = 1.0 / RATE

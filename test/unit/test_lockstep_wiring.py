@@ -8,7 +8,7 @@ import rospy
 
 from tiago_nav.nav.navigator import NavConfig
 from tiago_nav.params import ParamError, read_params
-from tiago_nav.testing.fakes import FakeClock
+from tiago_nav_tools.testing.fakes import FakeClock
 
 from test_nav_runner import Rig
 from test_simulator_node import BOX, Log, fake_outputs, make_node, twist

@@ -1,5 +1,5 @@
 """Closed-loop tests of the navigation library (the goal runner the move_base node runs)
-driving the simulator without ROS (tiago_nav.testing.navigation): ground truth is the
+driving the simulator without ROS (tiago_nav_tools.testing.navigation): ground truth is the
 simulator's pose and contact count."""
 import math
 import os
@@ -14,8 +14,8 @@ from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.world import World, load_world
 from tiago_nav.nodes.navigation import Params as NavParams
 from tiago_nav.params import read_params
-from tiago_nav.testing import navigation as simnav
-from tiago_nav.testing.navigation import ClosedLoop
+from tiago_nav_tools.testing import navigation as simnav
+from tiago_nav_tools.testing.navigation import ClosedLoop
 
 # needs ROS: the node's Params: tiago_nav.nodes.navigation imports rospy
 pytestmark = pytest.mark.ros

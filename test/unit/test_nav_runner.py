@@ -15,7 +15,7 @@ from tiago_nav.nav.runner import (GoalError, GoalRunner, PoseUnavailable, frame_
                                   no_transform)
 from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
 from tiago_nav.sim.diffdrive import BaseLimits, DiffDrive
-from tiago_nav.testing.fakes import FakeActionServer, FakeClock, FakePublisher
+from tiago_nav_tools.testing.fakes import FakeActionServer, FakeClock, FakePublisher
 
 pytestmark = pytest.mark.ros         # tiago_nav.nodes.navigation (rospy, tf2_ros, move_base_msgs)
 navigation = pytest.importorskip('tiago_nav.nodes.navigation')
@@ -104,7 +104,7 @@ def test_goal_reached_with_feedback_and_plan():
     rig = Rig()
     out = rig.run(5.0, 2.5, math.pi / 2)
     assert rig.server.state == 'succeeded', rig.server.text
-    assert out.text == 'goal reached'
+    assert out.message == 'goal reached'
     x, y, yaw = rig.base.pose
     assert math.hypot(x - 5.0, y - 2.5) <= 0.15
     assert abs(wrap_angle(yaw - math.pi / 2)) <= 0.1

@@ -1,4 +1,4 @@
-"""The real-data tooling (tiago_nav.testing.realdata): the CARMEN reader and its quirks, the
+"""The real-data tooling (tiago_nav_tools.testing.realdata): the CARMEN reader and its quirks, the
 synthesised odometry, the map built from the scans, the map files and the scoring."""
 import gzip
 import math
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from tiago_nav.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap
-from tiago_nav.testing.realdata import carmen, convert, mapping, odometry, scoring
+from tiago_nav_tools.testing.realdata import carmen, convert, mapping, odometry, scoring
 
 DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'data')
 
@@ -222,7 +222,7 @@ def test_summary_lost_time_and_recovery():
 
 # --- the converter's command line ----------------------------------------------------------
 def test_converter_writes_map_and_references(tmp_path, capsys):
-    from tiago_nav.testing.realdata.__main__ import main
+    from tiago_nav_tools.testing.realdata.__main__ import main
     slice_path = os.path.join(DATA, 'intel-corrected-slice.log.gz')
     assert main([slice_path, str(tmp_path), '--scenarios', 'tracking,kidnap', '--no-bags']) == 0
     g = mapping.load_map(str(tmp_path / 'map.yaml'))

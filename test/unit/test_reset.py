@@ -135,7 +135,6 @@ def test_a_reset_start_waits_for_its_subscriptions_connections(monkeypatch):
     master lists (its own node aside), and names the topics still waiting at the timeout."""
     import rosgraph
     import rospy
-    from tiago_nav.ros import topics
     connected = {'/plan': set(), '/tf': {'/simulator'}}
 
     class Master:
@@ -146,7 +145,7 @@ def test_a_reset_start_waits_for_its_subscriptions_connections(monkeypatch):
             return ([['/plan', ['/move_base']], ['/tf', ['/simulator', '/me']]], [], [])
     monkeypatch.setattr(rosgraph, 'Master', Master)
     monkeypatch.setattr(rospy, 'get_name', lambda: '/me')
-    monkeypatch.setattr(topics, 'connected_publishers', lambda s: connected[s.resolved_name])
+    monkeypatch.setattr(reset, 'connected_publishers', lambda s: connected[s.resolved_name])
     gen = reset.Generation()
     for name in ('/plan', '/tf'):
         sub = object.__new__(rospy.topics.Subscriber)

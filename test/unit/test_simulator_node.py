@@ -19,7 +19,7 @@ from tiago_nav.params import ParamError, read_params
 from tiago_nav import scan as rep117
 from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_msg, pose_from_transform
 from tiago_nav.sim.raster import rasterise_world
-from tiago_nav.testing.fakes import FakeClock, FakePublisher
+from tiago_nav_tools.testing.fakes import FakeClock, FakePublisher
 
 from tiago_nav.nodes.simulator import Outputs, Pacer, Params, SimulatorNode, read_config
 

@@ -11,7 +11,7 @@ from std_msgs.msg import String
 
 from conftest import ROOT
 from tiago_nav.params import ParamError, read_params
-from tiago_nav.testing.fakes import FakePublisher
+from tiago_nav_tools.testing.fakes import FakePublisher
 
 from tiago_nav.nodes.simulator import Outputs, Params, SimulatorNode
 from test_simulator_node import BOX, Log

@@ -92,7 +92,7 @@ def test_the_watch_thread_repairs_an_orphaned_subscription(fake_rospy, monkeypat
 
 def test_connected_peers_count_only_handshaken_connections():
     from types import SimpleNamespace as NS
-    from tiago_nav.ros.topics import connected_publishers, connected_subscribers
+    from tiago_nav.ros.connections import connected_publishers, connected_subscribers
     # rospy's subscriber-side transport: header None until the publisher's reply is read
     connecting, done = NS(header=None), NS(header={'callerid': '/simulator'})
     assert connected_publishers(NS(impl=NS(connections=[]))) == set()

@@ -18,10 +18,10 @@ from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.world import World, load_world
 from tiago_nav.sim.worlds import corridor_world
-from tiago_nav.testing.corridor import run_in_simulator
-from tiago_nav.testing.evaluation import score, visible_truth
-from tiago_nav.testing.localisation import run_route
-from tiago_nav.testing.navigation import ClosedLoop
+from tiago_nav_tools.testing.corridor import run_in_simulator
+from tiago_nav_tools.evaluate.matching import score, visible_truth
+from tiago_nav_tools.testing.localisation import run_route
+from tiago_nav_tools.testing.navigation import ClosedLoop
 
 N, A0, INC = 361, -math.pi / 2, math.pi / 360       # a 180 deg fan, 0.5 deg steps
 LASER = (0.2, 0.0, 0.0)

@@ -13,7 +13,7 @@ from tiago_nav.nav.planner import PlanError, plan
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.world import World, load_world
 from tiago_nav.sim.worlds import cluttered_room, cluttered_room_pose_b
-from tiago_nav.testing.evaluation import visible_truth
+from tiago_nav_tools.evaluate.matching import visible_truth
 
 
 def wall_gap(c, wall):

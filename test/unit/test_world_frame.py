@@ -72,7 +72,7 @@ def test_the_course_world_declares_the_gazebo_world_frame():
 def _node(world_path, **kw):
     from tiago_nav.nodes.simulator import Outputs, Params, SimulatorNode
     from tiago_nav.params import read_params
-    from tiago_nav.testing.fakes import FakePublisher
+    from tiago_nav_tools.testing.fakes import FakePublisher
     kw.update(world=world_path, laser_model='ideal', odometry_model='ideal')
     params = read_params(Params, lambda n, d: {'~' + k: v for k, v in kw.items()}.get(n, d))
     return SimulatorNode(params, Outputs(**{f.name: FakePublisher() for f in fields(Outputs)}))

@@ -64,6 +64,7 @@ from typing import Tuple
 import numpy as np
 
 from tiago_nav.geometry import compose, inverse, transform_points, wrap_angle
+from tiago_nav.goal import ABORTED, PREEMPTED, SUCCEEDED  # noqa: F401 (the corridor goal's statuses)
 from tiago_nav.params import param, validate
 from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.scan import (TOO_CLOSE, FrozenScanCheck, classify, informative_fraction, scan_to_points,
@@ -674,9 +675,6 @@ class CorridorFollower:
             v = vcap
         cmd.v, cmd.omega, cmd.state = v, w, 'driving'
         return cmd
-
-
-SUCCEEDED, ABORTED, PREEMPTED = 'succeeded', 'aborted', 'preempted'
 
 
 class GoalJudge:

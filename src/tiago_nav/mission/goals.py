@@ -2,11 +2,9 @@
 by the client before anything is sent."""
 import math
 
+from tiago_nav.goal import GoalError
+
 YAW_LIMIT_DEG = 360.0      # |yaw| accepted by goal validation [deg]
-
-
-class GoalError(ValueError):
-    """A goal value that cannot be used (not a number, not finite, out of range)."""
 
 
 def parse_number(value, name):

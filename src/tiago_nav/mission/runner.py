@@ -9,12 +9,14 @@ abandons a stage only when the backend's ``source_dead()`` names a reason (a slo
 waited for), so nothing hangs if /clock stops.
 """
 import math
-from dataclasses import dataclass, field
-from typing import Any, List, Optional, Tuple
+from dataclasses import dataclass
+from typing import Any
 
 from tiago_nav.clock import StallWatch
 from tiago_nav.geometry import wrap_angle
-from tiago_nav.mission.goals import GoalError, validate_goal
+from tiago_nav.goal import (ABORTED, ACTIVE, LOST, PREEMPTED, REJECTED,  # noqa: F401
+                            SUCCEEDED, GoalError, Outcome)
+from tiago_nav.mission.goals import validate_goal
 from tiago_nav.mission.sentences import (corridor_done_sentence, corridor_sentence, fmt_pose,
                                          goal_sentence, handoff_sentence, motion_sentence,
                                          plural, remaining_path_length)
@@ -26,9 +28,6 @@ GOAL_RECEIVED, CORRIDOR, NAVIGATING, MOVING, STOPPED, ARRIVED, DETECTING, DETECT
 STATE_NAMES = ('GOAL_RECEIVED', 'CORRIDOR', 'NAVIGATING', 'MOVING', 'STOPPED', 'ARRIVED',
                'DETECTING', 'DETECTION_DONE')
 
-# Outcomes of an action stage as seen by the runner (from actionlib's terminal states).
-ACTIVE, SUCCEEDED, ABORTED, PREEMPTED, REJECTED, LOST = ('active', 'succeeded', 'aborted',
-                                                         'preempted', 'rejected', 'lost')
 
 
 @dataclass(frozen=True)
@@ -95,16 +94,6 @@ class Poll:
     text: str = ''                   # the server's status text (reason)
     result: Any = None
     feedback: Any = None
-
-
-@dataclass
-class Outcome:
-    """How a goal ended: ``status`` SUCCEEDED, ABORTED or PREEMPTED and a sentence saying why."""
-    status: str
-    message: str
-    obstacles: List[Any] = field(default_factory=list)
-    final_pose: Optional[Tuple[float, float, float]] = None
-    stage: Optional[str] = None      # the stage that failed or was cancelled
 
 
 class StageError(Exception):

@@ -2,7 +2,7 @@
 and replanning, control, progress monitoring, recovery behaviours and the terminal outcome.
 
 :class:`tiago_nav.nav.runner.GoalRunner` runs it for one goal (the ``move_base`` node wires that
-to ROS; :mod:`tiago_nav.testing.navigation` to the in-process simulator). Time is whatever clock
+to ROS; :mod:`tiago_nav_tools.testing.navigation` to the in-process simulator). Time is whatever clock
 the caller uses (ROS time, simulated under /use_sim_time) [s]; poses are ``(x, y, yaw)`` of
 base_footprint in ``map`` [m, m, rad].
 """
@@ -13,14 +13,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from tiago_nav.geometry import wrap_angle
+from tiago_nav.goal import ABORTED, ACTIVE, SUCCEEDED  # noqa: F401
 from tiago_nav.nav.controller import Controller, ControllerConfig
 from tiago_nav.nav.costmap import INSCRIBED, Costmap
 from tiago_nav.scan import INVALID
 from tiago_nav.nav.planner import PlanError, plan
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.robot import ROBOT_RADIUS
-
-ACTIVE, SUCCEEDED, ABORTED = 'active', 'succeeded', 'aborted'
 
 
 @dataclass(frozen=True)

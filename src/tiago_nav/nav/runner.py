@@ -3,7 +3,7 @@ control loop, sensor freshness, preemption, feedback, plan republishing, and a s
 every end.
 
 The runner talks to the outside through an *io* object (the ``move_base`` node wires it to
-actionlib, tf and publishers; :mod:`tiago_nav.testing.navigation` to the in-process simulator;
+actionlib, tf and publishers; :mod:`tiago_nav_tools.testing.navigation` to the in-process simulator;
 the unit tests to fakes):
 
 * ``clock``: a :mod:`tiago_nav.clock` clock (``now`` in ROS time [s]);
@@ -18,18 +18,11 @@ the unit tests to fakes):
 """
 import math
 import threading
-from dataclasses import dataclass
 
 from tiago_nav.clock import Ticker
 from tiago_nav.geometry import quaternion_to_yaw
-from tiago_nav.nav.navigator import ABORTED, ACTIVE, SUCCEEDED
+from tiago_nav.goal import ABORTED, ACTIVE, PREEMPTED, SUCCEEDED, GoalError, Outcome  # noqa: F401
 from tiago_nav.nav.planner import PlanError
-
-PREEMPTED = 'preempted'
-
-
-class GoalError(ValueError):
-    """A goal that cannot be used: the message says why."""
 
 
 class PoseUnavailable(RuntimeError):
@@ -47,12 +40,6 @@ def frame_or(frame, map_frame):
     """A goal's frame as the node looks it up: without a leading slash; empty means
     ``map_frame``."""
     return frame.lstrip('/') or map_frame
-
-
-@dataclass
-class Outcome:
-    status: str          # SUCCEEDED, ABORTED or PREEMPTED
-    text: str
 
 
 def goal_pose(position, orientation):

@@ -1,7 +1,7 @@
 """The nodes' code: each ``nodes/<name>`` executable is a door into ``tiago_nav.nodes.<name>.main()``
 (splitting the executable from the code makes it importable and testable, as in
 nmea_navsat_driver). Each module wires ROS (subscribers, publishers, tf, action servers) around
-decisions that take plain values, so unit tests can drive them with :mod:`tiago_nav.testing`
+decisions that take plain values, so unit tests can drive them with :mod:`tiago_nav_tools.testing`
 fakes. ``python3 -m tiago_nav.nodes`` rewrites ``config/*.yaml`` from the parameter dataclasses.
 """
 import os

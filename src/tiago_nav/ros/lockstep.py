@@ -24,7 +24,8 @@ from tiago_nav.lockstep import EPS, Ack, Gate, ParticipantCore, Schedule, Tick
 from tiago_nav.msg import LockstepAck, LockstepTick
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.reset import keep_status_timer, on_shutdown, persistent, track
-from tiago_nav.ros.topics import Subscription, connected_publishers, connected_subscribers
+from tiago_nav.ros.connections import connected_publishers, connected_subscribers
+from tiago_nav.ros.topics import Subscription
 
 ACK_TOPIC = '/sim/lockstep/ack'
 TICK_TOPIC = '/sim/lockstep/tick'

@@ -29,7 +29,10 @@ import threading
 import time
 import weakref
 
+import rosgraph
 import rospy
+
+from tiago_nav.ros.connections import connected_publishers
 
 CONNECT_TIMEOUT = 10.0      # [s wall] the longest a reset's start waits for its subscriptions
 _local = threading.local()
@@ -208,8 +211,6 @@ def wait_connected(generation, timeout=CONNECT_TIMEOUT):
     row's goal follows at once, and a message sent before its subscriber's connection is lost
     (move_base's first plan, read by the proxy on its next cycle). Raises RuntimeError naming
     the topics still waiting after ``timeout`` [s wall]."""
-    import rosgraph
-    from tiago_nav.ros.topics import connected_publishers
     me = rospy.get_name()
     subs = [o for o in generation.objects if isinstance(o, rospy.topics.Subscriber)]
     master = rosgraph.Master(me)

@@ -35,26 +35,6 @@ def listed_publishers(topic, master=None):
     return next((nodes for name, nodes in pubs if name == topic), [])
 
 
-def _connections(topic):
-    impl = getattr(topic, 'impl', None)
-    return list(getattr(impl, 'connections', None) or ())
-
-
-def connected_publishers(subscriber):
-    """The node names of the publishers a ``rospy.Subscriber`` has completed its handshake with.
-    rospy counts a connection (``get_num_connections``) as soon as it starts connecting, which
-    on a loaded machine can be a second before messages flow; the subscriber's transport keeps
-    the publisher's reply header (with its ``callerid``) once the handshake is done."""
-    return {c.header.get('callerid') for c in _connections(subscriber)
-            if getattr(c, 'header', None) is not None}
-
-
-def connected_subscribers(publisher):
-    """The node names of the subscribers connected to a ``rospy.Publisher`` (a connection is
-    added once its handshake is done; its ``endpoint_id`` is the subscriber's callerid)."""
-    return {getattr(c, 'endpoint_id', None) for c in _connections(publisher)}
-
-
 def orphaned(connections, publishers, own_name):
     """True when a subscriber with ``connections`` connections has missed its publishers: the
     master lists ``publishers`` (node names) other than ``own_name`` (a node that publishes and

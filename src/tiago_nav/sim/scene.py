@@ -244,13 +244,6 @@ class Scene:
         ranges = np.where(ids >= 0, frac * length, np.inf)
         return ranges, ids
 
-    def visible_obstacles(self, base_pose=None, profile='tiago'):
-        """Ground truth of "in view": sorted indices into ``world.movable_obstacles`` in view
-        from ``base_pose`` (default: current pose) for the laser ``profile``, by the one
-        definition of :mod:`tiago_nav.sim.inview` (enough usable beams hit it)."""
-        from tiago_nav.sim.inview import view_from
-        return view_from(self, base_pose, profile).in_view
-
     # --- life cycle -----------------------------------------------------------------------
     def close(self):
         p, self._p = getattr(self, '_p', None), None
