@@ -1,4 +1,5 @@
-"""Waiting in ROS time without hanging when that time stops (no ROS here).
+"""Waiting in ROS time without hanging when that time stops, and pacing simulated time at a
+real-time factor (:class:`Pacer`); no ROS here.
 
 A *clock* is any object with ``now()`` (ROS time [s]: simulated under ``/use_sim_time``),
 ``wall()`` (a monotonic wall clock [s]), ``sleep(seconds)`` (wall time), ``shutdown()``
@@ -117,3 +118,32 @@ class Ticker:
         self.next = max(self.next + self.period, self.clock.now() - self.period)
         self.reason = wait_until(self.clock, self.next, self.stall)
         return not self.reason
+
+
+BEHIND = 0.5            # [s wall] a run this far behind its real_time_factor restarts its pacing
+
+
+class Pacer:
+    """Holds simulated time at ``real_time_factor`` × wall time on a :mod:`tiago_nav.clock`
+    clock (its ``wall()`` and ``sleep()``). A run that falls more than :data:`BEHIND` wall
+    seconds behind (a slow machine) goes on from where it is instead of catching up;
+    ``real_time_factor`` 0 runs as fast as possible, yielding the processor now and then."""
+
+    def __init__(self, clock, dt, real_time_factor, steps=0):
+        self.clock, self.dt, self.rtf = clock, float(dt), float(real_time_factor)
+        self.restart(steps)
+
+    def restart(self, steps):
+        """Pace from now on, ``steps`` steps having been taken."""
+        self.t0, self.steps0 = self.clock.wall(), steps
+
+    def pace(self, steps):
+        """Wait until ``steps`` steps of ``dt`` [s sim] are due in wall time."""
+        if self.rtf > 0:
+            ahead = self.t0 + (steps - self.steps0) * self.dt / self.rtf - self.clock.wall()
+            if ahead > 0:
+                self.clock.sleep(ahead)
+            elif ahead < -BEHIND:
+                self.restart(steps)
+        elif steps % 64 == 0:
+            self.clock.sleep(0)                 # let the subscriber threads in

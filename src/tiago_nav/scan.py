@@ -12,12 +12,29 @@ REP 117 values of a ``sensor_msgs/LaserScan`` range ``r`` with limits ``[range_m
 
 Angles are in the laser's frame (``base_laser_link``), radians; ranges and points in metres.
 """
+from dataclasses import dataclass
+from typing import Any, Sequence
+
 import numpy as np
 
 from tiago_nav.geometry import wrap_angle
 from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
 
 HIT, NO_RETURN, TOO_CLOSE, INVALID = 0, 1, 2, 3
+
+
+@dataclass(frozen=True)
+class Scan:
+    """One laser scan as plain values: the fields of sensor_msgs/LaserScan that the corridor law
+    and detection use."""
+    ranges: Sequence[float]   # [m] REP 117 values, one per beam
+    angle_min: float          # [rad] first beam, in the laser frame
+    angle_increment: float    # [rad] between beams
+    range_min: float          # [m]
+    range_max: float          # [m]
+    stamp: Any                # the scan's time: ROS time [s], or the time type the consumer's
+    #                           transform lookups take (the detection node passes rospy.Time)
+    frame_id: str             # the laser's frame
 
 
 def beam_angles(angle_min, angle_increment, n):

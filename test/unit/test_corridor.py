@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from tiago_nav.corridor.law import (CorridorFollower, CorridorParams, Scan, control_law, find_corridor,
+from tiago_nav.corridor.law import (CorridorFollower, CorridorParams, control_law, find_corridor,
                                 fit_walls, front_free_distance, wall_end)
+from tiago_nav.scan import Scan
 from tiago_nav.geometry import inverse, transform_points, wrap_angle
 from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.sim.simulator import SimConfig, Simulator
@@ -238,8 +239,8 @@ def test_max_distance_stops_early():
 def test_scan_hits_become_odom_points():
     """Only the hits of a scan (REP 117) are points; they land where the laser's pose puts them."""
     f = CorridorFollower(P)
-    scan = Scan(0.0, 'laser', np.array([1.0, np.inf, np.nan, 0.01, 2.0]), 0.0, math.pi / 8,
-                0.05, 25.0)
+    scan = Scan(np.array([1.0, np.inf, np.nan, 0.01, 2.0]), 0.0, math.pi / 8, 0.05, 25.0,
+                0.0, 'laser')
     f.update_laser(scan, (1.0, 2.0, math.pi / 2), (0.8, 2.0, math.pi / 2))
     assert f.points == pytest.approx(np.array([[1.0, 3.0], [-1.0, 2.0]]))
 

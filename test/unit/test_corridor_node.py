@@ -7,7 +7,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from tiago_nav.nodes.corridor_controller import CorridorServer, Params, wait_ready
+from tiago_nav.corridor.inputs import wait_ready
+from tiago_nav.nodes.corridor_controller import CorridorServer, Params
 from tiago_nav.params import ParamError
 from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.sim.worlds import corridor_world

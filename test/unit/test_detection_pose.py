@@ -7,7 +7,8 @@ import pytest
 
 from test_detection import L, world
 from tiago_nav.detection import DetectionParams, ObstacleDetector
-from tiago_nav.detection.service import DetectionService, Scan
+from tiago_nav.detection.service import DetectionService
+from tiago_nav.scan import Scan
 from tiago_nav.geometry import compose, inverse
 from tiago_nav.nodes.obstacle_detection import Params
 from tiago_nav.sim.raster import rasterise_world

@@ -11,7 +11,8 @@ import pytest
 
 from conftest import ROOT
 from tiago_nav.clock import source_verdict
-from tiago_nav.detection.service import DetectionService, Failure, Scan, check_request
+from tiago_nav.detection.service import DetectionService, Failure, check_request
+from tiago_nav.scan import Scan
 from tiago_nav.geometry import compose, inverse
 from tiago_nav.gridmap import GridMap
 from tiago_nav.nodes.obstacle_detection import Params
@@ -392,7 +393,7 @@ def test_a_reset_reuses_the_maps_detector_and_answers_as_a_new_one(clean, grid):
     """The node keeps one ObstacleDetector per map and detection parameters
     (``detector_for``): a reset's new state gets the same object for the same map, another map
     or other parameters a new one; the answer with the kept detector equals a new one's."""
-    from tiago_nav.nodes.obstacle_detection import detector_for
+    from tiago_nav.detection.detectors import detector_for
     p = Params()
     d = detector_for(grid, p.detection)
     same = GridMap(grid.data.copy(), grid.resolution, tuple(grid.origin))

@@ -283,3 +283,49 @@ def test_unknown_benchmark_is_refused():
         benchmarks.commands(['nope'])
     assert len(benchmarks.commands(['lockstep'])) == 4
     assert len(benchmarks.commands(['all'])) == sum(len(r) for _, _, r in benchmarks.BENCHMARKS)
+
+
+def layout_tree():
+    """The names of docs/development.md's layout tree, as paths from the repository's root: a
+    line's names are separated by one space and end at two spaces (the description); a line
+    indented by two more spaces than a folder's line lives in that folder; a line indented to
+    the description's column continues the description."""
+    with open(os.path.join(ROOT, 'docs', 'development.md')) as f:
+        text = f.read()
+    block = text.split('## Layout', 1)[1].split('```', 2)[1]
+    paths, folders = [], []          # folders: (indent, path) of the enclosing folder lines
+    for line in block.splitlines()[1:]:
+        indent = len(line) - len(line.lstrip(' '))
+        if not line.strip() or indent >= 20:
+            continue
+        names = line.strip().split('  ')[0].split(' ')
+        while folders and folders[-1][0] >= indent:
+            folders.pop()
+        parent = folders[-1][1] if folders else ''
+        for name in names:
+            paths.append(os.path.join(parent, name).rstrip('/'))
+        if len(names) == 1 and names[0].endswith('/'):
+            folders.append((indent, os.path.join(parent, names[0])))
+    return paths
+
+
+def test_the_layout_tree_names_what_exists():
+    missing = [p for p in layout_tree() if not os.path.exists(os.path.join(ROOT, p))]
+    assert not missing, 'docs/development.md names what does not exist: %s' % missing
+
+
+def test_the_layout_tree_names_every_folder_and_module():
+    """Every entry of the repository's top level (but what .gitignore ignores and .git) and
+    every folder and module of the two Python packages is in the tree."""
+    import fnmatch
+    with open(os.path.join(ROOT, '.gitignore')) as f:
+        ignored = [g.strip().strip('/') for g in f if g.strip() and not g.startswith('#')]
+
+    def kept(name):
+        return name not in ('.git', '__pycache__', '__init__.py', '__main__.py') \
+            and not name.endswith('.pyc') and not any(fnmatch.fnmatch(name, g) for g in ignored)
+    wanted = {n for n in os.listdir(ROOT) if kept(n)}
+    for package in ('src/tiago_nav', 'src/tiago_nav_tools'):
+        wanted |= {'%s/%s' % (package, n) for n in os.listdir(os.path.join(ROOT, package)) if kept(n)}
+    missing = sorted(wanted - set(layout_tree()))
+    assert not missing, 'missing from the layout tree in docs/development.md: %s' % missing

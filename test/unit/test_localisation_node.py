@@ -8,7 +8,10 @@ import pytest
 import rospy
 
 from conftest import ROOT
-from tiago_nav.nodes.localisation import Params, covariance_6x6, reaches_past, start_pose
+from tiago_nav.nodes.localisation import Params
+from tiago_nav.ros.clock import reaches_past
+from tiago_nav.ros.conversions import covariance_6x6
+from tiago_nav.ros.params import start_pose
 from tiago_nav.params import ParamError, read_params
 from tiago_nav.sim.world import WorldError
 

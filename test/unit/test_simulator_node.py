@@ -21,7 +21,8 @@ from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_msg, pose_from
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav_tools.testing.fakes import FakeClock, FakePublisher
 
-from tiago_nav.nodes.simulator import Outputs, Pacer, Params, SimulatorNode, read_config
+from tiago_nav.clock import Pacer
+from tiago_nav.nodes.simulator import Outputs, Params, SimulatorNode, read_config
 
 # needs ROS: rospy, message packages, tiago_nav.nodes.simulator
 pytestmark = pytest.mark.ros

@@ -221,14 +221,15 @@ def test_same_ranges_takes_nan_for_nan_and_nothing_else():
 
 
 def test_the_corridor_law_blocks_on_a_frozen_laser():
-    from tiago_nav.corridor.law import CorridorFollower, CorridorParams, Scan
+    from tiago_nav.corridor.law import CorridorFollower, CorridorParams
+    from tiago_nav.scan import Scan
     rng = np.random.default_rng(1)
     f = CorridorFollower(CorridorParams())
     a = np.linspace(-1.92, 1.92, 666)
     with np.errstate(divide='ignore'):
         r = np.where(np.abs(np.sin(a)) > 1e-6, 0.55 / np.abs(np.sin(a)), np.inf)
     r = np.where(r * np.cos(a) < 4.0, r + rng.normal(0, 0.005, 666), np.inf)
-    scan = Scan(0.0, 'base_laser_link', r, a[0], a[1] - a[0], 0.05, 25.0)
+    scan = Scan(r, a[0], a[1] - a[0], 0.05, 25.0, 0.0, 'base_laser_link')
     f.update_laser(scan, (0.2, 0.0, 0.0), (0.0, 0.0, 0.0))
     assert not f.unusable
     f.update_laser(scan, (0.3, 0.0, 0.0), (0.1, 0.0, 0.0))          # same ranges 10 cm further on

@@ -174,7 +174,7 @@ def test_table_title_names_the_frame():
 @pytest.mark.ros
 def test_known_frames_names_children_and_parents():
     pytest.importorskip('tf2_ros')
-    from tiago_nav.nodes.client import known_frames
+    from tiago_nav.ros.conversions import known_frames
     text = ("world: \n  parent: 'map'\n  broadcaster: 'x'\n  rate: 10000.000\n"
             "odom: \n  parent: 'map'\n  broadcaster: 'x'\n")
     assert known_frames(text) == {'world', 'odom', 'map'}

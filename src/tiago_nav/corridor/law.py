@@ -438,20 +438,8 @@ def control_law(e_y, e_theta, width, params, max_speed=None):
     return v, omega
 
 
-@dataclass
-class Scan:
-    """One laser scan as plain values (the fields of sensor_msgs/LaserScan that matter here)."""
-    stamp: float                  # [s] ROS time of the scan
-    frame: str                    # the laser's frame
-    ranges: np.ndarray            # [m] REP 117 values (see tiago_nav.scan)
-    angle_min: float              # [rad] first beam, laser frame
-    angle_increment: float        # [rad] between beams
-    range_min: float              # [m]
-    range_max: float              # [m]
-
-
 def scan_usability(scan, params):
-    """Why the :class:`Scan` is too broken to judge the scene from, or ``''`` when it is usable.
+    """Why the :class:`tiago_nav.scan.Scan` is too broken to judge the scene from, or ``''`` when it is usable.
 
     Informative beams (:func:`tiago_nav.scan.informative_fraction`: a hit, no return or too
     close; NaN and out-of-limits readings are not) must be at least ``min_informative`` of the
@@ -513,7 +501,7 @@ class CorridorFollower:
 
     # --- perception -----------------------------------------------------------------------
     def update_laser(self, scan, laser_pose, pose_odom):
-        """One :class:`Scan`, taken with the laser at ``laser_pose`` and the base at
+        """One :class:`tiago_nav.scan.Scan`, taken with the laser at ``laser_pose`` and the base at
         ``pose_odom`` (both in odom), read by REP 117 (:mod:`tiago_nav.scan`) after
         :func:`tiago_nav.scan.usable_ranges` (no self-hits, no veils): the walls are fitted from
         its hits only; a too-close beam (-inf) is an obstacle at ``range_min`` along

@@ -10,9 +10,9 @@ seconds.
 :class:`DetectionService` reaches the sensors through a *sensors* object (the ROS one is in
 :mod:`tiago_nav.nodes.obstacle_detection`; unit tests pass a fake) with four methods:
 
-* ``fresh_scan(timeout)``: the first :class:`Scan` stamped at or after the call, or None after
+* ``fresh_scan(timeout)``: the first :class:`tiago_nav.scan.Scan` stamped at or after the call, or None after
   ``timeout`` wall seconds;
-* ``scan_at(stamp, timeout, published)``: the first :class:`Scan` stamped at or after ``stamp``
+* ``scan_at(stamp, timeout, published)``: the first :class:`tiago_nav.scan.Scan` stamped at or after ``stamp``
   (a request's ``scan_stamp``: ``published`` True, the scan went out before the request),
   waiting up to ``timeout`` wall seconds for it (a published one: longer while its publisher
   lives); None when it does not come; :class:`Failure` when it is no longer held or its
@@ -53,18 +53,6 @@ REST_TF_TIMEOUT = 0.1                # [s wall] for the transform at an earlier,
 
 class Failure(Exception):
     """A call that gets no obstacles; ``str()`` is the message the caller sees."""
-
-
-@dataclass(frozen=True)
-class Scan:
-    """One laser scan as plain values (sensor_msgs/LaserScan's fields, REP 117 ranges [m])."""
-    ranges: tuple
-    angle_min: float        # [rad] in the laser frame
-    angle_increment: float  # [rad]
-    range_min: float        # [m]
-    range_max: float        # [m]
-    stamp: object           # the scan's time, as the sensors object understands it
-    frame_id: str           # the laser frame
 
 
 @dataclass(frozen=True)
@@ -117,7 +105,7 @@ def _seconds(stamp):
 
 
 def check_scan(scan, min_fraction):
-    """Raise :class:`Failure` when fewer than ``min_fraction`` of the beams of the :class:`Scan`
+    """Raise :class:`Failure` when fewer than ``min_fraction`` of the beams of the :class:`tiago_nav.scan.Scan`
     say something (REP 117: a hit, no return or too close; NaN and finite values outside
     ``[range_min, range_max]`` say nothing): a NaN burst or a dead laser must not read as "no
     obstacles"."""

@@ -21,7 +21,7 @@ from tiago_nav.mission.client import (EXIT_FAILED, EXIT_OK, EXIT_USAGE, MAP_FRAM
                                       parse_client_args, table_title)
 from tiago_nav.mission.sentences import fmt_pose
 from tiago_nav.ros.actions import TaskClient, server_connected, wait_server
-from tiago_nav.ros.conversions import pose_from_msg, pose_from_transform
+from tiago_nav.ros.conversions import known_frames, pose_from_msg, pose_from_transform
 from tiago_nav.ros.tcpros import concurrent_handshakes
 
 CANCEL_TIMEOUT = 15.0     # [s wall] after Ctrl-C, wait this long for the server to confirm
@@ -30,17 +30,6 @@ FRAME_WAIT = 5.0          # [s wall] wait this long for tf to know --frame (befo
 _NAMES = {GoalStatus.ABORTED: 'ABORTED', GoalStatus.PREEMPTED: 'PREEMPTED',
           GoalStatus.REJECTED: 'REJECTED', GoalStatus.RECALLED: 'RECALLED',
           GoalStatus.LOST: 'LOST'}
-
-
-def known_frames(yaml_text):
-    """The frame names in tf2's ``all_frames_as_yaml()``: each child and its parent."""
-    names = set()
-    for line in yaml_text.splitlines():
-        if line and not line[0].isspace() and line.rstrip().endswith(':'):
-            names.add(line.rstrip()[:-1].strip('\'"'))
-        elif line.strip().startswith('parent:'):
-            names.add(line.split(':', 1)[1].strip().strip('\'"'))
-    return names - {''}
 
 
 class FrameLookup:

@@ -19,20 +19,20 @@ import sys
 import threading
 from dataclasses import dataclass
 
-import numpy as np
 import rospy
 import tf2_ros
 from geometry_msgs.msg import Twist
 from sensor_msgs.msg import LaserScan
 
 from tiago_nav import clock as rclock
+from tiago_nav.corridor.inputs import missing_inputs, wait_ready
 from tiago_nav.corridor.law import (ABORTED, PREEMPTED, SUCCEEDED, CorridorFollower, CorridorParams,
-                                GoalJudge, Scan)
+                                GoalJudge)
 from tiago_nav.motion import MotionMonitor, wait_until_still
 from tiago_nav.msg import CorridorAction, CorridorFeedback, CorridorResult
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros.clock import RosClock
-from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
+from tiago_nav.ros.conversions import pose_from_transform, pose_stamped, scan_from_msg
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant,
                                     ScanCache, goal_since, lookup_at)
 from tiago_nav.ros.params import read_or_exit
@@ -74,34 +74,6 @@ class Params:
                              'aborts' % self.sensor_timeout, 'scan_timeout')
 
 
-def missing_inputs(params, io):
-    """``''`` once a first scan and the tf from ``~odom_frame`` to ``~base_frame`` and to the
-    scan's frame exist, else a sentence naming what is missing."""
-    scan = io.latest_scan()
-    missing = 'no laser scan on %s' % params.scan_topic if scan is None else ''
-    for frame in (params.base_frame,) + ((scan.frame,) if scan is not None else ()):
-        try:
-            io.lookup(params.odom_frame, frame)
-        except LookupError as e:
-            missing = missing or 'no tf %s -> %s (%s)' % (params.odom_frame, frame, e)
-    return missing
-
-
-def wait_ready(params, clock, io, timeout):
-    """Wait (at most ``timeout`` wall seconds) for :func:`missing_inputs` to find nothing
-    missing.
-
-    Returns ``''`` when ready, else a sentence naming what is missing."""
-    end = clock.wall() + timeout
-    while True:
-        missing = missing_inputs(params, io)
-        if not missing:
-            return ''
-        if clock.wall() >= end or clock.shutdown():
-            return '%s within %g s' % (missing, timeout)
-        clock.sleep(0.05)
-
-
 class CorridorServer:
     """The execute loop of the action server, for one goal at a time.
 
@@ -111,7 +83,7 @@ class CorridorServer:
         server: the SimpleActionServer (``is_preempt_requested``, ``publish_feedback``,
             ``set_succeeded/aborted/preempted(result, text)``, ``is_active``).
         cmd_pub: publisher of geometry_msgs/Twist to the base.
-        io: ``latest_scan()`` -> the newest :class:`tiago_nav.corridor.law.Scan` or None;
+        io: ``latest_scan()`` -> the newest :class:`tiago_nav.scan.Scan` or None;
             ``lookup(parent, child, stamp=None)`` -> pose ``(x, y, yaw)`` of ``child`` in
             ``parent`` at ROS time ``stamp`` [s] (None: the latest), raising ``LookupError``.
         participant: the lockstep participant (``tick``, ``answer``, ``claim``, ``release``,
@@ -238,7 +210,7 @@ class CorridorServer:
             scan = self.io.latest_scan()
             if scan is not None and (used is None or scan.stamp != used):
                 try:
-                    laser = self.io.lookup(p.odom_frame, scan.frame, scan.stamp)
+                    laser = self.io.lookup(p.odom_frame, scan.frame_id, scan.stamp)
                     base = self.io.lookup(p.odom_frame, p.base_frame, scan.stamp)
                     follower.update_laser(scan, laser, base)
                     used, tf_error = scan.stamp, ''
@@ -276,12 +248,6 @@ class CorridorServer:
                          else ticker.reason or 'ROS time stopped advancing')
 
 
-def _scan(msg):
-    """sensor_msgs/LaserScan -> :class:`tiago_nav.corridor.law.Scan`."""
-    return Scan(msg.header.stamp.to_sec(), msg.header.frame_id, np.asarray(msg.ranges, float),
-                msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max)
-
-
 class RosIO:
     """The ROS side of :class:`CorridorServer`'s ``io``: the newest scan from ``~scan_topic``
     and tf lookups (never waiting: a stopped /clock cannot block the loop).
@@ -306,7 +272,7 @@ class RosIO:
         return self.cache is not None and self.participant.lockstep
 
     def on_scan(self, msg):
-        scan = _scan(msg)
+        scan = scan_from_msg(msg)
         with self.lock:
             # the newest by stamp; an older stamp only after ROS time went back (a restart)
             if self.scan is None or scan.stamp >= self.scan.stamp \
@@ -317,7 +283,7 @@ class RosIO:
         if self.cache is not None:
             msg = self.cache.wait_for_scan(self.participant.scan_stamp, CYCLE_WAIT) \
                 if self._held() else self.cache.latest()
-            return None if msg is None else _scan(msg)
+            return None if msg is None else scan_from_msg(msg)
         with self.lock:
             return self.scan
 

@@ -30,21 +30,22 @@ from tf2_msgs.msg import TFMessage
 
 from tiago_nav.clock import Ticker
 from tiago_nav.geometry import compose
-from tiago_nav.localisation.localiser import DistanceField, Localiser, LocaliserConfig
+from tiago_nav.localisation.localiser import Localiser, LocaliserConfig
+from tiago_nav.localisation.fields import distance_field
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as rosparams
-from tiago_nav.ros.clock import RosClock
+from tiago_nav.ros.clock import RosClock, reaches_past
 from tiago_nav.ros.lockstep import CYCLE_WAIT, STARTUP_WAIT, LockstepParticipant, lookup_at
+from tiago_nav.ros.params import start_pose
 from tiago_nav.ros.reset import NodeReset
-from tiago_nav.ros.conversions import (gridmap_from_msg, pose_from_msg, pose_from_transform,
+from tiago_nav.ros.conversions import (COV_INDEX, covariance_6x6, gridmap_from_msg, pose_from_msg, pose_from_transform,
                                        pose_msg, transform_stamped)
 from tiago_nav.ros.tcpros import concurrent_handshakes
 from tiago_nav.ros.topics import Subscription
 from tiago_nav.scan import FrozenScanCheck
-from tiago_nav.sim.world import WorldError, load_world
+from tiago_nav.sim.world import WorldError
 
 # indices of x, y, yaw in a row-major 6 × 6 ROS pose covariance (x, y, z, roll, pitch, yaw)
-COV_INDEX = (0, 1, 5)
 
 REPUBLISH_OFFSET = rospy.Duration(0, 100000)   # 0.1 ms
 
@@ -89,44 +90,6 @@ class Params:
                 for v in self.initial_pose)):
             raise ParamError('expected [x, y, yaw_deg], got %r' % (self.initial_pose,),
                              'initial_pose')
-
-
-def start_pose(params):
-    """The initial pose ``(x, y, yaw)`` [m, m, rad] of base_footprint in map: ``initial_pose``
-    if given, else the world's robot_start (:class:`WorldError` when the file is unusable,
-    :class:`ParamError` naming ``initial_pose`` when neither is given)."""
-    if not params.initial_pose and not params.world:
-        raise ParamError('give initial_pose [x, y, yaw_deg] or a world file', 'initial_pose')
-    if params.initial_pose:
-        x, y, yaw_deg = params.initial_pose
-        return (float(x), float(y), math.radians(yaw_deg))
-    return load_world(params.world).start_pose
-
-
-def covariance_6x6(cov3):
-    """The 36 row-major values of a ROS pose covariance from a 3 × 3 ``(x, y, yaw)`` one."""
-    out = np.zeros((6, 6))
-    out[np.ix_(COV_INDEX, COV_INDEX)] = cov3
-    return out.ravel().tolist()
-
-
-_FIELD = []     # [(map key, DistanceField)]: the last map's field
-
-
-def distance_field(grid):
-    """``grid``'s :class:`tiago_nav.localisation.localiser.DistanceField`, built once per map: a reset
-    builds the node's state again for the same map, and the field (read only; 23 MB and a
-    fifth of a second for the course world) is the same."""
-    key = (grid.data.tobytes(), grid.resolution, tuple(grid.origin))
-    if not _FIELD or _FIELD[0][0] != key:
-        _FIELD[:] = [(key, DistanceField(grid))]
-    return _FIELD[0][1]
-
-
-def reaches_past(sent, stamp):
-    """True when one of the ``map → odom`` stamps ``sent`` (rospy.Time) lies after ``stamp``:
-    tf then gives ``map → odom`` at ``stamp`` without a re-send."""
-    return any(t > stamp for t in sent)
 
 
 class LocalisationNode:

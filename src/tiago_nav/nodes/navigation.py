@@ -29,10 +29,10 @@ from tiago_nav.nav.costmap import MapScan
 from tiago_nav.nav.navigator import NavConfig, Navigator
 from tiago_nav.nav.planner import PlanError
 from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, GoalRunner,
-                                  PoseUnavailable, frame_or, goal_pose, no_transform)
+                                  PoseUnavailable, frame_or, no_transform)
 from tiago_nav.params import nested, param, validate
 from tiago_nav.ros.clock import RosClock
-from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, pose_stamped
+from tiago_nav.ros.conversions import goal_from_pose, gridmap_from_msg, pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, STARTUP_WAIT, ClaimingActionServer,
                                     LockstepParticipant, goal_since, lookup_at,
                                     wait_for_transform)
@@ -339,10 +339,10 @@ class MoveBase:
         resp.plan.header.frame_id = self.map_frame
         try:
             if req.start.header.frame_id:
-                start = self.to_map(req.start.header.frame_id, _plain(req.start.pose))
+                start = self.to_map(req.start.header.frame_id, goal_from_pose(req.start.pose))
             else:
                 start = self.pose()[0]
-            goal = self.to_map(req.goal.header.frame_id, _plain(req.goal.pose))
+            goal = self.to_map(req.goal.header.frame_id, goal_from_pose(req.goal.pose))
             with self.lock:
                 path = self.nav.make_plan(start[:2], goal[:2])
         except (PlanError, GoalError, PoseUnavailable) as e:
@@ -380,12 +380,6 @@ class MoveBase:
                              p.pose.orientation.w))
         finally:
             self.lockstep.release()
-
-
-def _plain(pose):
-    """geometry_msgs/Pose → ``(x, y, yaw)`` checked like a goal (:class:`GoalError`)."""
-    o = pose.orientation
-    return goal_pose((pose.position.x, pose.position.y, pose.position.z), (o.x, o.y, o.z, o.w))
 
 
 def main():

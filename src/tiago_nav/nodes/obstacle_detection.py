@@ -28,12 +28,12 @@ from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
 from tiago_nav.detection import METHODS, DetectionParams
-from tiago_nav.detection.pipeline import ObstacleDetector
-from tiago_nav.detection.service import DetectionService, Failure, Scan
+from tiago_nav.detection.detectors import detector_for
+from tiago_nav.detection.service import DetectionService, Failure
 from tiago_nav.ros.clock import topic_dead
 from tiago_nav.msg import Obstacle
 from tiago_nav.params import nested, param, validate
-from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform
+from tiago_nav.ros.conversions import gridmap_from_msg, pose_from_transform, scan_from_msg
 from tiago_nav.ros.lockstep import lookup_at
 from tiago_nav.ros.markers import obstacle_markers
 from tiago_nav.ros.params import read_or_exit
@@ -153,7 +153,7 @@ class RosSensors:
                         if i == 0 and len(self.scans) == self.scans.maxlen and s.header.stamp > stamp:
                             raise Failure('the scan at %.3f s is no longer held (the oldest held '
                                           'is at %.3f s)' % (stamp.to_sec(), s.header.stamp.to_sec()))
-                        return _plain_scan(s)
+                        return scan_from_msg(s, seconds=False)
                 left = deadline - time.monotonic()
                 if left <= 0:
                     if not published:
@@ -175,7 +175,7 @@ class RosSensors:
         first."""
         with self.cond:
             held = [s for s in self.scans if s.header.stamp < scan.stamp]
-        return [_plain_scan(s) for s in reversed(held[-count:])] if count > 0 else []
+        return [scan_from_msg(s, seconds=False) for s in reversed(held[-count:])] if count > 0 else []
 
     def fresh_scan(self, timeout):
         """The first scan stamped at or after now (ROS time), or None after ``timeout`` wall
@@ -191,26 +191,6 @@ class RosSensors:
         except tf2_ros.TransformException as e:
             raise LookupError(str(e)) from None
         return pose_from_transform(t.transform)
-
-
-def _plain_scan(msg):
-    """sensor_msgs/LaserScan → :class:`tiago_nav.detection.service.Scan`."""
-    return Scan(msg.ranges, msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max,
-                msg.header.stamp, msg.header.frame_id)
-
-
-_DETECTOR = []      # [(map and parameters key, ObstacleDetector)]: the last map's
-
-
-def detector_for(grid, params):
-    """``grid``'s :class:`tiago_nav.detection.pipeline.ObstacleDetector` with the detection
-    parameters ``params``, built once per map and parameters: a reset builds the node's state
-    again for the same map, and the detector's distance transform and field (read only,
-    determined by the map and ``params``) take most of a reset's time to build."""
-    key = (grid.data.tobytes(), grid.resolution, tuple(grid.origin), repr(params))
-    if not _DETECTOR or _DETECTOR[0][0] != key:
-        _DETECTOR[:] = [(key, ObstacleDetector(grid, params))]
-    return _DETECTOR[0][1]
 
 
 class DetectionNode:

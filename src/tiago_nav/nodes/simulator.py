@@ -31,6 +31,7 @@ from std_srvs.srv import Trigger, TriggerResponse
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
+from tiago_nav.clock import Pacer
 from tiago_nav.msg import SimObjects
 from tiago_nav.params import ParamError, nested, param, read_params, validate
 from tiago_nav.robot import BASE_LINK_HEIGHT
@@ -41,10 +42,10 @@ from tiago_nav.ros.tcpros import concurrent_handshakes
 from tiago_nav.ros.world_objects import objects_markers, objects_msg
 from tiago_nav.sim.faults import FaultError, LaserFaults
 from tiago_nav.sim.raster import rasterise_world
+from tiago_nav.sim.checks import check_time_source, check_world_frame
 from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.world import WorldError, load_world
 
-BEHIND = 0.5            # [s wall] a run this far behind its real_time_factor restarts its pacing
 LOCKSTEP_START = 1.0    # [s sim] in lockstep simulated time starts here, not at 0: it may stand
                         # still at its start, and tf2 takes a stamp of 0 for "static" (a state
                         # stamped 0 could not be looked up in time)
@@ -141,29 +142,6 @@ class Params:
         return (x, y, math.radians(yaw_deg))
 
 
-def check_time_source(params, use_sim_time):
-    """Raise :class:`ParamError` unless ``real_time_factor`` can be kept: without simulated
-    time the simulator runs at wall-clock pace."""
-    if not use_sim_time and params.real_time_factor != 1.0:
-        raise ParamError('needs /use_sim_time true', 'real_time_factor',
-                         'parameter ~real_time_factor: %g needs /use_sim_time true (without '
-                         'simulated time the simulator runs at wall-clock pace)' % params.real_time_factor)
-    if not use_sim_time and params.lockstep:
-        raise ParamError('needs /use_sim_time true', 'lockstep',
-                         'parameter ~lockstep: needs /use_sim_time true')
-
-
-def check_world_frame(world, params):
-    """Raise :class:`WorldError` when the world file's ``world_frame`` takes the name of one
-    of the frames the simulator publishes (tf would get two parents for it)."""
-    wf = world.world_frame
-    own = (params.map_frame, params.odom_frame, params.base_frame, params.base_link_frame,
-           params.laser_frame)
-    if wf is not None and wf.name in own:
-        raise WorldError('%s: world_frame.name %r is one of the simulator\'s own frames (%s)'
-                         % (world.source, wf.name, ', '.join(own)))
-
-
 @dataclass
 class Outputs:
     """The node's publishers (anything with ``publish(msg)``); ``clock`` is not used (and may
@@ -207,32 +185,6 @@ def ros_outputs(params, use_sim_time):
         map_metadata=rospy.Publisher(params.map_metadata_topic, MapMetaData, **latched),
         objects=rospy.Publisher(params.objects_topic, SimObjects, **latched),
         markers=rospy.Publisher(params.markers_topic, MarkerArray, **latched))
-
-
-class Pacer:
-    """Holds simulated time at ``real_time_factor`` × wall time on a :mod:`tiago_nav.clock`
-    clock (its ``wall()`` and ``sleep()``). A run that falls more than :data:`BEHIND` wall
-    seconds behind (a slow machine) goes on from where it is instead of catching up;
-    ``real_time_factor`` 0 runs as fast as possible, yielding the processor now and then."""
-
-    def __init__(self, clock, dt, real_time_factor, steps=0):
-        self.clock, self.dt, self.rtf = clock, float(dt), float(real_time_factor)
-        self.restart(steps)
-
-    def restart(self, steps):
-        """Pace from now on, ``steps`` steps having been taken."""
-        self.t0, self.steps0 = self.clock.wall(), steps
-
-    def pace(self, steps):
-        """Wait until ``steps`` steps of ``dt`` [s sim] are due in wall time."""
-        if self.rtf > 0:
-            ahead = self.t0 + (steps - self.steps0) * self.dt / self.rtf - self.clock.wall()
-            if ahead > 0:
-                self.clock.sleep(ahead)
-            elif ahead < -BEHIND:
-                self.restart(steps)
-        elif steps % 64 == 0:
-            self.clock.sleep(0)                 # let the subscriber threads in
 
 
 def odometry_msg(pose, velocity, frame, child, stamp):

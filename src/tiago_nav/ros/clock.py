@@ -94,3 +94,9 @@ def topic_dead(topic, what='the simulator'):
     """``''`` while a publisher of ``topic`` (resolved) that this process subscribes to lives and
     is connected, else the reason (:func:`tiago_nav.clock.source_verdict`)."""
     return source_verdict(topic, *topic_facts(topic), what=what)
+
+
+def reaches_past(sent, stamp):
+    """True when one of the ``map → odom`` stamps ``sent`` (rospy.Time) lies after ``stamp``:
+    tf then gives ``map → odom`` at ``stamp`` without a re-send."""
+    return any(t > stamp for t in sent)

@@ -9,6 +9,8 @@ from nav_msgs.msg import MapMetaData, OccupancyGrid
 
 from tiago_nav.geometry import quaternion_to_yaw, yaw_to_quaternion
 from tiago_nav.gridmap import GridMap
+from tiago_nav.nav.runner import goal_pose
+from tiago_nav.scan import Scan
 from tiago_nav.scan import scan_to_points
 
 
@@ -86,3 +88,42 @@ def scan_points(scan):
     see :func:`tiago_nav.scan.scan_to_points`)."""
     return scan_to_points(scan.ranges, scan.angle_min, scan.angle_increment,
                           scan.range_min, scan.range_max)
+
+
+def known_frames(yaml_text):
+    """The frame names in tf2's ``all_frames_as_yaml()``: each child and its parent."""
+    names = set()
+    for line in yaml_text.splitlines():
+        if line and not line[0].isspace() and line.rstrip().endswith(':'):
+            names.add(line.rstrip()[:-1].strip('\'"'))
+        elif line.strip().startswith('parent:'):
+            names.add(line.split(':', 1)[1].strip().strip('\'"'))
+    return names - {''}
+
+
+def scan_from_msg(msg, seconds=True):
+    """sensor_msgs/LaserScan → :class:`tiago_nav.scan.Scan`: ranges as a float array and the
+    stamp in seconds (``seconds``: the corridor law's), or ranges as the message's tuple and
+    the stamp as its rospy.Time (detection's, which looks transforms up at it)."""
+    if seconds:
+        return Scan(np.asarray(msg.ranges, float), msg.angle_min, msg.angle_increment,
+                    msg.range_min, msg.range_max, msg.header.stamp.to_sec(), msg.header.frame_id)
+    return Scan(msg.ranges, msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max,
+                msg.header.stamp, msg.header.frame_id)
+
+
+def goal_from_pose(pose):
+    """geometry_msgs/Pose → ``(x, y, yaw)`` checked like a goal (raises
+    :class:`tiago_nav.goal.GoalError`)."""
+    o = pose.orientation
+    return goal_pose((pose.position.x, pose.position.y, pose.position.z), (o.x, o.y, o.z, o.w))
+
+
+COV_INDEX = (0, 1, 5)      # x, y, yaw in a ROS pose covariance's rows and columns
+
+
+def covariance_6x6(cov3):
+    """The 36 row-major values of a ROS pose covariance from a 3 × 3 ``(x, y, yaw)`` one."""
+    out = np.zeros((6, 6))
+    out[np.ix_(COV_INDEX, COV_INDEX)] = cov3
+    return out.ravel().tolist()

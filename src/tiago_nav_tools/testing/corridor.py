@@ -8,9 +8,10 @@ import math
 
 import numpy as np
 
-from tiago_nav.corridor.law import Command, CorridorFollower, CorridorParams, GoalJudge, Scan
+from tiago_nav.corridor.law import Command, CorridorFollower, CorridorParams, GoalJudge
 from tiago_nav.geometry import compose, wrap_angle
 from tiago_nav.robot import LASER_OFFSET
+from tiago_nav.scan import Scan
 from tiago_nav.sim.world import World
 
 
@@ -31,8 +32,8 @@ def run_in_simulator(sim, params=CorridorParams(), max_speed=None, max_distance=
         pose = sim.odom_pose
         if scan_due:
             laser = compose(pose, (laser_cfg.offset, 0.0, 0.0))
-            f.update_laser(Scan(sim.time, 'base_laser_link', sim.scan(), laser_cfg.angle_min,
-                                laser_cfg.angle_increment, laser_cfg.range_min, laser_cfg.range_max),
+            f.update_laser(Scan(sim.scan(), laser_cfg.angle_min, laser_cfg.angle_increment,
+                                laser_cfg.range_min, laser_cfg.range_max, sim.time, 'base_laser_link'),
                            laser, pose)
         if scan_due or odom_due:
             cmd = f.command(pose)
@@ -133,8 +134,8 @@ class FakeCorridorRobot:
             r[r < 0.05] = -np.inf
             if self.corrupt is not None:
                 r = self.corrupt(r)
-            self.scan = Scan(t, 'base_laser_link', r, float(self.angles[0]),
-                             float(self.angles[1] - self.angles[0]), 0.05, 25.0)
+            self.scan = Scan(r, float(self.angles[0]), float(self.angles[1] - self.angles[0]), 0.05,
+                             25.0, t, 'base_laser_link')
 
     def latest_scan(self):
         return self.scan
