@@ -30,7 +30,7 @@ ALLOWED = {
     'corridor': {'core'},
     'detection': {'core', 'localisation'},
     'mission': {'core', 'corridor'},
-    'ros': {'core', 'sim', 'nav', 'corridor', 'detection'},
+    'ros': {'core', 'sim', 'nav'},
     'nodes': {'core', 'sim', 'localisation', 'nav', 'corridor', 'detection', 'mission', 'ros'},
     'tools': {'core', 'sim', 'localisation', 'nav', 'corridor', 'detection', 'mission', 'ros',
               'nodes'},
