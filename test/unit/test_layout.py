@@ -10,7 +10,8 @@ ADAPTER = ('ros', 'nodes', 'testing')      # subpackages allowed to import ROS
 ROS_MODULES = ('rospy', 'actionlib', 'actionlib_msgs', 'tf2_ros', 'tf2_msgs', 'tf', 'rosgraph',
                'rosgraph_msgs', 'roslaunch', 'rostest', 'rosnode', 'rosservice', 'genpy',
                'geometry_msgs', 'nav_msgs', 'sensor_msgs', 'std_msgs', 'std_srvs',
-               'visualization_msgs', 'move_base_msgs', 'tiago_nav.msg', 'tiago_nav.srv')
+               'visualization_msgs', 'move_base_msgs', 'dynamic_reconfigure', 'tiago_nav.msg',
+               'tiago_nav.srv', 'tiago_nav.cfg')
 
 
 def imports(path):
