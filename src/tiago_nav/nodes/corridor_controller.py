@@ -40,7 +40,7 @@ from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant,
                                     ScanCache, goal_since, lookup_at)
 from tiago_nav.ros.params import read_or_exit
-from tiago_nav.ros.reconfigure import serve as serve_reconfigure
+from tiago_nav.ros import reconfigure
 from tiago_nav.ros.tcpros import concurrent_handshakes
 from tiago_nav.ros.reset import NodeReset, adopt, persistent
 from tiago_nav.ros.topics import Subscription
@@ -391,9 +391,16 @@ def main():
         rospy.logfatal('%s: %s; not starting the action server', NODE, e)
         sys.exit(1)
     server = reset.state.server
-    reset.build = lambda: build(read_or_exit(Params, NODE), server)
-    serve_reconfigure(CorridorControllerConfig, Params,
-                      lambda: getattr(reset.state, 'changes', None), NODE)
+    dynamic = []        # the dynamic_reconfigure server, made once
+
+    def rebuild():
+        """A reset: the parameters as they are now, the same action server."""
+        node = build(read_or_exit(Params, NODE), server)
+        reconfigure.show(dynamic[0] if dynamic else None, node.p)
+        return node
+    reset.build = rebuild
+    dynamic.append(reconfigure.serve(CorridorControllerConfig, Params,
+                                     lambda: getattr(reset.state, 'changes', None), NODE))
     rospy.loginfo('%s ready (max_speed %.2f m/s, look-ahead %.1f m)', NODE,
                   params.law.max_speed, params.law.look_ahead)
     rospy.spin()

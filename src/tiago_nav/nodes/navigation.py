@@ -41,7 +41,7 @@ from tiago_nav.ros.lockstep import (CYCLE_WAIT, STARTUP_WAIT, ClaimingActionServ
                                     LockstepParticipant, goal_since, lookup_at,
                                     wait_for_transform)
 from tiago_nav.ros.params import read_or_exit
-from tiago_nav.ros.reconfigure import serve as serve_reconfigure
+from tiago_nav.ros import reconfigure
 from tiago_nav.ros.tcpros import concurrent_handshakes
 from tiago_nav.ros.reset import NodeReset, adopt, persistent
 from tiago_nav.ros.topics import Subscription, wait_for_message
@@ -412,10 +412,16 @@ def main():
         rospy.logfatal('move_base: not starting: %s', e)
         sys.exit(1)
     server = reset.state.server
-    # a reset: the parameters as they are now, the same action server
-    reset.build = lambda: MoveBase(read_or_exit(Params, 'move_base'), server)
+    dynamic = []        # the dynamic_reconfigure server, made once
+
+    def rebuild():
+        """A reset: the parameters as they are now, the same action server."""
+        node = MoveBase(read_or_exit(Params, 'move_base'), server)
+        reconfigure.show(dynamic[0] if dynamic else None, node.p)
+        return node
+    reset.build = rebuild
     reset.stop_fn = lambda node: node.retire()
-    serve_reconfigure(MoveBaseConfig, Params, lambda: getattr(reset.state, 'changes', None),
-                      'move_base')
+    dynamic.append(reconfigure.serve(MoveBaseConfig, Params,
+                                     lambda: getattr(reset.state, 'changes', None), 'move_base'))
     rospy.on_shutdown(lambda: reset.state is not None and reset.state.stop())
     rospy.spin()

@@ -20,7 +20,8 @@ def serve(config_type, cls, changes, node):
     class) for the parameter dataclass ``cls``. ``changes()`` returns the node's current
     :class:`~tiago_nav.params.ParamChanges` (None while a reset rebuilds the node, whose new
     state then reads the parameter server, where the server has written each change). Made
-    once per process: the server outlives resets."""
+    once per process: the server outlives resets (after one, :func:`show` the new state's
+    values). Returns the dynamic_reconfigure server."""
     names = [row[0] for row in dynamic_fields(cls)]
     described = {p['name'] for p in config_type.config_description['parameters']}
     if set(names) != described:
@@ -50,3 +51,14 @@ def serve(config_type, cls, changes, node):
 
     with persistent():
         return Server(config_type, callback)
+
+
+def show(server, params):
+    """Make ``server`` (:func:`serve`'s, None: nothing) hold the run-time values of
+    ``params``, a state a reset has just built from the parameter server (where a
+    ``rosparam set`` may have changed them since the last request)."""
+    if server is None:
+        return
+    given = values(params)
+    server.update_configuration({p['name']: given[p['name']]
+                                 for p in server.type.config_description['parameters']})
