@@ -120,9 +120,11 @@ def reconfigure_section(entry, cls):
     example = next((r for r in rows if r[0] == 'max_vel_x'), rows[0])
     lines = ['### Dynamic reconfigure', '',
              'These parameters can also be changed while the node runs, with rqt_reconfigure or '
-             'e.g. `rosrun dynamic_reconfigure dynparam set /%s %s %g` (`~set_parameters`). A '
-             'change is checked as a start-up value is (a refused one is logged and the values '
-             'in force are kept) and comes in force at the boundary between two control cycles, '
+             'e.g. `rosrun dynamic_reconfigure dynparam set /%s %s %g` (`~set_parameters`). '
+             'dynamic_reconfigure clamps a value to its range below (at start-up a value '
+             'outside it is refused); the node then checks the change as a start-up value (a '
+             'refused one is logged and the values in force are kept). It comes in force at '
+             'the boundary between two control cycles, '
              'never within one; under lockstep each cycle is computed with one set of values. '
              'The parameter server then holds the new value (a reset keeps it).'
              % (entry['node'], example[0], example[2] / 2), '',
