@@ -13,6 +13,7 @@ APT_PACKAGES := ros-core-dev catkin python3-catkin-pkg python3-rospy python3-act
 	python3-move-base-msgs ros-move-base-msgs libmove-base-msgs-dev python3-nav-msgs \
 	python3-sensor-msgs python3-geometry-msgs python3-std-msgs python3-std-srvs \
 	python3-visualization-msgs python3-rosgraph-msgs python3-rostest python3-roslaunch \
+	python3-dynamic-reconfigure libdynamic-reconfigure-config-init-mutex-dev \
 	python3-rosnode python3-rostopic python3-rosservice python3-rosgraph rosbash python3-rosbag \
 	ros-robot-state-publisher \
 	python3-numpy python3-scipy python3-yaml python3-matplotlib python3-pytest python3-venv \
@@ -33,7 +34,10 @@ APT_PACKAGES += $(APT_PACKAGES_$(DEBIAN_CODENAME))
 DASK_VERSION = $(shell $(SYS_PY) -c 'import sys; print("2026.8.0" if sys.version_info >= (3, 10) else "2024.8.0")')
 PIP_PACKAGES = pybullet==3.2.7 dask[distributed]==$(DASK_VERSION) distributed==$(DASK_VERSION) vermin==1.9.2
 # What the workspace build depends on (file(GLOB) lists are re-read when these change).
-WS_INPUTS := CMakeLists.txt package.xml setup.py $(wildcard msg/* srv/* action/* nodes/* scripts/evaluate test/*.test env-hooks/*)
+# (cfg/*.cfg read their tables from the library files CMakeLists.txt lists in TIAGO_NAV_CFG_TABLES)
+WS_INPUTS := CMakeLists.txt package.xml setup.py $(wildcard msg/* srv/* action/* cfg/* nodes/* scripts/evaluate test/*.test env-hooks/*) \
+	src/tiago_nav/params.py src/tiago_nav/nav/navigator.py src/tiago_nav/nav/controller.py \
+	src/tiago_nav/corridor/law.py
 ROS_ENV := source $(WS)/devel/setup.bash
 # tysik/obstacle_detector for the detection benchmark's comparison (`make obstacle-detector`)
 OD_WS := $(ROOT)/.od_ws

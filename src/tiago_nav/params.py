@@ -18,8 +18,15 @@ library user who builds the dataclass by hand gets the same checks. :func:`confi
 node's ``config/<node>.yaml`` (every parameter, its default and its comment) from the dataclass,
 and a unit test keeps the shipped files equal to it (``python3 -m tiago_nav.nodes`` rewrites
 them).
+
+A parameter declared with ``dynamic=(lo, hi)`` can also be changed while the node runs
+(dynamic_reconfigure): ``[lo, hi]`` is its range at start-up and at run time alike, and
+:func:`dynamic_fields` is the one table the node's ``cfg/*.cfg`` and docs/ros_api.md are made
+from. :func:`replace` checks a change as :func:`read_params` checks a start; :class:`ParamChanges`
+holds an accepted change until a control cycle's boundary.
 """
 import math
+import threading
 from dataclasses import MISSING, field, fields
 
 _SENTINEL = object()
@@ -38,7 +45,7 @@ class ParamError(ValueError):
 
 
 def param(default, doc='', *, gt=None, ge=None, lt=None, le=None, choices=None, nonempty=False,
-          name=None):
+          name=None, dynamic=None):
     """A dataclass field for a parameter.
 
     Args:
@@ -48,9 +55,18 @@ def param(default, doc='', *, gt=None, ge=None, lt=None, le=None, choices=None, 
         choices: the allowed values (strings).
         nonempty: a string or list that must not be empty.
         name: the ROS parameter name when it differs from the field's.
+        dynamic: ``(lo, hi)``: a number the node lets change at run time (dynamic_reconfigure),
+            within ``[lo, hi]`` (also checked at start-up; the default must lie in it).
     """
+    if dynamic is not None:
+        lo, hi = dynamic
+        if not (isinstance(default, (int, float)) and not isinstance(default, bool)
+                and lo <= default <= hi):
+            raise TypeError('dynamic parameter: default %r must be a number in [%r, %r]'
+                            % (default, lo, hi))
+        dynamic = (type(default)(lo), type(default)(hi))
     meta = {'doc': doc, 'gt': gt, 'ge': ge, 'lt': lt, 'le': le, 'choices': choices,
-            'nonempty': nonempty, 'name': name, 'param': True}
+            'nonempty': nonempty, 'name': name, 'param': True, 'dynamic': dynamic}
     if isinstance(default, list):
         return field(default_factory=lambda: list(default), metadata=meta)
     return field(default=default, metadata=meta)
@@ -112,6 +128,8 @@ def check_value(f, value):
             bound = m.get(key)
             if bound is not None and not ok(value, bound):
                 raise ParamError('%r is out of range: must be %s %g' % (value, word, bound))
+        if m.get('dynamic') is not None and not m['dynamic'][0] <= value <= m['dynamic'][1]:
+            raise ParamError('%r is out of range: must be in [%g, %g]' % ((value,) + m['dynamic']))
     elif kind is str:
         if not isinstance(value, str):
             raise ParamError('expected a string, got %r' % (value,))
@@ -242,6 +260,8 @@ def _range(f):
     m = f.metadata
     parts = ['%s %g' % (w, m[k]) for k, w in (('gt', '>'), ('ge', '>='), ('lt', '<'), ('le', '<='))
              if m.get(k) is not None]
+    if m.get('dynamic') is not None:
+        parts.append('in [%g, %g], reconfigurable' % m['dynamic'])
     if m.get('choices'):
         parts.append('one of ' + ', '.join(m['choices']))
     if m.get('nonempty'):
@@ -261,3 +281,104 @@ def markdown_table(cls):
             n, _kind(f).__name__, cell(_yaml_value(d) if d != '' else '""'),
             cell('; '.join(x for x in (doc, _range(f)) if x))))
     return '\n'.join(lines)
+
+
+# --- run-time changes (dynamic_reconfigure) ----------------------------------------------------
+def dynamic_fields(cls):
+    """The parameters of ``cls`` (nested flattened) declared with ``dynamic=(lo, hi)``, as
+    ``(name, type, default, lo, hi, doc)`` in declaration order: the table a node's
+    ``cfg/*.cfg`` and docs/ros_api.md are made from."""
+    return [(n, _kind(f), d, f.metadata['dynamic'][0], f.metadata['dynamic'][1],
+             f.metadata.get('doc', ''))
+            for n, f, d in _walk(cls) if f.metadata.get('dynamic') is not None]
+
+
+def values(obj):
+    """``{param name: value}`` of every parameter of the dataclass instance ``obj`` (nested
+    flattened; the first occurrence of a name, as :func:`build` reads it)."""
+    out = {}
+
+    def walk(o):
+        for f in fields(o):
+            if f.metadata.get('nested'):
+                walk(getattr(o, f.name))
+            elif f.metadata.get('param'):
+                out.setdefault(param_name(f), getattr(o, f.name))
+    walk(obj)
+    return out
+
+
+def replace(obj, changes):
+    """A new instance of ``obj``'s class with the parameters in ``changes`` (``{name: value}``)
+    replaced, checked as at start-up (ranges, then the classes' cross-field checks). Only
+    parameters declared ``dynamic`` may change: :class:`ParamError` names any other, and any
+    value the node cannot use."""
+    cls = type(obj)
+    dynamic = {n: f for n, f in param_fields(cls) if f.metadata.get('dynamic') is not None}
+    checked = {}
+    for n, v in changes.items():
+        if n not in dynamic:
+            raise ParamError('cannot be changed while the node runs', n)
+        try:
+            checked[n] = check_value(dynamic[n], v)
+        except ParamError as e:
+            raise ParamError(e.reason, n) from None
+    return build(cls, {**values(obj), **checked})
+
+
+class ParamChanges:
+    """Run-time changes of a node's parameters, applied only at a control cycle's boundary.
+
+    ``params`` is the parameter dataclass instance in force; ``apply(new)`` puts a new one in
+    force (e.g. hands it to the library objects). :meth:`request` (any thread) checks a change
+    (:func:`replace`). While the node is idle it is applied at once; while a control loop runs
+    (between :meth:`begin` and :meth:`end`) it waits for the loop's next :meth:`boundary`, so
+    that no value changes within a cycle: under lockstep every cycle is computed with one set of
+    values, the one in force when the simulator released it.
+    """
+
+    def __init__(self, params, apply=lambda new: None):
+        self.params = params
+        self._apply = apply
+        self._pending = None
+        self._running = False
+        self._lock = threading.Lock()
+
+    @property
+    def requested(self):
+        """The newest accepted parameters (pending or in force)."""
+        with self._lock:
+            return self._pending or self.params
+
+    def request(self, changes):
+        """Accept ``changes`` (``{name: value}``) on top of the newest accepted parameters and
+        return the result; :class:`ParamError` (nothing changes) when refused."""
+        with self._lock:
+            new = replace(self._pending or self.params, changes)
+            self._pending = new
+            if not self._running:
+                self._flush()
+            return new
+
+    def _flush(self):
+        new, self._pending = self._pending, None
+        if new is not None and new != self.params:
+            self._apply(new)
+            self.params = new
+
+    def begin(self):
+        """A control loop's first cycle starts: what was accepted before is in force."""
+        with self._lock:
+            self._flush()
+            self._running = True
+
+    def boundary(self):
+        """Between two cycles of the control loop: what was accepted meanwhile comes in force."""
+        with self._lock:
+            self._flush()
+
+    def end(self):
+        """The control loop ended: changes apply at once again."""
+        with self._lock:
+            self._running = False
+            self._flush()

@@ -20,7 +20,7 @@ import xml.etree.ElementTree as ET
 
 from tiago_nav_tools import benchmarks
 from tiago_nav_tools.interfaces import NODES, SECTIONS
-from tiago_nav.params import defaults, markdown_table, param_fields
+from tiago_nav.params import defaults, dynamic_fields, markdown_table, param_fields
 
 ROOT = os.path.normpath(os.path.join(os.path.dirname(os.path.realpath(__file__)), '..', '..'))
 ROS_API = os.path.join('docs', 'ros_api.md')
@@ -102,12 +102,38 @@ def node_section(entry):
         lines.append('')
     if cls is not None:
         lines += ['### Parameters', '',
-                  'All private (`~name`), read once at start-up; defaults from `%s.Params` (also '
+                  'All private (`~name`), read at start-up; defaults from `%s.Params` (also '
                   'in `config/`). Units in brackets.' % entry['params'], '',
                   markdown_table(cls), '']
+        lines += reconfigure_section(entry, cls)
     else:
         lines += ['### Command line', '', '```', client_usage(), '```', '']
     return lines
+
+
+def reconfigure_section(entry, cls):
+    """The run-time parameters of a node (dynamic_reconfigure), from the table its cfg file is
+    generated from (:func:`tiago_nav.params.dynamic_fields`); none: no lines."""
+    rows = dynamic_fields(cls)
+    if not rows:
+        return []
+    example = next((r for r in rows if r[0] == 'max_vel_x'), rows[0])
+    lines = ['### Dynamic reconfigure', '',
+             'These parameters can also be changed while the node runs, with rqt_reconfigure or '
+             'e.g. `rosrun dynamic_reconfigure dynparam set /%s %s %g` (`~set_parameters`). '
+             'dynamic_reconfigure clamps a value to its range below (at start-up a value '
+             'outside it is refused); the node then checks the change as a start-up value (a '
+             'refused one is logged and the values in force are kept). It comes in force at '
+             'the boundary between two control cycles, '
+             'never within one; under lockstep each cycle is computed with one set of values. '
+             'The parameter server then holds the new value (a reset keeps it).'
+             % (entry['node'], example[0], example[2] / 2), '',
+             '| parameter | type | default | min | max | meaning |', '|---|---|---|---|---|---|']
+    for n, kind, default, lo, hi, doc in rows:
+        lines.append('| `%s` | %s | `%r` | `%r` | `%r` | %s |'
+                     % (n, {float: 'double', int: 'int'}[kind], default, lo, hi,
+                        doc.replace('|', '\\|')))
+    return lines + ['']
 
 
 def client_usage(width=100):

@@ -38,6 +38,15 @@ _RESET = [('~reset/stop', 'std_srvs/Trigger',
           ('~reset/start', 'std_srvs/Trigger',
            'a reset\'s second half: build the state anew from the parameters and the latched '
            'topics, as at start; answers once ready and its subscriptions are connected')]
+# dynamic_reconfigure's standard server (tiago_nav.ros.reconfigure): rqt_reconfigure and
+# `rosrun dynamic_reconfigure dynparam` use these
+_RECONFIGURE_SRV = [('~set_parameters', 'dynamic_reconfigure/Reconfigure',
+                     'change the run-time parameters (below); in force from the next control '
+                     'cycle')]
+_RECONFIGURE_TOPICS = [('~parameter_descriptions', 'dynamic_reconfigure/ConfigDescription',
+                        'latched: the run-time parameters with their ranges'),
+                       ('~parameter_updates', 'dynamic_reconfigure/Config',
+                        'latched: their values in force')]
 
 NODES = (
     {
@@ -130,11 +139,11 @@ NODES = (
             ('move_base/goal', 'move_base_msgs/MoveBaseActionGoal',
              'the action goal made from a move_base_simple/goal'),
             _ACK,
-        ],
+        ] + _RECONFIGURE_TOPICS,
         'services_provided': [
             ('~make_plan', 'nav_msgs/GetPlan', 'a plan between two poses, without moving'),
             ('~clear_costmaps', 'std_srvs/Empty', 'forget the obstacle layer'),
-        ] + _RESET,
+        ] + _RECONFIGURE_SRV + _RESET,
         'tf_required': [
             ('{global_frame}', '{odom_frame}', 'localisation (the newest)'),
             ('{odom_frame}', '{robot_base_frame}', 'odometry, at each scan\'s and cycle\'s stamp'),
@@ -143,7 +152,7 @@ NODES = (
     },
     {
         'node': 'corridor_controller',
-        'services_provided': _RESET,
+        'services_provided': _RECONFIGURE_SRV + _RESET,
         'executable': 'corridor_controller',
         'params': 'tiago_nav.nodes.corridor_controller',
         'launch': 'navigation.launch',
@@ -163,7 +172,7 @@ NODES = (
             ('{cmd_vel_topic}', 'geometry_msgs/Twist',
              'velocity commands (a stop whenever a goal ends)'),
             _ACK,
-        ],
+        ] + _RECONFIGURE_TOPICS,
         'tf_required': [
             ('{odom_frame}', '{base_frame}', 'the base\'s pose along the corridor'),
             ('{odom_frame}', '<scan frame>', 'the laser\'s pose at each scan\'s stamp'),

@@ -269,3 +269,30 @@ def test_ready_only_with_a_scan_and_the_tf():
 def test_scan_timeout_must_exceed_sensor_timeout():
     with pytest.raises(ParamError, match='scan_timeout'):
         Params(sensor_timeout=1.0, scan_timeout=0.8)
+
+
+def test_a_run_time_change_comes_in_force_at_the_next_cycle():
+    """A speed_limit change (dynamic_reconfigure) requested inside a cycle, before its command is
+    computed: that cycle's command still uses the old limit, every later one the new."""
+    rig = Rig(corridor_world(1.07, 8.0, start=(-0.5, 0.0, 0.0)))
+    sent, asked = [], []
+    publish, latest_scan = rig.cmd.publish, rig.robot.latest_scan
+
+    def record(twist):
+        sent.append((rig.clock.now(), twist.linear.x))
+        publish(twist)
+
+    def scan_then_change():
+        if not asked and rig.clock.now() >= 2.5:
+            asked.append(rig.clock.now())
+            rig.node.changes.request({'speed_limit': 0.3})
+            assert rig.node.p.law.speed_limit == 1.0          # not within this cycle
+        return latest_scan()
+    rig.cmd.publish, rig.robot.latest_scan = record, scan_then_change
+    server = rig.run()
+    assert server.state == 'succeeded', server.text
+    t0 = asked[0]
+    assert [v for t, v in sent if t == t0][0] > 0.8            # the old limit in that cycle
+    later = [v for t, v in sent if t > t0]
+    assert later and max(later) <= 0.3 + 1e-9 and max(later) > 0.25
+    assert rig.node.p.law.speed_limit == 0.3                   # in force after the goal too

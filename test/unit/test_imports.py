@@ -17,9 +17,10 @@ ROS_PACKAGES = frozenset((
     'rospy', 'rosgraph', 'roslaunch', 'rosservice', 'rostopic', 'rosnode', 'rosbag', 'rostest',
     'rosunit', 'roslib', 'rospkg', 'genpy', 'genmsg', 'catkin', 'catkin_pkg', 'actionlib',
     'tf2_ros', 'tf2_py', 'tf2_msgs', 'actionlib_msgs', 'geometry_msgs', 'move_base_msgs',
-    'nav_msgs', 'rosgraph_msgs', 'sensor_msgs', 'std_msgs', 'std_srvs', 'visualization_msgs'))
-# generated from msg/, srv/, action/ by the catkin build (the workspace's devel space)
-GENERATED = ('tiago_nav.msg', 'tiago_nav.srv')
+    'nav_msgs', 'rosgraph_msgs', 'sensor_msgs', 'std_msgs', 'std_srvs', 'visualization_msgs',
+    'dynamic_reconfigure'))
+# generated from msg/, srv/, action/ and cfg/ by the catkin build (the workspace's devel space)
+GENERATED = ('tiago_nav.msg', 'tiago_nav.srv', 'tiago_nav.cfg')
 
 
 def modules():

@@ -77,10 +77,12 @@ class CorridorParams:
     Lengths [m], angles [rad], speeds [m/s, rad/s], accelerations [m/s^2]."""
     # the robot and the law
     robot_radius: float = param(ROBOT_RADIUS, '[m] base footprint radius', gt=0)
-    max_speed: float = param(1.0, '[m/s] forward speed when the goal\'s max_speed is 0', gt=0)
-    speed_limit: float = param(1.0, '[m/s] the base\'s limit: goal speeds are clamped to it', gt=0)
+    max_speed: float = param(1.0, '[m/s] forward speed when the goal\'s max_speed is 0', gt=0,
+                             dynamic=(0.05, 2.0))
+    speed_limit: float = param(1.0, '[m/s] the base\'s limit: goal speeds are clamped to it', gt=0,
+                               dynamic=(0.05, 2.0))
     min_speed: float = param(0.1, '[m/s] slowest cruise while correcting large errors', ge=0)
-    max_angular: float = param(1.5, '[rad/s] turn rate limit', gt=0)
+    max_angular: float = param(1.5, '[rad/s] turn rate limit', gt=0, dynamic=(0.1, 4.0))
     decel: float = param(0.95, '[m/s^2] braking for the stop point and the front safety check', gt=0)
     k_lateral: float = param(9.0, '[1/m^2] k_y, lateral gain per metre travelled', gt=0)
     k_heading: float = param(5.0, '[1/m] k_theta, heading gain per metre travelled', gt=0)
@@ -109,14 +111,14 @@ class CorridorParams:
     end_gap: float = param(0.5, '[m] one side without wall for this long = end of the corridor', gt=0)
     exit_margin: float = param(0.35, '[m] stop the base centre this far past the end', ge=0)
     end_clearance: float = param(0.25, '[m] past the end, stop this far before anything straight '
-                                       'ahead (the outer wall of a bend)', ge=0)
+                                       'ahead (the outer wall of a bend)', ge=0, dynamic=(0.0, 1.0))
     bend_turn: bool = param(True, 'stopped short by a wall ahead (a bend): turn in place toward '
                                   'the longest free way before the goal succeeds')
     bend_search: float = param(math.radians(100.0), '[rad] ... searched within +- this of the '
                                                     'corridor\'s direction', gt=0)
     turn_tolerance: float = param(0.05, '[rad] ... until the heading is within this of it', gt=0)
     stop_margin: float = param(0.08, '[m] front safety: stop this far before touching anything '
-                                     'ahead', ge=0)
+                                     'ahead', ge=0, dynamic=(0.0, 0.5))
     max_jump: float = param(0.2, '[m] a wall fit this far from the tracked centre line is rejected',
                             gt=0)
     max_turn: float = param(0.35, '[rad] ... or turned this much from it', gt=0)
@@ -479,6 +481,7 @@ class CorridorFollower:
 
     def __init__(self, params=CorridorParams(), max_speed=None, max_distance=None, lost_scans=15):
         self.p = params
+        self.goal_speed = max_speed
         self.max_speed = min(max_speed or params.max_speed, params.speed_limit)
         self.max_distance = max_distance if max_distance else None
         self.lost_scans = lost_scans
@@ -498,6 +501,13 @@ class CorridorFollower:
         self.walls = None
         self.travelled = 0.0
         self._last_pose = None
+
+    def reconfigure(self, params):
+        """New :class:`CorridorParams` from the next scan and command on (the node calls it
+        between two control cycles): the speed (the goal's max_speed, or ``max_speed``, capped
+        at ``speed_limit``), turn rate and clearances. The tracked corridor is kept."""
+        self.p = params
+        self.max_speed = min(self.goal_speed or params.max_speed, params.speed_limit)
 
     # --- perception -----------------------------------------------------------------------
     def update_laser(self, scan, laser_pose, pose_odom):

@@ -19,11 +19,13 @@ from tiago_nav.robot import ROBOT_RADIUS
 class ControllerConfig:
     """The local controller's limits and gains (parameters of the ``move_base`` node)."""
     robot_radius: float = param(ROBOT_RADIUS, '[m] base footprint radius (tiago_nav.robot)', gt=0)
-    max_vel_x: float = param(1.0, '[m/s] forward speed limit', gt=0)
+    max_vel_x: float = param(1.0, '[m/s] forward speed limit', gt=0, dynamic=(0.05, 2.0))
     min_vel_x: float = param(0.05, '[m/s] slowest forward cruise', ge=0)
-    max_vel_theta: float = param(1.5, '[rad/s] turn rate limit', gt=0)
-    acc_lim_x: float = param(1.0, '[m/s^2] forward acceleration limit', gt=0)
-    acc_lim_theta: float = param(2.0, '[rad/s^2] angular acceleration limit', gt=0)
+    max_vel_theta: float = param(1.5, '[rad/s] turn rate limit', gt=0, dynamic=(0.1, 4.0))
+    acc_lim_x: float = param(1.0, '[m/s^2] forward acceleration limit', gt=0,
+                             dynamic=(0.1, 5.0))
+    acc_lim_theta: float = param(2.0, '[rad/s^2] angular acceleration limit', gt=0,
+                                 dynamic=(0.1, 10.0))
     decel_x: float = param(0.9, '[m/s^2] braking used for the goal approach and the collision '
                            'check (a bit under the limit)', gt=0)
     lookahead_min: float = param(0.35, '[m] shortest pure-pursuit lookahead', gt=0)
@@ -40,8 +42,10 @@ class ControllerConfig:
     tight_rotate_angle: float = param(0.5, '[rad] ... and turns on the spot above this heading '
                                       'error', gt=0)
     heading_gain: float = param(2.5, '[1/s] in-place turning gain', gt=0)
-    xy_goal_tolerance: float = param(0.15, '[m] goal reached within this distance', gt=0)
-    yaw_goal_tolerance: float = param(0.1, '[rad] ... and this heading error', gt=0)
+    xy_goal_tolerance: float = param(0.15, '[m] goal reached within this distance', gt=0,
+                                     dynamic=(0.01, 1.0))
+    yaw_goal_tolerance: float = param(0.1, '[rad] ... and within this heading error', gt=0,
+                                      dynamic=(0.01, math.pi))
 
     def __post_init__(self):
         validate(self)
@@ -82,6 +86,12 @@ class Controller:
     def __init__(self, config=ControllerConfig()):
         self.c = config
         self.reset()
+
+    def configure(self, config):
+        """New limits and tolerances from the next :meth:`command` on. The path and the last
+        command are kept: a lower ``max_vel_x`` is reached at ``acc_lim_x``, as the base
+        would brake anyway."""
+        self.c = config
 
     def reset(self, path=None):
         self.v = 0.0

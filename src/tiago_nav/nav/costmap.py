@@ -149,6 +149,14 @@ class Costmap:
     def resolution(self):
         return self.grid.resolution
 
+    def set_inflation(self, inflation_radius):
+        """A new ``inflation_radius`` [m] (>= ``robot_radius``): costs read from now on use it."""
+        if not self.robot_radius <= inflation_radius:
+            raise ValueError('need robot_radius <= inflation_radius, got %r, %r'
+                             % (self.robot_radius, inflation_radius))
+        self.inflation_radius = float(inflation_radius)
+        self.update()
+
     def clear_obstacles(self):
         """Forget everything the laser marked (``clear_costmaps``)."""
         self.obstacles[:] = False

@@ -26,7 +26,8 @@ from tiago_nav.robot import ROBOT_RADIUS
 class NavConfig:
     """Costmap, planner, progress, recovery and sensor-freshness settings of the navigator."""
     robot_radius: float = param(ROBOT_RADIUS, '[m] base footprint radius (tiago_nav.robot)', gt=0)
-    inflation_radius: float = param(0.8, '[m] the cost gradient reaches out this far', gt=0)
+    inflation_radius: float = param(0.8, '[m] the cost gradient reaches out this far', gt=0,
+                                    dynamic=(0.1, 3.0))
     cost_scaling_factor: float = param(4.0, '[1/m] cost = 252 exp(-k (d - robot_radius))', gt=0)
     cost_weight: float = param(1.5, 'planner: step cost multiplier 1 + cost_weight * cost / 252',
                                ge=0)
@@ -147,6 +148,20 @@ class Navigator:
     def clear_costmaps(self):
         self.costmap.clear_obstacles()
 
+    def reconfigure(self, config):
+        """Put the :class:`NavConfig` ``config`` in force from the next :meth:`step` on (the
+        node calls it between two control cycles, :class:`tiago_nav.params.ParamChanges`): the
+        controller's limits and goal tolerances, the costmap's inflation (re-inflated when next
+        read). A goal in progress keeps its plan and its speed (a lower ``max_vel_x`` is
+        reached at ``acc_lim_x``); its derived timeout is lengthened when the first plan at
+        the new ``max_vel_x`` needs longer, never shortened."""
+        old, self.cfg = self.cfg, config
+        self.controller.configure(config.controller)
+        if config.inflation_radius != old.inflation_radius:
+            self.costmap.set_inflation(config.inflation_radius)
+        if self.state == ACTIVE and getattr(self, '_first_length', None) is not None:
+            self._derive_deadline(self._first_length)
+
     def make_plan(self, start_xy, goal_xy):
         """A plan ``(K, 2)`` on the current costmap, or :class:`PlanError`."""
         return plan(self.costmap, start_xy, goal_xy, self.cfg.cost_weight,
@@ -184,6 +199,7 @@ class Navigator:
         self.recovery_action = None
         self.window.reset()
         self.deadline, self.timeout_reason = math.inf, ''
+        self._first_length = None
         if self.cfg.goal_timeout > 0:
             self.deadline = t + self.cfg.goal_timeout
             self.timeout_reason = 'timeout: goal not reached in %.0f s' % self.cfg.goal_timeout
@@ -220,18 +236,26 @@ class Navigator:
         self.controller.set_path(self.path)
         self.last_plan_ok = t
         self._arc = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(self.path, axis=0).T))))
-        cfg = self.cfg
-        if cfg.goal_timeout < 0 and math.isinf(self.deadline):
+        if self.cfg.goal_timeout < 0 and math.isinf(self.deadline):
             # derived from the first plan (goal_timeout < 0)
-            length = float(self._arc[-1])
-            limit = cfg.goal_timeout_factor * length / cfg.controller.max_vel_x \
-                + cfg.goal_timeout_allowance
+            self._first_length = float(self._arc[-1])
+            self._derive_deadline(self._first_length)
+        return True
+
+    def _derive_deadline(self, length):
+        """The goal's deadline from its first plan's ``length`` [m] at ``max_vel_x`` (when
+        ``goal_timeout < 0``), if later than the one it has."""
+        cfg = self.cfg
+        if cfg.goal_timeout >= 0:
+            return
+        limit = cfg.goal_timeout_factor * length / cfg.controller.max_vel_x \
+            + cfg.goal_timeout_allowance
+        if math.isinf(self.deadline) or self.t0 + limit > self.deadline:
             self.deadline = self.t0 + limit
             self.timeout_reason = ('timeout: goal not reached in %.0f s (%g x the %.1f m plan at '
                                    '%g m/s + %g s)' % (limit, cfg.goal_timeout_factor, length,
                                                        cfg.controller.max_vel_x,
                                                        cfg.goal_timeout_allowance))
-        return True
 
     def to_go(self, pose):
         """Length [m] of the current plan from its point nearest to ``pose`` to the goal, plus

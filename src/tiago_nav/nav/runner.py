@@ -74,13 +74,18 @@ class GoalRunner:
     so that its plan and first command use that cycle's pose and scans, and each cycle calls
     ``io.sense()`` (if the io has it) to take them in. None: a :class:`Ticker` per goal,
     starting at once.
+
+    ``changes``: the node's :class:`tiago_nav.params.ParamChanges` (dynamic_reconfigure), told
+    when a goal's cycles begin and end and called at each boundary between two cycles, so that
+    a change comes in force between cycles, never within one.
     """
 
-    def __init__(self, nav, io, period, lock=None, log=None, ticker=None):
+    def __init__(self, nav, io, period, lock=None, log=None, ticker=None, changes=None):
         self.nav, self.io, self.period = nav, io, float(period)
         self.lock = lock or threading.Lock()
         self.log = log or (lambda level, text: None)
         self.ticker = ticker
+        self.changes = changes
 
     def run(self, frame, position, orientation):
         """Run one goal (``frame`` of the pose, ``position``, ``orientation`` quaternion) to its
@@ -99,12 +104,16 @@ class GoalRunner:
         self.log('info' if status == SUCCEEDED else 'warn', 'goal %s: %s' % (status, text))
         self.io.finish(status, text)
         self.io.send_cmd(0.0, 0.0)
+        if self.changes is not None:
+            self.changes.end()
         return Outcome(status, text)
 
     def _tick(self, ticker):
         """The next cycle; the text of the abort when there is none (shutting down, or ROS time
         stopped with its source dead: the ticker's ``reason``), else ''."""
         if ticker.tick():
+            if self.changes is not None:
+                self.changes.boundary()
             getattr(self.io, 'sense', lambda: None)()
             return ''
         return 'node shutting down' if self.io.clock.shutdown() else \
@@ -114,6 +123,8 @@ class GoalRunner:
         io, nav = self.io, self.nav
         clock = io.clock
         ticker = self.ticker or Ticker(clock, self.period)
+        if self.changes is not None:
+            self.changes.begin()
         stopped = self._tick(ticker) if self.ticker is not None else ''
         if stopped:
             return self._end(ABORTED, stopped)

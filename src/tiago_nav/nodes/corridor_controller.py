@@ -13,6 +13,9 @@ objects it is given (a clock, the action server, the velocity publisher and a sm
 Under ``/use_lockstep`` the control loop is a lockstep participant
 (:mod:`tiago_nav.ros.lockstep`): each cycle uses exactly the cycle's scan and the pose at the
 cycle's odometry stamp, and answers with its command (idle: at once, without one).
+
+Its speed, turn rate and clearances can be changed while it runs (dynamic_reconfigure,
+cfg/CorridorController.cfg): during a goal a change comes in force between two control cycles.
 """
 import math
 import sys
@@ -26,16 +29,18 @@ from sensor_msgs.msg import LaserScan
 
 from tiago_nav import clock as rclock
 from tiago_nav.corridor.inputs import missing_inputs, wait_ready
+from tiago_nav.cfg import CorridorControllerConfig
 from tiago_nav.corridor.law import (ABORTED, PREEMPTED, SUCCEEDED, CorridorFollower, CorridorParams,
                                 GoalJudge)
 from tiago_nav.motion import MotionMonitor, wait_until_still
 from tiago_nav.msg import CorridorAction, CorridorFeedback, CorridorResult
-from tiago_nav.params import ParamError, nested, param, validate
+from tiago_nav.params import ParamChanges, ParamError, nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import pose_from_transform, pose_stamped, scan_from_msg
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant,
                                     ScanCache, goal_since, lookup_at)
 from tiago_nav.ros.params import read_or_exit
+from tiago_nav.ros import reconfigure
 from tiago_nav.ros.tcpros import concurrent_handshakes
 from tiago_nav.ros.reset import NodeReset, adopt, persistent
 from tiago_nav.ros.topics import Subscription
@@ -88,11 +93,23 @@ class CorridorServer:
             ``parent`` at ROS time ``stamp`` [s] (None: the latest), raising ``LookupError``.
         participant: the lockstep participant (``tick``, ``answer``, ``claim``, ``release``,
             ``wait_until_still``) that paces the loop; None: a :class:`Ticker` per goal.
+
+    ``changes`` (:class:`tiago_nav.params.ParamChanges`) takes run-time changes of the
+    parameters (dynamic_reconfigure): during a goal they come in force at the boundary between
+    two control cycles (after a tick, before the cycle's scan and command), never within one.
     """
 
     def __init__(self, params, clock, server, cmd_pub, io, participant=None):
         self.p, self.clock, self.server, self.cmd_pub, self.io = params, clock, server, cmd_pub, io
         self.participant = participant
+        self.follower = None
+        self.changes = ParamChanges(params, self._apply)
+
+    def _apply(self, params):
+        """Put ``params`` in force (:attr:`changes` calls it between cycles or while idle)."""
+        self.p = params
+        if self.follower is not None:
+            self.follower.reconfigure(params.law)
 
     # --- ROS messages -------------------------------------------------------------------------
     def publish(self, v=0.0, omega=0.0):
@@ -158,18 +175,21 @@ class CorridorServer:
             # the goal's cycles are those after its stamp, however late it arrived
             self.participant.claim(goal_since(self.server.current_goal.get_goal_id().stamp,
                                               self.participant.now()))
+        self.changes.begin()        # from here on, changes wait for a cycle boundary
         try:
             if not (math.isfinite(goal.max_speed) and goal.max_speed >= 0
                     and math.isfinite(goal.max_distance) and goal.max_distance >= 0):
                 self.finish(None, ABORTED, 'invalid goal: max_speed and max_distance must be >= 0')
                 return
-            follower = CorridorFollower(self.p.law, goal.max_speed or None,
-                                        goal.max_distance or None)
+            follower = self.follower = CorridorFollower(self.p.law, goal.max_speed or None,
+                                                        goal.max_distance or None)
             self.finish(follower, *self.run(follower))
         except Exception as e:           # noqa: BLE001  (any error ends the goal, loudly)
             self.crashed(follower, '%s: %s' % (type(e).__name__, e))
         finally:
             self.stop()
+            self.follower = None
+            self.changes.end()
             if self.participant is not None:
                 self.participant.release()
 
@@ -197,8 +217,10 @@ class CorridorServer:
         p = self.p
         judge = GoalJudge(p.blocked_timeout)
         ticker = self.participant or rclock.Ticker(self.clock, 1.0 / p.control_rate)
-        if self.participant is not None and self.participant.enabled and not ticker.tick():
-            return self.stopped(ticker)         # lockstep: the goal starts at its first cycle
+        if self.participant is not None and self.participant.enabled:
+            if not ticker.tick():
+                return self.stopped(ticker)     # lockstep: the goal starts at its first cycle
+            self.changes.boundary()
         start = self.clock.now()
         used, tf_error, no_pose_since = None, '', None
         while True:
@@ -240,6 +262,7 @@ class CorridorServer:
                 self.feedback(follower, cmd)
             if not ticker.tick():
                 return self.stopped(ticker)
+            self.changes.boundary()
 
     def stopped(self, ticker):
         """``(ABORTED, reason)`` when the loop gets no next cycle: shutting down, or ROS time
@@ -334,7 +357,16 @@ def main():
         rospy.logfatal('%s: %s; not starting the action server', NODE, e)
         sys.exit(1)
     server = reset.state.server
-    reset.build = lambda: build(read_or_exit(Params, NODE), server)
+    dynamic = []        # the dynamic_reconfigure server, made once
+
+    def rebuild():
+        """A reset: the parameters as they are now, the same action server."""
+        node = build(read_or_exit(Params, NODE), server)
+        reconfigure.show(dynamic[0] if dynamic else None, node.p)
+        return node
+    reset.build = rebuild
+    dynamic.append(reconfigure.serve(CorridorControllerConfig, Params,
+                                     lambda: getattr(reset.state, 'changes', None), NODE))
     rospy.loginfo('%s ready (max_speed %.2f m/s, look-ahead %.1f m)', NODE,
                   params.law.max_speed, params.law.look_ahead)
     rospy.spin()

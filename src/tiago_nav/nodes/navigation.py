@@ -8,7 +8,10 @@ each cycle takes in every scan up to the cycle's scan stamp (idle too, before ea
 answer), uses the pose at the cycle's odometry stamp, and answers with its command. Serves the
 ``move_base`` action (move_base_msgs/MoveBaseAction), /move_base_simple/goal, ~plan,
 ~make_plan and ~clear_costmaps, all only once /map, a first scan and the robot's transform are
-in (each waited for with a timeout; the node exits 1 naming what is missing).
+in (each waited for with a timeout; the node exits 1 naming what is missing). Its speed and
+acceleration limits, goal tolerances and inflation can be changed while it runs
+(dynamic_reconfigure, cfg/MoveBase.cfg): during a goal a change comes in force between two
+control cycles (:class:`tiago_nav.params.ParamChanges`).
 """
 import math
 import sys
@@ -24,19 +27,21 @@ from nav_msgs.srv import GetPlan, GetPlanResponse
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Empty, EmptyResponse
 
+from tiago_nav.cfg import MoveBaseConfig
 from tiago_nav.geometry import compose
 from tiago_nav.nav.costmap import MapScan
 from tiago_nav.nav.navigator import NavConfig, Navigator
 from tiago_nav.nav.planner import PlanError
 from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, GoalRunner,
                                   PoseUnavailable, frame_or, no_transform)
-from tiago_nav.params import nested, param, validate
+from tiago_nav.params import ParamChanges, nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import goal_from_pose, gridmap_from_msg, pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, STARTUP_WAIT, ClaimingActionServer,
                                     LockstepParticipant, goal_since, lookup_at,
                                     wait_for_transform)
 from tiago_nav.ros.params import read_or_exit
+from tiago_nav.ros import reconfigure
 from tiago_nav.ros.tcpros import concurrent_handshakes
 from tiago_nav.ros.reset import NodeReset, adopt, persistent
 from tiago_nav.ros.topics import Subscription, wait_for_message
@@ -169,8 +174,10 @@ class MoveBase:
         self.server = adopt(server, self.execute, self.lockstep)
         io = ActionIO(self.server, self.cmd_pub, self.plan_pub, self.clock, self.cycle_pose,
                       self.to_map, self.map_frame, self.lockstep, self.sense)
+        self.changes = ParamChanges(p, self._reconfigure)
         self.runner = GoalRunner(self.nav, io, 1.0 / p.controller_frequency, self.lock, self._log,
-                                 ticker=self.lockstep if self.lockstep.enabled else None)
+                                 ticker=self.lockstep if self.lockstep.enabled else None,
+                                 changes=self.changes)
         self.goal_pub = rospy.Publisher('move_base/goal', MoveBaseActionGoal, queue_size=1)
         rospy.Subscriber('move_base_simple/goal', PoseStamped, self.on_simple_goal, queue_size=1)
         rospy.Service('~make_plan', GetPlan, self.on_make_plan)
@@ -179,6 +186,13 @@ class MoveBase:
             self.server.start()
         rospy.loginfo('move_base: ready (map %dx%d, %.2f m)', msg.info.width, msg.info.height,
                       msg.info.resolution)
+
+    def _reconfigure(self, p):
+        """Put the parameters ``p`` in force (:attr:`changes` calls it between control cycles,
+        or at once while no goal runs)."""
+        with self.lock:
+            self.nav.reconfigure(p.nav)
+            self.p = p
 
     def _has_pose(self):
         return self.tf.can_transform(self.map_frame, self.p.robot_base_frame, rospy.Time(0))
@@ -392,8 +406,16 @@ def main():
         rospy.logfatal('move_base: not starting: %s', e)
         sys.exit(1)
     server = reset.state.server
-    # a reset: the parameters as they are now, the same action server
-    reset.build = lambda: MoveBase(read_or_exit(Params, 'move_base'), server)
+    dynamic = []        # the dynamic_reconfigure server, made once
+
+    def rebuild():
+        """A reset: the parameters as they are now, the same action server."""
+        node = MoveBase(read_or_exit(Params, 'move_base'), server)
+        reconfigure.show(dynamic[0] if dynamic else None, node.p)
+        return node
+    reset.build = rebuild
     reset.stop_fn = lambda node: node.retire()
+    dynamic.append(reconfigure.serve(MoveBaseConfig, Params,
+                                     lambda: getattr(reset.state, 'changes', None), 'move_base'))
     rospy.on_shutdown(lambda: reset.state is not None and reset.state.stop())
     rospy.spin()
