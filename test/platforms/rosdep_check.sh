@@ -9,7 +9,6 @@
 #   DIR: a copy of the rosdep/ folder of ros/rosdistro (base.yaml, python.yaml, ruby.yaml), kept
 #        outside the repository; PKG: the package's folder (default: this repository).
 #   --os: passed to rosdep, e.g. --os=debian:bookworm where rosdep cannot detect the OS.
-#   Then, catkin_lint with the same key database: `TIAGO_NAV_ROSDEP_LINT=1` (needs catkin_lint).
 #
 # rosdep is Debian's (`apt-get install python3-rosdep2`): its sources list adds debian.yaml, which
 # maps the ROS 1 packages (rospy, actionlib, ...) to Debian's own (python3-rospy, ...). The
@@ -86,7 +85,8 @@ mapfile -t keys < <(rosdep keys --from-paths "$PKG" --ignore-src "${OS_ARGS[@]}"
 echo "== ${#keys[@]} keys from $PKG/package.xml"
 resolve_rc=0
 rosdep resolve "${OS_ARGS[@]}" "${keys[@]}" > "$WORK/resolve.log" 2>&1 || resolve_rc=$?
-awk '/^#ROSDEP\[/ { k = substr($0, 9, length($0) - 9); next }
+awk '/^ERROR/ { next }
+     /^#ROSDEP\[/ { k = substr($0, 9, length($0) - 9); next }
      /^#/ { inst = substr($0, 2); next }
      NF { printf "   %-24s %-4s %s\n", k, inst, $0 }' "$WORK/resolve.log"
 grep -v '^#\|^[a-z0-9]' "$WORK/resolve.log" >&2 || true   # rosdep's errors (unresolved keys)
@@ -96,10 +96,6 @@ awk '/^#ROSDEP\[/ { next } /^#/ { n[substr($0, 2)]++ } END { for (i in n) printf
 
 echo "== rosdep install --from-paths $PKG --ignore-src -y --simulate ${OS_ARGS[*]}"
 rosdep install --from-paths "$PKG" --ignore-src -y --simulate "${OS_ARGS[@]}" | sed 's/^/   /'
-if [ "${TIAGO_NAV_ROSDEP_LINT:-0}" = 1 ]; then
-  echo "== catkin_lint --strict -W2 (this key database: every dependency must be a known key)"
-  ROS_DISTRO=${ROS_DISTRO_LINT:-noetic} catkin_lint --strict -W2 "$PKG"
-fi
 if [ "$INSTALL" = 1 ]; then
   echo "== rosdep install --from-paths $PKG --ignore-src -y ${OS_ARGS[*]}"
   rosdep install --from-paths "$PKG" --ignore-src -y "${OS_ARGS[@]}"
