@@ -96,6 +96,11 @@ awk '/^#ROSDEP\[/ { next } /^#/ { n[substr($0, 2)]++ } END { for (i in n) printf
 
 echo "== rosdep install --from-paths $PKG --ignore-src -y --simulate ${OS_ARGS[*]}"
 rosdep install --from-paths "$PKG" --ignore-src -y --simulate "${OS_ARGS[@]}" | sed 's/^/   /'
+# the same with --reinstall lists every package, the ones installed here too
+rosdep install --from-paths "$PKG" --ignore-src -y --simulate --reinstall "${OS_ARGS[@]}" > "$WORK/all.log"
+echo "== every package (--simulate --reinstall): $(grep -c 'apt-get install' "$WORK/all.log") by apt," \
+  "$(grep -c 'pip3\? install' "$WORK/all.log") by pip:" \
+  $(sed -n 's/.*apt-get install -y //p; s/.*pip3\{0,1\} install -U -I //p; s/.*pip3\{0,1\} install -I -U //p' "$WORK/all.log")
 if [ "$INSTALL" = 1 ]; then
   echo "== rosdep install --from-paths $PKG --ignore-src -y ${OS_ARGS[*]}"
   rosdep install --from-paths "$PKG" --ignore-src -y "${OS_ARGS[@]}"
