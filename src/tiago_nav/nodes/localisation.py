@@ -30,7 +30,8 @@ from tf2_msgs.msg import TFMessage
 
 from tiago_nav.clock import Ticker
 from tiago_nav.geometry import compose
-from tiago_nav.localisation.localiser import DistanceField, Localiser, LocaliserConfig
+from tiago_nav.gridmap import DistanceField
+from tiago_nav.localisation.localiser import Localiser, LocaliserConfig
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as rosparams
 from tiago_nav.ros.clock import RosClock
@@ -114,9 +115,9 @@ _FIELD = []     # [(map key, DistanceField)]: the last map's field
 
 
 def distance_field(grid):
-    """``grid``'s :class:`tiago_nav.localisation.localiser.DistanceField`, built once per map: a reset
-    builds the node's state again for the same map, and the field (read only; 23 MB and a
-    fifth of a second for the course world) is the same."""
+    """``grid``'s :class:`tiago_nav.gridmap.DistanceField`, built once per map: a reset builds
+    the node's state again for the same map, and the field (read only, 12 bytes per cell) is
+    the same."""
     key = (grid.data.tobytes(), grid.resolution, tuple(grid.origin))
     if not _FIELD or _FIELD[0][0] != key:
         _FIELD[:] = [(key, DistanceField(grid))]
