@@ -56,6 +56,7 @@ from tiago_nav.sim.world import WorldError, load_world
 COV_INDEX = (0, 1, 5)
 
 REPUBLISH_OFFSET = rospy.Duration(0, 100000)   # 0.1 ms
+REPUBLISH_NAP = 0.02    # [s wall] at most this late a re-send of map -> odom (outside lockstep)
 
 # registrations in a row observing every direction before the node logs that the geometry
 # recovered from a degenerate one
@@ -425,7 +426,10 @@ class LocalisationNode:
 def run(current, lockstep, republish_rate):
     """The node's loop until shutdown; ``current()`` gives its state now (a reset replaces it;
     None between a reset's stop and start). In lockstep the republishes happen at the ticks."""
-    ticker = Ticker(RosClock(), 1.0 / republish_rate)
+    # polled every REPUBLISH_NAP of wall time, not every 2 ms: a re-send a few milliseconds
+    # late is as good (it is stamped when sent), and each poll costs tens of microseconds of
+    # CPU, which add up where scans are seconds apart
+    ticker = Ticker(RosClock(), 1.0 / republish_rate, nap=min(REPUBLISH_NAP, 0.2 / republish_rate))
     if lockstep:
         rospy.spin()
         return
