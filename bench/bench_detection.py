@@ -65,7 +65,7 @@ def sample_poses(world, grid, n, rng, max_tries):
     connected free space), ``ROBOT_RADIUS + CLEARANCE`` clear of the map and of every movable
     obstacle, from which at least one movable obstacle is in view."""
     clear = ROBOT_RADIUS + CLEARANCE
-    free = ndimage.distance_transform_edt(~grid.occupied()) * grid.resolution > clear
+    free = grid.distance_field() > clear
     xs, ys = grid.cell_centres()
     for c in world.movable_obstacles:
         free &= np.hypot(xs - c.x, ys - c.y) > c.radius + clear

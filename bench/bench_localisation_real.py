@@ -10,6 +10,11 @@ the reference at each scan (the last estimate carried by the odometry since):
 error RMS, p95, max, yaw p95, the share of time lost (error > 0.3 m), the time to recover,
 CPU per scan and the node's peak resident memory.
 
+``synthetic-100m`` (:mod:`tiago_nav_tools.testing.realdata.synthetic`): a generated building of
+100 m × 100 m at 0.05 m (4 million cells) and a log through a row of its rooms, ``tracking``
+only: what grows with the map (peak memory, the time to take the map in) on a map larger
+than the real logs'.
+
 Scenarios: ``tracking`` (started at the reference's first pose), ``offset`` (started 2 m to
 its left and turned 90°), ``kidnap`` (carried 3 m in one step at 40 % of the log, the
 odometry reporting no motion), ``global`` (``/global_localization`` called before the bag
@@ -29,7 +34,7 @@ so and writes nothing. Writes bench/results/localisation_real.json and .png (``-
 keeps the runs of the last JSON, or of the files given, that this one does not repeat; each run
 carries its date and load; ``--scenarios ''`` runs nothing and only merges).
 
-Usage: bench/bench_localisation_real.py [--logs intel,freiburg-079,aces]
+Usage: bench/bench_localisation_real.py [--logs intel,freiburg-079,aces,synthetic-100m]
     [--scenarios tracking,offset,kidnap,global] [--amcl-setup PATH] [--localisers ...]
     [--scan-period 0.1] [--merge [JSON ...]] [--data DIR] [--work DIR]
 """
@@ -46,6 +51,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 DATA = os.path.normpath(os.path.join(ROOT, '..', 'shared', 'data', 'real'))
 LOGS = ('intel', 'freiburg-079', 'aces')
+SYNTHETIC = 'synthetic-100m'      # tiago_nav_tools.testing.realdata.synthetic.NAME
 # the tuned set of issue 48 (chosen on the first 120 scans of the Intel log)
 AMCL_TUNED = {'laser_max_beams': 90, 'odom_alpha1': 0.05, 'odom_alpha2': 0.05,
               'odom_alpha3': 0.05, 'odom_alpha4': 0.05, 'min_particles': 500,
@@ -120,7 +126,7 @@ def plot(path, out, estimates, maps):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--data', default=DATA, help='folder of the logs (default: %(default)s)')
-    ap.add_argument('--logs', default=','.join(LOGS))
+    ap.add_argument('--logs', default=','.join(LOGS + (SYNTHETIC,)))
     ap.add_argument('--scenarios', default='tracking,offset,kidnap,global')
     ap.add_argument('--localisers', default=None,
                     help='of: %s (default: tiago_nav, and both amcl ones with --amcl-setup)'
@@ -147,9 +153,11 @@ def main():
     from tiago_nav_tools.testing.realdata.odometry import dead_reckoning
     from tiago_nav_tools.testing.realdata.play import run_child
     from tiago_nav_tools.testing.realdata.scoring import summary
+    from tiago_nav_tools.testing.realdata import synthetic
 
     logs = [n for n in args.logs.split(',') if n]
-    paths = {n: os.path.join(args.data, '%s-corrected.log.gz' % n) for n in logs}
+    paths = {n: os.path.join(args.data, '%s-corrected.log.gz' % n) for n in logs
+             if n != SYNTHETIC}
     missing = [p for p in paths.values() if not os.path.exists(p)]
     if missing:
         print('bench_localisation_real: skipped: no log at %s (the real data lives in '
@@ -188,9 +196,15 @@ def main():
     done = set()
     for name in logs if scenarios else ():     # no scenario: merge and plot only
         print('== %s: preparing (map, bags) in %s' % (name, args.work), flush=True)
-        prep = prepare(paths[name], os.path.join(args.work, name), scenarios, args.seed)
+        if name == SYNTHETIC:
+            if 'tracking' not in scenarios:
+                continue
+            prep = synthetic.prepare(os.path.join(args.work, name), ['tracking'], args.seed)
+        else:
+            prep = prepare(paths[name], os.path.join(args.work, name), scenarios, args.seed)
         preps[name] = prep
-        t, ref, odom = read_reference(prep[scenarios[0]]['reference'])
+        t, ref, odom = read_reference(prep['tracking' if name == SYNTHETIC
+                                           else scenarios[0]]['reference'])
         dr = summary(t, ref, dead_reckoning(ref[0], odom))
         dts = np.diff(t)
         rate = max(1.0, float(np.median(dts)) / args.scan_period)
@@ -199,6 +213,8 @@ def main():
                      'dead_reckoning_p95_m': dr['p95_m'], 'dead_reckoning_max_m': dr['max_m']})
         out['logs'][name] = info
         for scenario in scenarios:
+            if scenario not in prep:
+                continue
             for loc in names:
                 kind, params = LOCALISERS[loc]
                 p = prep[scenario]
@@ -242,7 +258,7 @@ def main():
                            or x.get('date', '') > r.get('date', '')]
             if not any((x['log'], x['scenario'], x['localiser']) == key for x in out['runs']):
                 out['runs'].append(r)
-    order = {n: i for i, n in enumerate(LOGS)}
+    order = {n: i for i, n in enumerate(LOGS + (SYNTHETIC,))}
     out['runs'].sort(key=lambda r: (order.get(r['log'], 99), SCENARIOS.index(r['scenario']),
                                     list(LOCALISERS).index(r['localiser'])))
     out['meta'] = meta(vars(args), real_time_factor='bag played at each log\'s "rate"',
@@ -253,7 +269,10 @@ def main():
         json.dump(out, f, indent=1)
     # the trajectories of every log's tracking runs made so far (this invocation's or earlier)
     for name in out['logs']:
-        if 'tracking' not in preps.get(name, {}) and \
+        if 'tracking' not in preps.get(name, {}) and name == SYNTHETIC:
+            preps[name] = synthetic.prepare(os.path.join(args.work, name), ['tracking'],
+                                            args.seed, bags=False)
+        elif 'tracking' not in preps.get(name, {}) and \
                 os.path.exists(os.path.join(args.data, '%s-corrected.log.gz' % name)):
             preps[name] = prepare(os.path.join(args.data, '%s-corrected.log.gz' % name),
                                   os.path.join(args.work, name), ['tracking'], args.seed, bags=False)

@@ -107,16 +107,18 @@ def sleep_until(clock, target, stall=STALL, nap=NAP):
 class Ticker:
     """A fixed-rate loop in ROS time: ``tick()`` sleeps until the next period and returns False
     when :func:`wait_until` gives up (``reason`` then says why). A loop that falls more than one
-    period behind skips the missed ticks instead of running them back to back."""
+    period behind skips the missed ticks instead of running them back to back. ``nap`` [s wall]:
+    the polling step (a tick lands up to that late; each poll costs a few tens of
+    microseconds of CPU)."""
 
-    def __init__(self, clock, period, stall=STALL):
-        self.clock, self.period, self.stall = clock, float(period), stall
+    def __init__(self, clock, period, stall=STALL, nap=NAP):
+        self.clock, self.period, self.stall, self.nap = clock, float(period), stall, nap
         self.next = clock.now()
         self.reason = ''
 
     def tick(self):
         self.next = max(self.next + self.period, self.clock.now() - self.period)
-        self.reason = wait_until(self.clock, self.next, self.stall)
+        self.reason = wait_until(self.clock, self.next, self.stall, self.nap)
         return not self.reason
 
 

@@ -14,13 +14,28 @@ FREE = 0
 UNKNOWN = -1
 
 
-def distance_to_mask(mask, resolution):
+ROWS_AT_ONCE = 256      # rows of distances computed at once from the feature transform
+
+
+def distance_to_mask(mask, resolution, dtype=np.float64):
     """Euclidean distance [m] from every cell centre to the nearest ``True`` cell centre of the
-    boolean ``(rows, cols)`` ``mask`` (scipy's exact distance transform); ``inf`` everywhere when
-    the mask is empty."""
+    boolean ``(rows, cols)`` ``mask`` (scipy's exact distance transform), as ``dtype``; ``inf``
+    everywhere when the mask is empty.
+
+    The distances are computed from scipy's feature transform (each cell's nearest ``True``
+    cell) a band of rows at a time, as scipy computes them (the same values): its own
+    distances take about 40 bytes a cell of temporaries, this 8 (the feature transform)."""
     if not mask.any():
-        return np.full(mask.shape, np.inf)
-    return ndimage.distance_transform_edt(~mask) * resolution
+        return np.full(mask.shape, np.inf, dtype=dtype)
+    ft = ndimage.distance_transform_edt(~mask, return_distances=False, return_indices=True)
+    out = np.empty(mask.shape, dtype=dtype)
+    cols = np.arange(mask.shape[1])
+    for r0 in range(0, mask.shape[0], ROWS_AT_ONCE):
+        r1 = min(r0 + ROWS_AT_ONCE, mask.shape[0])
+        dr = (ft[0, r0:r1] - np.arange(r0, r1)[:, None]).astype(np.float64)
+        dc = (ft[1, r0:r1] - cols[None, :]).astype(np.float64)
+        out[r0:r1] = np.sqrt(dr * dr + dc * dc) * resolution
+    return out
 
 
 @dataclass
@@ -89,3 +104,96 @@ class GridMap:
         xs = self.origin[0] + (np.arange(self.width) + 0.5) * self.resolution
         ys = self.origin[1] + (np.arange(self.height) + 0.5) * self.resolution
         return np.meshgrid(xs, ys)
+
+
+class DistanceField:
+    """The signed distance [m] from points in the map frame to the boundary between a grid's
+    occupied and free cells, and its gradient, for registering scans to the map: positive in
+    free space, negative inside occupied cells, interpolated bilinearly between cell centres;
+    points outside the grid get the border's value.
+
+    At each cell centre the value is the exact Euclidean distance (:func:`distance_to_mask`) to
+    the nearest centre of the other kind less half a cell: each side of a boundary reads half a
+    cell at the cells next to it, so the field crosses 0 on the boundary with slope 1 (exactly
+    so for axis-aligned walls; within a few millimetres along other surfaces at 0.05 m cells).
+    The rasterisation of a map marks a cell occupied when an obstacle covers its central half,
+    so a straight surface lies from a quarter cell outside that boundary to three quarters
+    inside, ``resolution / 4`` inside on average: the field is shifted by it (a surface point
+    reads 0 on average).
+
+    Memory: 12 bytes per cell (value and gradient as float32), whatever the map's size, plus
+    the transient work of building it (the distance transforms, one at a time): a 100 m ×
+    100 m map at 0.05 m keeps 48 MB.
+    """
+
+    def __init__(self, grid):
+        self.grid = grid
+        res = grid.resolution
+        occ = grid.occupied()
+        d = distance_to_mask(occ, res, np.float32)
+        d -= np.float32(res / 2.0)
+        if occ.any():
+            inside = distance_to_mask(~occ, res, np.float32)
+            inside -= np.float32(res / 2.0)
+            np.negative(inside, out=inside)
+            d[occ] = inside[occ]
+            del inside
+        d += np.float32(res / 4.0)
+        d[~np.isfinite(d)] = 0.0
+        rows, cols = d.shape
+        # value and gradient side by side, so that one gather reads all three at a corner
+        self._v = np.empty((rows, cols, 3), dtype=np.float32)
+        self._v[:, :, 0] = d
+        del d
+        for k, g in ((1, 1), (2, 0)):       # d/dx along columns, d/dy along rows
+            if self._v.shape[g] > 1:
+                self._v[:, :, k] = np.gradient(self._v[:, :, 0], res, axis=g)
+            else:
+                self._v[:, :, k] = 0.0
+        self._flat = self._v.reshape(-1, 3)
+
+    @property
+    def values(self):
+        """``(rows, cols)`` float32 view of the field [m] at the cell centres."""
+        return self._v[:, :, 0]
+
+    @property
+    def gradient(self):
+        """``(gx, gy)``: two ``(rows, cols)`` float32 views of the field's gradient at the cell
+        centres (central differences), along x and along y."""
+        return self._v[:, :, 1], self._v[:, :, 2]
+
+    @property
+    def nbytes(self):
+        """Bytes the field keeps."""
+        return self._v.nbytes
+
+    def __call__(self, pts):
+        """``(distance, dx, dy)`` at the ``(N, 2)`` points [m] in map: three ``(N,)`` float64
+        arrays (signed distance [m] to the nearest mapped surface and its gradient)."""
+        pts = np.asarray(pts, dtype=float)
+        return self.at(pts[:, 0], pts[:, 1])
+
+    def at(self, x, y):
+        """:meth:`__call__` at the points of coordinates ``x``, ``y`` (``(N,)`` arrays [m] in
+        map)."""
+        g = self.grid
+        rows, cols = g.data.shape
+        # continuous (column, row) of the points, cell centres at integers, clamped to the
+        # grid (the border's value beyond it)
+        fc = np.clip((np.asarray(x, dtype=float) - g.origin[0]) / g.resolution - 0.5,
+                     0.0, cols - 1)
+        fr = np.clip((np.asarray(y, dtype=float) - g.origin[1]) / g.resolution - 0.5,
+                     0.0, rows - 1)
+        c0 = np.minimum(fc.astype(np.intp), max(cols - 2, 0))
+        r0 = np.minimum(fr.astype(np.intp), max(rows - 2, 0))
+        tc = (fc - c0)[:, None]
+        tr = (fr - r0)[:, None]
+        i = r0 * cols + c0
+        dc = 1 if cols > 1 else 0
+        dr = cols if rows > 1 else 0
+        f = self._flat
+        lo = f[i] * (1.0 - tc) + f[i + dc] * tc
+        hi = f[i + dr] * (1.0 - tc) + f[i + dr + dc] * tc
+        v = lo * (1.0 - tr) + hi * tr
+        return v[:, 0], v[:, 1], v[:, 2]

@@ -110,7 +110,7 @@ class NavigationTest(SimTestCase):
     def test_4_unreachable_goal_aborts(self):
         # a free pocket (ground truth: the world's own raster) not connected to the robot's
         grid = rasterise_world(self.world)
-        dist = ndimage.distance_transform_edt(~grid.occupied()) * grid.resolution
+        dist = grid.distance_field()
         labels, n = ndimage.label(dist > ROBOT_RADIUS + 0.1)
         rc = grid.world_to_cell([self.base_pose()[:2]])[0]
         mine = labels[rc[0], rc[1]]
@@ -135,7 +135,7 @@ class NavigationTest(SimTestCase):
         self.assertLess(math.hypot(last.x - 11.0, last.y), 0.1)
         # every plan point keeps the robot clear of the static walls (ground truth raster)
         grid = rasterise_world(self.world)
-        dist = ndimage.distance_transform_edt(~grid.occupied()) * grid.resolution
+        dist = grid.distance_field()
         pts = np.array([[p.pose.position.x, p.pose.position.y] for p in resp.plan.poses])
         rc = grid.world_to_cell(pts)
         self.assertGreaterEqual(dist[rc[:, 0], rc[:, 1]][3:].min(), ROBOT_RADIUS)

@@ -298,13 +298,20 @@ def test_a_27_cm_re_acquisition_reaches_the_published_estimate_in_bounded_steps(
     # never more than the limit between two estimates (the odometry's own 2.2 mm per 0.1 m
     # drives the error the other way)
     assert np.max(np.abs(np.diff(published))) <= limit + 1e-9
-    # converges: within (pending / limit) + 2 estimates the estimate is the registered pose
-    # (which then follows odometry when the few end-wall points drop out of the registration)
-    done = jump + int(math.ceil(max(pending) / limit)) + 2
+    # once it began, the pending correction shrinks at every estimate, except where a
+    # registration refines the re-acquired position (by a centimetre or so, never a second
+    # jump): it then grows by that refinement at most
+    grew = [k for k in range(jump + 1, len(pending)) if pending[k] > pending[k - 1] + 1e-9]
+    assert all(k % 2 == 0 for k in grew), grew                  # only at registrations
+    assert all(pending[k] - pending[k - 1] <= 0.015 for k in grew)
+    # converges: within (pending / limit) + 2 estimates of the last refinement the estimate is
+    # the registered pose (which then follows odometry when the few end-wall points drop out
+    # of the registration)
+    last = max([jump] + grew)
+    done = last + int(math.ceil(pending[last] / limit)) + 2
+    assert done < len(pending) - 10
     assert all(p == 0.0 for p in pending[done:]) and np.all(np.abs(published[done:]) < 0.03)
     assert np.allclose(published[done:], registered[done:], atol=1e-9)
-    # monotone: the pending correction only shrinks once it began
-    assert all(b <= a + 1e-9 for a, b in zip(pending[jump:], pending[jump + 1:]))
     # 0: at once (the published estimate is the registered one)
     at_once = Localiser(grid, (1.5, 0.0, 0.0), LocaliserConfig(max_correction_step=0.0),
                         odom=(0.0, 0.0, 0.0))

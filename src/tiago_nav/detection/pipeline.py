@@ -69,7 +69,8 @@ from tiago_nav.detection.centres import (centroid, circle_covariance, circle_fit
 from tiago_nav.detection.clustering import centroid_clusters
 from tiago_nav.detection.subtraction import MapDistance, subtract
 from tiago_nav.geometry import transform_points, wrap_angle
-from tiago_nav.localisation.localiser import (DistanceField, LocaliserConfig, refine_on_raster,
+from tiago_nav.gridmap import DistanceField
+from tiago_nav.localisation.localiser import (LocaliserConfig, refine_on_raster,
                                     register_with_information)
 from tiago_nav.params import ParamError, param, validate
 from tiago_nav.scan import beam_angles, hits, scan_to_points, usable_ranges
@@ -241,7 +242,7 @@ class ObstacleDetector:
 
     @property
     def field(self):
-        """The map's :class:`tiago_nav.localisation.localiser.DistanceField` (built once, when first
+        """The map's :class:`tiago_nav.gridmap.DistanceField` (built once, when first
         needed)."""
         if self._field is None:
             self._field = DistanceField(self.grid)

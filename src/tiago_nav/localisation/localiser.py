@@ -39,10 +39,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from tiago_nav.geometry import compose, inverse, transform_points, wrap_angle
-from tiago_nav.gridmap import GridMap, distance_to_mask
+from tiago_nav.gridmap import DistanceField  # noqa: F401 (the field registrations use)
 from tiago_nav.params import ParamError, param, validate
 from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
 from tiago_nav.scan import scan_to_points, usable_ranges
@@ -151,57 +150,6 @@ class Update:
     weak: str = ''
     registered: tuple = None
     pending: float = 0.0
-
-
-class DistanceField:
-    """The map's signed distance field [m] and its gradient, interpolated bilinearly at points in
-    ``map``; points outside the grid get the border value.
-
-    The occupancy grid is first refined ``upsample`` times (each cell split into ``upsample²``
-    sub-cells of the same value), so the field measures the signed distance to the boundary
-    between occupied and free cells (the distance between sub-cell centres less half a
-    sub-cell) instead of to the nearest occupied cell centre: positive outside, negative inside
-    occupied cells. The map's rasterisation marks a cell occupied when an obstacle covers its
-    central half, so a straight surface lies from a quarter cell outside that boundary to three
-    quarters inside, ``resolution / 4`` inside on average: the field is shifted by it (a surface
-    point reads 0 on average, and anything within half a cell of 0 is possible:
-    :func:`refine_on_raster`).
-    """
-
-    def __init__(self, grid, upsample=4):
-        self.grid = grid
-        k = int(upsample)
-        fine = GridMap(np.repeat(np.repeat(grid.data, k, axis=0), k, axis=1),
-                       grid.resolution / k, grid.origin)
-        self.fine = fine
-        # distances between cell centres, less half a cell: to the boundary between the
-        # cells (each side reads half a cell at the cells next to it, so the field crosses 0
-        # on the boundary with slope 1 instead of jumping from -1 to +1 sub-cells across it)
-        half = fine.resolution / 2.0
-        outside = fine.distance_field() - half
-        inside = distance_to_mask(~fine.occupied(), fine.resolution) - half
-        d = np.where(fine.occupied(), -inside, outside) + grid.resolution / 4.0
-        d[~np.isfinite(d)] = 0.0
-        self.d = d
-        gy, gx = np.gradient(d, fine.resolution)
-        self.gx, self.gy = gx, gy
-
-    def __call__(self, pts):
-        """``(distance, dx, dy)`` at the ``(N, 2)`` points [m] in map: three ``(N,)`` arrays
-        (signed distance [m] to the nearest mapped surface and its gradient)."""
-        return self.at(pts[:, 0], pts[:, 1])
-
-    def at(self, x, y):
-        """:meth:`__call__` at the points of coordinates ``x``, ``y`` (``(N,)`` arrays [m] in
-        map)."""
-        g = self.fine
-        c = np.empty((2, len(x)))
-        c[0] = (y - g.origin[1]) / g.resolution - 0.5      # row
-        c[1] = (x - g.origin[0]) / g.resolution - 0.5      # column
-        out = np.empty((3, c.shape[1]))     # (given: map_coordinates then skips its checks)
-        for k, a in enumerate((self.d, self.gx, self.gy)):
-            ndimage.map_coordinates(a, c, output=out[k], order=1, mode='nearest')
-        return out[0], out[1], out[2]
 
 
 def beam_directions(points, sensor):

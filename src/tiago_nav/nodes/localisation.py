@@ -7,6 +7,14 @@ looks up tf ``odom → base_footprint`` and ``base_footprint → <laser frame>``
 publishes tf ``map → odom`` (on ``tf_topic``, ``/tf`` by default) and ``/amcl_pose``
 (PoseWithCovarianceStamped in ``map``).
 
+Scans: any beam count and angular range (REP 117 values). Outside lockstep they wait in a
+queue of ``scan_queue_size`` and are processed in order by one thread, so none is lost while a
+search runs; when the queue is full the oldest is skipped. Every skipped scan (queue full, no
+map yet, no odometry tf at its stamp) is counted and logged with the counts so far. The map may
+come after the scans (those before it are skipped) and be replaced; its origin may be rotated
+(MapMetaData's origin with a yaw): the localiser then works in the grid's own frame and the
+node turns what it takes in and gives out between that frame and ``map``.
+
 ``map → odom`` is sent at every scan stamped with the scan's time plus ``transform_tolerance``
 and re-sent at ``republish_rate`` stamped now plus ``transform_tolerance`` (as AMCL does): tf
 consumers asking for "now" then never extrapolate past the last transform, at the price of
@@ -30,24 +38,24 @@ from tf2_msgs.msg import TFMessage
 
 from tiago_nav.clock import Ticker
 from tiago_nav.geometry import compose
+from tiago_nav.localisation.fields import distance_field, from_grid, to_grid, turn_covariance
 from tiago_nav.localisation.localiser import Localiser, LocaliserConfig
-from tiago_nav.localisation.fields import distance_field
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as rosparams
 from tiago_nav.ros.clock import RosClock, reaches_past
 from tiago_nav.ros.lockstep import CYCLE_WAIT, STARTUP_WAIT, LockstepParticipant, lookup_at
 from tiago_nav.ros.params import start_pose
-from tiago_nav.ros.reset import NodeReset
-from tiago_nav.ros.conversions import (COV_INDEX, covariance_6x6, gridmap_from_msg, pose_from_msg, pose_from_transform,
+from tiago_nav.ros.reset import NodeReset, track
+from tiago_nav.ros.conversions import (COV_INDEX, covariance_6x6, gridmap_in_grid_frame, pose_from_msg, pose_from_transform,
                                        pose_msg, transform_stamped)
 from tiago_nav.ros.tcpros import concurrent_handshakes
 from tiago_nav.ros.topics import Subscription
 from tiago_nav.scan import FrozenScanCheck
 from tiago_nav.sim.world import WorldError
 
-# indices of x, y, yaw in a row-major 6 × 6 ROS pose covariance (x, y, z, roll, pitch, yaw)
 
 REPUBLISH_OFFSET = rospy.Duration(0, 100000)   # 0.1 ms
+REPUBLISH_NAP = 0.02    # [s wall] at most this late a re-send of map -> odom (outside lockstep)
 
 # registrations in a row observing every direction before the node logs that the geometry
 # recovered from a degenerate one
@@ -81,6 +89,11 @@ class Params:
                                   gt=0)
     tf_timeout: float = param(0.5, '[s] wait at most this long for the odometry tf at a scan\'s '
                                    'stamp', gt=0)
+    scan_queue_size: int = param(
+        30, 'scans waiting to be processed, in order (outside lockstep, where every scan is '
+            'taken in): a search after a (re)set takes longer than a scan period, and the scans '
+            'meanwhile wait; when the queue is full the oldest is skipped, counted and logged',
+        ge=1)
     localiser: LocaliserConfig = nested(LocaliserConfig)
 
     def __post_init__(self):
@@ -90,6 +103,50 @@ class Params:
                 for v in self.initial_pose)):
             raise ParamError('expected [x, y, yaw_deg], got %r' % (self.initial_pose,),
                              'initial_pose')
+
+
+class ScanQueue:
+    """Scans processed in order by one thread (outside lockstep): :meth:`put` never blocks
+    the subscriber; when ``size`` scans wait, the oldest is skipped and ``on_skip(msg)``
+    told. :meth:`close` (a reset's stop, :func:`tiago_nav.ros.reset.track`) ends the thread
+    after the scan in hand."""
+
+    def __init__(self, process, size, on_skip):
+        self.process, self.size, self.on_skip = process, int(size), on_skip
+        self.queue = collections.deque()
+        self.cond = threading.Condition()
+        self.closed = False
+        self.thread = threading.Thread(target=self._run, name='scan queue', daemon=True)
+        self.thread.start()
+        track(self)
+
+    def put(self, msg):
+        skipped = None
+        with self.cond:
+            if self.closed:
+                return
+            if len(self.queue) >= self.size:
+                skipped = self.queue.popleft()
+            self.queue.append(msg)
+            self.cond.notify()
+        if skipped is not None:
+            self.on_skip(skipped)
+
+    def _run(self):
+        while True:
+            with self.cond:
+                while not self.queue and not self.closed:
+                    self.cond.wait(0.5)     # (a timeout: shutdown is noticed)
+                if self.closed:
+                    return
+                msg = self.queue.popleft()
+            self.process(msg)
+
+    def close(self):
+        with self.cond:
+            self.closed = True
+            self.queue.clear()
+            self.cond.notify_all()
 
 
 class LocalisationNode:
@@ -102,6 +159,8 @@ class LocalisationNode:
         self.degenerate = False     # the last logged state of the scan geometry
         self.clear_streak = 0       # registrations in a row observing every direction
         self.map_to_odom = None
+        self.frame = (0.0, 0.0, 0.0)    # the grid's frame in map (a rotated map origin)
+        self.skipped = collections.Counter()    # scans skipped, by reason
         self.sent = collections.deque(maxlen=64)    # recent stamps sent (tf refuses repeats)
         self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
         self.listener = tf2_ros.TransformListener(self.tf)
@@ -121,25 +180,42 @@ class LocalisationNode:
         # it takes part once it sends map -> odom (it has the map, a scan and the odometry tf)
         self.lockstep = LockstepParticipant(1.0 / params.republish_rate, ready=self.on_tick,
                                             inputs=lambda: self.map_to_odom is not None)
-        Subscription(params.scan_topic, LaserScan, self.on_scan,
-                     queue_size=None if self.lockstep.enabled else 1, buff_size=2 ** 20)
+        # every scan is taken in, in order: in lockstep in the subscriber's thread (the tick
+        # waits for it), else through a queue with a thread of its own
+        self.scans = None if self.lockstep.enabled else ScanQueue(
+            self.on_scan, params.scan_queue_size, lambda msg: self.skip(msg, 'queue full'))
+        Subscription(params.scan_topic, LaserScan,
+                     self.on_scan if self.scans is None else self.scans.put,
+                     queue_size=None, buff_size=2 ** 20)
+
+    def skip(self, msg, reason, detail=''):
+        """Count the scan ``msg`` as skipped for ``reason`` and log it (throttled) with the
+        counts so far."""
+        self.skipped[reason] += 1
+        rospy.logwarn_throttle(
+            5.0, 'localisation: scan at %.3f skipped (%s%s); skipped so far: %s',
+            msg.header.stamp.to_sec(), reason, ': %s' % detail if detail else '',
+            ', '.join('%d (%s)' % (n, r) for r, n in sorted(self.skipped.items())))
 
     def on_map(self, msg):
         try:
-            grid = gridmap_from_msg(msg)
+            grid, frame = gridmap_in_grid_frame(msg)
         except ValueError as e:
             rospy.logerr('localisation: unusable %s: %s', self.p.map_topic, e)
             return
+        field = distance_field(grid)
         with self.lock:
             # the start pose is where odom begins (REP 105: odom's origin is the robot's start),
             # so motion before the first scan taken in is predicted, not assumed zero
-            pose, odom = (self.localiser.pose, self.localiser.odom) if self.localiser is not None \
-                else (self.pose, (0.0, 0.0, 0.0))
-            self.localiser = Localiser(grid, pose, self.p.localiser, odom, distance_field(grid))
+            pose, odom = (from_grid(self.frame, self.localiser.pose), self.localiser.odom) \
+                if self.localiser is not None else (self.pose, (0.0, 0.0, 0.0))
+            self.frame = frame
+            self.localiser = Localiser(grid, to_grid(frame, pose), self.p.localiser, odom, field)
         self.map_ready.set()
-        rospy.loginfo('localisation: map %dx%d at %.3f m; starting at (%.2f, %.2f, %.1f deg)',
-                      msg.info.width, msg.info.height, msg.info.resolution, pose[0], pose[1],
-                      math.degrees(pose[2]))
+        rospy.loginfo('localisation: map %dx%d at %.3f m%s; starting at (%.2f, %.2f, %.1f deg)',
+                      msg.info.width, msg.info.height, msg.info.resolution,
+                      ', origin turned %.1f deg' % math.degrees(frame[2]) if frame[2] else '',
+                      pose[0], pose[1], math.degrees(pose[2]))
 
     def on_initialpose(self, msg):
         if msg.header.frame_id.lstrip('/') != self.p.map_frame:
@@ -151,7 +227,8 @@ class LocalisationNode:
         with self.lock:
             self.pose = pose
             if self.localiser is not None:
-                self.localiser.reset(pose, cov if np.any(cov) else None)
+                self.localiser.reset(to_grid(self.frame, pose),
+                                     turn_covariance(cov, -self.frame[2]) if np.any(cov) else None)
         rospy.loginfo('localisation: reset to (%.2f, %.2f, %.1f deg)', pose[0], pose[1],
                       math.degrees(pose[2]))
 
@@ -201,13 +278,13 @@ class LocalisationNode:
             odom = pose_from_transform(self._lookup(self.p.odom_frame, self.p.base_frame, stamp).transform)
             laser = pose_from_transform(self._lookup(self.p.base_frame, msg.header.frame_id, stamp).transform)
         except tf2_ros.TransformException as e:
-            rospy.logwarn_throttle(5.0, 'localisation: scan at %.3f skipped: %s', stamp.to_sec(), e)
+            self.skip(msg, 'no odometry tf', str(e))
             return
         with self.lock:
             if self.localiser is None:
-                rospy.logwarn_throttle(5.0, 'localisation: no %s yet', self.p.map_topic)
-                return
-            if self.localiser.due(odom):
+                skipped = 'no %s yet' % self.p.map_topic
+            elif self.localiser.due(odom):
+                skipped = None
                 if self.frozen(msg.ranges, compose(odom, laser)):
                     pts = ()                # a stuck driver's repeat: follow odometry
                 else:
@@ -215,13 +292,19 @@ class LocalisationNode:
                                                      msg.angle_increment, msg.range_min,
                                                      msg.range_max, laser)
                 up = self.localiser.update(odom, pts, laser[:2])
-                self.map_to_odom = up.map_to_odom
-                pose, cov, rejected = up.pose, up.covariance, up.reason
+                m2o, pose, cov, rejected = up.map_to_odom, up.pose, up.covariance, up.reason
                 change = self.degeneracy(up) if up.corrected else None
             else:                           # about where the last registered scan was taken
                 # (a re-acquired direction's pending correction takes its step here too)
+                skipped = None
                 pose, cov = self.localiser.follow(odom)
-                self.map_to_odom, rejected, change = self.localiser.map_to_odom, '', None
+                m2o, rejected, change = self.localiser.map_to_odom, '', None
+            if not skipped:                 # from the grid's frame to map (a rotated origin)
+                self.map_to_odom = from_grid(self.frame, m2o)
+                pose, cov = from_grid(self.frame, pose), turn_covariance(cov, self.frame[2])
+        if skipped:
+            self.skip(msg, skipped)
+            return
         if change:
             rospy.loginfo('localisation: %s', change)
         if rejected:
@@ -283,7 +366,10 @@ class LocalisationNode:
 def run(current, lockstep, republish_rate):
     """The node's loop until shutdown; ``current()`` gives its state now (a reset replaces it;
     None between a reset's stop and start). In lockstep the republishes happen at the ticks."""
-    ticker = Ticker(RosClock(), 1.0 / republish_rate)
+    # polled every REPUBLISH_NAP of wall time, not every 2 ms: a re-send a few milliseconds
+    # late is as good (it is stamped when sent), and each poll costs tens of microseconds of
+    # CPU, which add up where scans are seconds apart
+    ticker = Ticker(RosClock(), 1.0 / republish_rate, nap=min(REPUBLISH_NAP, 0.2 / republish_rate))
     if lockstep:
         rospy.spin()
         return

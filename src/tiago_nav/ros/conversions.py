@@ -71,16 +71,34 @@ def gridmap_to_msg(grid, frame_id='map', stamp=None):
 
 
 def gridmap_from_msg(msg):
-    """nav_msgs/OccupancyGrid → :class:`GridMap`. A rotated map origin is refused."""
+    """nav_msgs/OccupancyGrid → :class:`GridMap`. A rotated map origin is refused
+    (:func:`gridmap_in_grid_frame` takes it)."""
+    grid, frame = gridmap_in_grid_frame(msg)
+    if frame[2] != 0.0:
+        raise ValueError('maps with a rotated origin are not supported (yaw %.3f rad)' % frame[2])
+    return grid
+
+
+def gridmap_in_grid_frame(msg):
+    """nav_msgs/OccupancyGrid → ``(grid, frame)``: a :class:`GridMap` and the pose ``(x, y,
+    yaw)`` [m, m, rad] in the map frame of the frame the grid is laid out in. A map whose
+    origin is not rotated (|yaw| ≤ 1e-6 rad) is its own frame: ``frame`` is ``(0, 0, 0)`` and
+    the grid's origin is the message's; a rotated one (MapMetaData's origin with a yaw) is laid
+    out in a frame at that origin pose: the grid's origin is ``(0, 0)`` and a point ``p`` of
+    the grid's frame is ``frame ∘ p`` in the map frame. :class:`ValueError` for data of the
+    wrong size or a non-positive resolution."""
     info = msg.info
     yaw = pose_from_msg(info.origin)[2]
-    if abs(yaw) > 1e-6:
-        raise ValueError('maps with a rotated origin are not supported (yaw %.3f rad)' % yaw)
     if len(msg.data) != info.width * info.height:
         raise ValueError('map data has %d cells, expected %d x %d'
                          % (len(msg.data), info.width, info.height))
+    if not info.resolution > 0:
+        raise ValueError('map resolution %r is not positive' % info.resolution)
     data = np.asarray(msg.data, dtype=np.int8).reshape(info.height, info.width)
-    return GridMap(data, float(info.resolution), (info.origin.position.x, info.origin.position.y))
+    x, y = float(info.origin.position.x), float(info.origin.position.y)
+    if abs(yaw) <= 1e-6:
+        return GridMap(data, float(info.resolution), (x, y)), (0.0, 0.0, 0.0)
+    return GridMap(data, float(info.resolution), (0.0, 0.0)), (x, y, float(yaw))
 
 
 def scan_points(scan):

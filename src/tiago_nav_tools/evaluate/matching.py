@@ -110,7 +110,7 @@ def sample_goals(world, n, rng, start=None, clearance=0.65, passage=0.35, min_di
     from scipy import ndimage
     from tiago_nav.sim.raster import rasterise_world
     grid = rasterise_world(world)
-    dist = ndimage.distance_transform_edt(~grid.occupied()) * grid.resolution
+    dist = grid.distance_field()
     centres = np.stack(grid.cell_centres(), axis=-1)             # (rows, cols, 2) [m]
     to_movable = np.full(dist.shape, np.inf)
     for c in world.movable_obstacles:
