@@ -1,6 +1,7 @@
 """Closed loops of the corridor law for tests and benchmarks (no ROS master): the law against the
-simulator library (:func:`run_in_simulator`), and a fake robot standing for the ROS side of the
-corridor_controller node in its unit tests (:class:`FakeCorridorRobot`).
+simulator library (:func:`run_in_simulator`), and a fake robot and I/O standing for the ROS side of
+the corridor_controller node in the unit tests of its decisions (:class:`FakeCorridorRobot`,
+:class:`FakeCorridorIO`).
 
 Units: metres, radians, seconds of simulated time; poses ``(x, y, yaw)`` in ``odom``.
 """
@@ -8,7 +9,8 @@ import math
 
 import numpy as np
 
-from tiago_nav.corridor.law import Command, CorridorFollower, CorridorParams, GoalJudge
+from tiago_nav.corridor.law import (ABORTED, PREEMPTED, SUCCEEDED, Command, CorridorFollower,
+                                    CorridorParams, GoalJudge)
 from tiago_nav.geometry import compose, wrap_angle
 from tiago_nav.robot import LASER_OFFSET
 from tiago_nav.scan import Scan
@@ -82,9 +84,9 @@ def ray_cast(origin, angles, segments, max_range):
 
 class FakeCorridorRobot:
     """A TIAGo-like base in a world, for unit tests of the corridor_controller node without ROS:
-    it is the node's ``io`` (``latest_scan``, ``lookup``) and obeys the newest
-    geometry_msgs/Twist on ``cmd_pub`` (a :class:`tiago_nav_tools.testing.fakes.FakePublisher`),
-    moving whenever ``clock`` (a FakeClock) advances.
+    the sensing part of the node's ``io`` (``latest_scan``, ``lookup``); it obeys the newest
+    velocity command given to :meth:`command` (recorded in ``commands`` as ``(v, w)``), moving
+    whenever ``clock`` (a FakeClock) advances.
 
     The base reaches the commanded velocities within ``accel`` [m/s^2] (and 2 ``accel`` rad/s^2);
     a laser (666 beams over +-110 deg, 0.05-25 m, ``LASER_OFFSET`` ahead of the base, an exact
@@ -95,11 +97,12 @@ class FakeCorridorRobot:
     """
     FRAMES = ('map', 'odom')
 
-    def __init__(self, world, clock, cmd_pub, pose=None, scan_period=1.0 / 15.0, accel=1.0,
+    def __init__(self, world, clock, pose=None, scan_period=1.0 / 15.0, accel=1.0,
                  corrupt=None, noise=0.005, seed=0):
         self.world = world if isinstance(world, World) else World.from_dict(world)
         self.segments = world_segments(self.world)
-        self.clock, self.cmd_pub = clock, cmd_pub
+        self.clock = clock
+        self.commands = []
         self.pose = tuple(pose) if pose is not None else self.world.start_pose
         self.v = self.w = 0.0
         self.scan_period, self.accel = scan_period, accel
@@ -114,8 +117,7 @@ class FakeCorridorRobot:
         self.advance(0.0)
 
     def advance(self, dt):
-        msg = self.cmd_pub.last
-        v_cmd, w_cmd = (float(msg.linear.x), float(msg.angular.z)) if msg is not None else (0.0, 0.0)
+        v_cmd, w_cmd = self.commands[-1] if self.commands else (0.0, 0.0)
         self.v += max(-self.accel * dt, min(self.accel * dt, v_cmd - self.v))
         self.w += max(-2 * self.accel * dt, min(2 * self.accel * dt, w_cmd - self.w))
         x, y, yaw = self.pose
@@ -136,6 +138,10 @@ class FakeCorridorRobot:
                 r = self.corrupt(r)
             self.scan = Scan(r, float(self.angles[0]), float(self.angles[1] - self.angles[0]), 0.05,
                              25.0, t, 'base_laser_link')
+
+    def command(self, v, w):
+        """A velocity command [m/s, rad/s], obeyed from now on."""
+        self.commands.append((float(v), float(w)))
 
     def latest_scan(self):
         return self.scan
@@ -163,3 +169,37 @@ class FakeCorridorRobot:
     def speed(self):
         """``(v [m/s], w [rad/s])`` of the base now."""
         return self.v, self.w
+
+
+class FakeCorridorIO:
+    """The ``io`` of :class:`tiago_nav.corridor.server.CorridorServer` without ROS: scans, tf and
+    commands from and to ``robot`` (a :class:`FakeCorridorRobot`), the goal's feedback, preemption
+    and end on ``server`` (a :class:`tiago_nav_tools.testing.fakes.FakeActionServer`, which
+    records the :class:`~tiago_nav.corridor.server.Feedback` and
+    :class:`~tiago_nav.corridor.server.Result` records as given). Each call goes to the robot's or
+    server's method as it is at the call, so that a test can replace one."""
+
+    def __init__(self, robot, server):
+        self.robot, self.server = robot, server
+
+    def latest_scan(self):
+        return self.robot.latest_scan()
+
+    def lookup(self, parent, child, stamp=None):
+        return self.robot.lookup(parent, child, stamp)
+
+    def send_cmd(self, v, w):
+        self.robot.command(v, w)
+
+    def publish_feedback(self, fb):
+        self.server.publish_feedback(fb)
+
+    def preempt_requested(self):
+        return self.server.is_preempt_requested()
+
+    def is_active(self):
+        return self.server.is_active()
+
+    def finish(self, state, result, text):
+        {SUCCEEDED: self.server.set_succeeded, ABORTED: self.server.set_aborted,
+         PREEMPTED: self.server.set_preempted}[state](result, text)
