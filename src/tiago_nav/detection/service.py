@@ -80,6 +80,16 @@ class Found:
     center_robot_covariance: tuple = (math.inf, 0.0, 0.0, math.inf)  # [m²] robot frame
     center_variance_terms: tuple = (math.inf, 0.0, 0.0, 0.0)  # [m²] fit, position, heading,
                                                               # raster along center_std's axis
+    shape: str = 'circle'                  # 'circle', 'rectangle', 'legs' or 'unknown'
+    extent: tuple = (math.nan, math.nan)   # [m] (length, width), NaN: not observed
+    extent_std: tuple = (math.nan, math.nan)   # [m]
+    orientation: float = math.nan          # [rad] map frame, in (-pi/2, pi/2]
+    orientation_std: float = math.nan      # [rad]
+    center_fixed: bool = True              # False: the centre is bounded, not fixed
+    note: str = ''                         # what was seen
+    motion: str = 'unknown'                # 'static', 'moving' or 'unknown' (one scan)
+    velocity: tuple = (math.nan, math.nan)  # [m/s] map frame
+    velocity_std: float = math.nan         # [m/s]
 
 
 @dataclass(frozen=True)
@@ -164,7 +174,11 @@ def found_obstacles(detections, laser_in_map, laser_in_robot):
         out.append(Found((float(d.center[0]), float(d.center[1])), (rx, ry), float(d.radius),
                          int(d.num_points), d.center_std, d.radius_std,
                          tuple(float(v) for v in cov.ravel()),
-                         tuple(float(v) for v in robot.ravel()), variance_terms(d)))
+                         tuple(float(v) for v in robot.ravel()), variance_terms(d),
+                         d.shape, tuple(float(v) for v in d.extent),
+                         tuple(float(v) for v in d.extent_std), float(d.orientation),
+                         float(d.orientation_std), bool(d.center_fixed), d.note, d.motion,
+                         tuple(float(v) for v in d.velocity), float(d.velocity_std)))
     out.sort(key=lambda o: math.hypot(*o.center_robot))
     return tuple(out)
 
