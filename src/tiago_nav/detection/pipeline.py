@@ -693,7 +693,7 @@ def _shape_detections(points, beams, view, circles, p):
         if d.radius > shapes.PERSON_LEG_RADIUS[1]:
             continue
         # a leg's radius from its arc's width (a fitted radius on a few points is noisy)
-        est = shapes.leg(d.points, sensor, view.inc, p.range_noise)
+        est = shapes.leg(d.points, sensor, view.inc, p.range_noise, round_checked=True)
         if est is not None:
             small.append(d)
             extra.append((shapes.Leg(est[0], est[1], None, est[2]), d.points))

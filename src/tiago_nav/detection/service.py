@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tiago_nav.detection import motion
 from tiago_nav.detection.pipeline import METHODS, ObstacleDetector
 from tiago_nav.geometry import compose, inverse, wrap_angle
 from tiago_nav.scan import informative_fraction, median_ranges
@@ -119,6 +120,11 @@ def check_request(method, scan_minus_map_threshold, cluster_threshold, default_m
             raise Failure('bad request: %s must be >= 0 (0 = the node\'s default), got %g'
                           % (name, v))
     return method
+
+
+def _sec(stamp):
+    """A stamp (rospy.Time or seconds) in seconds."""
+    return stamp.to_sec() if hasattr(stamp, 'to_sec') else float(stamp)
 
 
 def _seconds(stamp):
@@ -293,6 +299,32 @@ class DetectionService:
             out.append(s)
         return out
 
+    def _motion(self, detector, result, scan, rest, method, scan_minus_map_threshold,
+                cluster_threshold, laser_in_map, laser_in_robot, given):
+        """Judge the motion of ``result``'s detections (the median of the scans at rest
+        ``rest``, newest first) in place (:mod:`tiago_nav.detection.motion`): where beams changed
+        between the oldest and the newest scan, the newest scan's own detections on them are
+        moving."""
+        oldest = rest[-1]
+        dt = _sec(scan.stamp) - _sec(oldest.stamp)
+        changed = motion.changed_beams(scan.ranges, oldest.ranges, scan.range_min,
+                                       scan.range_max)
+        pose = result.correction.laser_pose
+        if not np.any(changed[1:] & changed[:-1]):      # nothing moved (a lone dropout aside)
+            result.detections[:] = motion.combine(result.detections, [], [], changed, dt, pose,
+                                                  scan.angle_min, scan.angle_increment)
+            return
+
+        def one(s):
+            return detector.locate(
+                s.ranges, s.angle_min, s.angle_increment, s.range_min, s.range_max,
+                laser_in_map, method, laser_in_base=laser_in_robot, pose_covariance=given,
+                scan_minus_map_threshold=scan_minus_map_threshold,
+                cluster_threshold=cluster_threshold).detections
+        result.detections[:] = motion.combine(result.detections, one(scan), one(oldest),
+                                              changed, dt, pose, scan.angle_min,
+                                              scan.angle_increment)
+
     def _detect(self, detector, scan, rest, laser_in_map, laser_in_robot, method,
                 scan_minus_map_threshold, cluster_threshold, given=None):
         t0 = time.perf_counter()
@@ -305,6 +337,9 @@ class DetectionService:
                 pose_covariance=given,
                 scan_minus_map_threshold=scan_minus_map_threshold,
                 cluster_threshold=cluster_threshold)
+            if len(rest) > 1:
+                self._motion(detector, result, scan, rest, method, scan_minus_map_threshold,
+                             cluster_threshold, laser_in_map, laser_in_robot, given)
         except Exception as e:   # never a crash: the caller learns what went wrong
             raise Failure('detection failed on this scan: %s: %s'
                           % (type(e).__name__, e)) from None

@@ -271,7 +271,7 @@ class Leg:
     var: float
 
 
-def leg(points, sensor, increment, noise=0.01):
+def leg(points, sensor, increment, noise=0.01, round_checked=False):
     """A small round arc (a leg) fitted to ``(N, 2)`` points: the radius from the arc's width
     (its points' span across the beam plus one beam spacing, halved), the centre from a circle
     fit with that radius (3 points or more) or one radius behind the nearest point along its
@@ -294,7 +294,7 @@ def leg(points, sensor, increment, noise=0.01):
     if len(p) >= 3:
         cx, cy, _, rms = circle_fit(p, r, sensor)
         centre = np.array([cx, cy])
-        if len(p) >= 5:
+        if len(p) >= 5 and not round_checked:
             # round, not flat: the circle of that radius fits at least as well as a line
             # (a flat end of something, seen square on, is as narrow as a leg)
             q = p - p.mean(axis=0)
@@ -465,7 +465,7 @@ class ScanView:
     def end_seen(self, beam, step, dist):
         """Whether the object's edge at beam ``beam`` is a silhouette edge: the next beam
         outward (``step`` ±1; past one a filter dropped) went past range ``dist`` [m]."""
-        for j in (beam + step, beam + 2 * step):
+        for j in (beam + step, beam + 2 * step, beam + 3 * step):
             past = self._past(j, dist)
             if past is not None:
                 return past
@@ -540,8 +540,8 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
     done = set()
     for g in pairs + [[s] for s in singles]:
         idx = [rest[i] for i in g]
-        if all(i >= n_own for i in idx):
-            continue                      # the caller's own circles alone stay theirs
+        if len(idx) == 1 and idx[0] >= n_own:
+            continue                      # the caller's own circle alone stays theirs
         done.update(idx)
         s = person_shape(legs, idx)
         s.points = np.concatenate([pts_of(i) for i in idx])
