@@ -1,6 +1,6 @@
 """Shapes other than circles and motion over the scans at rest (tiago_nav.detection.shapes,
-tiago_nav.detection.motion): a box seen on one face is a rectangle whose centre is bounded, not
-fixed, and whose covariance covers it, a table's legs one object, a
+tiago_nav.detection.motion): a box is one rectangle (two faces: its centre and heading; one
+face: a centre bounded, not fixed, whose covariance covers it), a table's legs one object, a
 person's two legs one object, and what moves between the scans at rest is moving, with its
 velocity, never static."""
 import math
@@ -38,6 +38,19 @@ def detect(w, seed=0, pose=(0.0, 0.0, 0.0), grid_world=None):
 def heading_error(a, b, period=math.pi):
     d = math.fmod(a - b, period)
     return abs(min(d % period, period - d % period))
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_a_box_seen_on_two_faces_is_one_rectangle_with_its_centre_and_heading(seed):
+    # the 0.6 m face is seen at about 18 deg to the beams: its points lie 6-9 cm apart
+    box = {'shape': 'box', 'x': 3.0, 'y': 1.2, 'length': 0.6, 'width': 0.4, 'yaw_deg': 40}
+    found = detect(world([box]), seed)
+    assert [d.shape for d in found] == ['rectangle'], [(d.shape, d.note) for d in found]
+    d = found[0]
+    assert d.center_fixed and d.note == 'two faces seen'
+    assert math.hypot(d.center[0] - 3.0, d.center[1] - 1.2) < 0.03
+    assert heading_error(d.orientation, math.radians(40)) < math.radians(5)
+    assert abs(d.extent[0] - 0.6) < 0.05 and abs(d.extent[1] - 0.4) < 0.05
 
 
 def test_a_box_seen_on_one_face_has_a_bounded_centre_its_covariance_covers():

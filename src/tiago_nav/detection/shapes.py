@@ -34,6 +34,7 @@ MIN_FACE_LENGTH = 0.08             # [m] ... spanning at least this
 MAX_DEPTH = 1.0                    # [m] a box seen on one face: its depth is within (0, this]
 LEG_MAX_WIDTH = 0.25               # [m] a cluster narrower than this may be one leg
 FREE_MARGIN = 0.15                 # [m] a beam this far behind a point went past it
+FACE_INCIDENCE = math.radians(10.0)   # a box's face seen at this angle to the beams or more
 
 
 @dataclass
@@ -63,12 +64,15 @@ class Shape:
 
 
 # --- segments ------------------------------------------------------------------------------
-def segments(points, beams, sensor, increment, gap=0.08, ranges=None):
+def segments(points, beams, sensor, increment, gap=0.08, ranges=None, incidence=0.0,
+             noise=0.01):
     """Split ``(N, 2)`` points in scan order (beam indices ``beams``) into runs of neighbours:
     consecutive points belong together when within ``gap`` [m] or three beam spacings at their
     range (``increment`` [rad]), plus one spacing per beam between them that has no hit
     (``ranges``: the scan's, NaN or inf where it says nothing; None: every beam between them
-    counts). Returns a list of index arrays."""
+    counts). ``incidence`` [rad] > 0: also join points a surface seen at that angle to the
+    beams or more would put apart (an oblique face), ``noise`` [m] the range noise. Returns a
+    list of index arrays."""
     p = np.asarray(points, dtype=float).reshape(-1, 2)
     if len(p) == 0:
         return []
@@ -81,6 +85,12 @@ def segments(points, beams, sensor, increment, gap=0.08, ranges=None):
         none = np.concatenate(([0], np.cumsum(~np.isfinite(np.asarray(ranges, dtype=float)))))
         skipped = none[b[1:]] - none[np.minimum(b[:-1] + 1, b[1:])]
     allow = np.maximum(gap, (3.0 + skipped) * np.maximum(rng[1:], rng[:-1]) * increment)
+    if incidence:
+        # the adaptive breakpoint: a surface seen at ``incidence`` [rad] to the beam puts
+        # neighbouring beams' points r sin(dphi) / sin(incidence - dphi) apart, plus the noise
+        dphi = (1.0 + skipped) * increment
+        allow = np.maximum(allow, np.minimum(rng[1:], rng[:-1]) * np.sin(dphi)
+                           / np.sin(incidence - dphi) + 3.0 * noise)
     cut = np.flatnonzero(step > allow) + 1
     return [np.arange(a, e) for a, e in zip(np.concatenate(([0], cut)),
                                             np.concatenate((cut, [len(p)])))]
@@ -276,7 +286,8 @@ def leg(points, sensor, increment, noise=0.01, round_checked=False):
     (its points' span across the beam plus one beam spacing, halved), the centre from a circle
     fit with that radius (3 points or more) or one radius behind the nearest point along its
     beam. Returns ``(center, radius, var)``, or None when wider than :data:`LEG_MAX_WIDTH` or,
-    with 5 points or more, flat (a line fits them better than that circle)."""
+    with 5 points or more and a radius of 3 ``noise`` or more, flat (a line fits them better
+    than that circle)."""
     p = np.asarray(points, dtype=float).reshape(-1, 2)
     sensor = np.asarray(sensor, dtype=float)
     mean = p.mean(axis=0)
@@ -294,9 +305,10 @@ def leg(points, sensor, increment, noise=0.01, round_checked=False):
     if len(p) >= 3:
         cx, cy, _, rms = circle_fit(p, r, sensor)
         centre = np.array([cx, cy])
-        if len(p) >= 5 and not round_checked:
+        if len(p) >= 5 and not round_checked and r >= 3.0 * noise:
             # round, not flat: the circle of that radius fits at least as well as a line
-            # (a flat end of something, seen square on, is as narrow as a leg)
+            # (a flat end of something, seen square on, is as narrow as a leg; an arc whose
+            # depth, about its radius, is within 3 noise stds cannot tell)
             q = p - p.mean(axis=0)
             line_rms = float(np.linalg.svd(q, compute_uv=False)[-1]) / math.sqrt(len(p))
             if line_rms < rms:
@@ -490,7 +502,21 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
     beams = np.asarray(beams)
     sensor = np.array(view.pose[:2])
     out, legs = [], []
-    for seg in segments(p, beams, sensor, view.inc, gap, view.r):
+    runs = []
+    for coarse in segments(p, beams, sensor, view.inc, gap, view.r, FACE_INCIDENCE, noise):
+        fine = [coarse[f] for f in segments(p[coarse], beams[coarse], sensor, view.inc, gap,
+                                            view.r)]
+        # an oblique face breaks into pieces between beams: one run, unless its pieces are
+        # each as narrow as legs (a person's two legs side by side)
+        narrow = all(np.hypot(*(p[f].max(axis=0) - p[f].min(axis=0))) <= LEG_MAX_WIDTH
+                     for f in fine)
+        if len(fine) > 1 and not narrow:
+            fit = fit_rectangle(p[coarse], sensor, noise)
+            if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
+                runs.append(coarse)
+                continue
+        runs.extend(fine)
+    for seg in runs:
         q = p[seg]
         if len(q) < 2:
             continue
@@ -602,10 +628,10 @@ def unknown(points):
 
 def rectangle_not_circle(points, sensor, circle_rms, noise=0.01):
     """Whether a cluster a circle fits (residual ``circle_rms`` [m]) is a box: an L-shape fit
-    (:func:`fit_rectangle`, ``noise`` [m]) fits it at least twice as well. A cylinder's arc is
+    (:func:`fit_rectangle`, ``noise`` [m]) fits it with 0.7 of its residual or less. A cylinder's arc is
     fitted by a circle to the noise and by an L worse."""
     p = np.asarray(points, dtype=float)
     if len(p) < 2 * MIN_FACE_POINTS or np.hypot(*(p.max(axis=0) - p.min(axis=0))) <= LEG_MAX_WIDTH:
         return False
     fit = fit_rectangle(p, sensor, noise)
-    return fit is not None and fit[1] < 0.5 * circle_rms
+    return fit is not None and fit[1] < 0.7 * circle_rms
