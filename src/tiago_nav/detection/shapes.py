@@ -61,6 +61,7 @@ class Shape:
     leg_radius: float = math.nan
     kind: str = ''              # a legs object's: 'person' or 'furniture'
     used: list = field(default_factory=list)   # indices of describe()'s extra legs in it
+    index: np.ndarray = field(default=None, repr=False)   # a rectangle's points in describe()
 
 
 # --- segments ------------------------------------------------------------------------------
@@ -120,6 +121,25 @@ def _l_cost(p, theta, sensor):
     return float(d @ d), a, b, on_a
 
 
+def _l_costs(p, thetas, sensor):
+    """:func:`_l_cost`'s cost at each of the orientations ``thetas`` [rad] at once."""
+    c, s = np.cos(thetas), np.sin(thetas)
+    c1 = np.outer(p[:, 0], c) + np.outer(p[:, 1], s)
+    c2 = np.outer(p[:, 1], c) - np.outer(p[:, 0], s)
+    s1 = sensor[0] * c + sensor[1] * s
+    s2 = sensor[1] * c - sensor[0] * s
+    a = np.where(s1 < c1.mean(axis=0), c1.min(axis=0), c1.max(axis=0))
+    b = np.where(s2 < c2.mean(axis=0), c2.min(axis=0), c2.max(axis=0))
+    on_a = np.abs(c1 - a) < np.abs(c2 - b)
+    for _ in range(2):
+        na, nb = on_a.sum(axis=0), (~on_a).sum(axis=0)
+        a = np.where(na > 0, (c1 * on_a).sum(axis=0) / np.maximum(na, 1), a)
+        b = np.where(nb > 0, (c2 * ~on_a).sum(axis=0) / np.maximum(nb, 1), b)
+        on_a = np.abs(c1 - a) < np.abs(c2 - b)
+    d = np.where(on_a, c1 - a, c2 - b)
+    return (d * d).sum(axis=0)
+
+
 def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH):
     """A rectangle through ``(N, 2)`` points in scan order seen from ``sensor``: the L-shape
     fit (the orientation in [0, 90°) minimising :func:`_l_cost`, a 1° search refined to
@@ -140,10 +160,9 @@ def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH
     if n < MIN_FACE_POINTS:
         return None
     coarse = np.radians(np.arange(0.0, 90.0, 1.0))
-    costs = [_l_cost(p, t, sensor)[0] for t in coarse]
-    t0 = float(coarse[int(np.argmin(costs))])
+    t0 = float(coarse[int(np.argmin(_l_costs(p, coarse, sensor)))])
     fine = t0 + np.radians(np.arange(-1.0, 1.0001, 0.02))
-    best = min(fine, key=lambda t: _l_cost(p, t, sensor)[0])
+    best = float(fine[int(np.argmin(_l_costs(p, fine, sensor)))])
     cost, a, b, on_a = _l_cost(p, float(best), sensor)
     theta = float(best)
     e1 = np.array([math.cos(theta), math.sin(theta)])
@@ -526,19 +545,13 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
             if found is not None:
                 legs.append(Leg(found[0], found[1], seg, found[2]))
                 continue
-        lo, hi = int(beams[seg].min()), int(beams[seg].max())
-
-        def end_seen(i, seg=seg, lo=lo, hi=hi, q=q):
-            b = int(beams[seg][i])
-            d = float(np.hypot(*(q[i] - sensor)))
-            step = -1 if (b - lo) <= (hi - b) else 1
-            return view.end_seen(b, step, d)
-
-        fit = fit_rectangle(q, sensor, noise, end_seen)
+        fit = fit_rectangle(q, sensor, noise, _ends(seg, p, beams, sensor, view))
         if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
+            fit[0].index = seg
             out.append(fit[0])
         else:
             out.append(unknown(q))
+    out = _join_hidden(out, p, beams, sensor, view, noise)
     n_own = len(legs)
     extra_pts = {}
     for k, (l, q) in enumerate(extra):
@@ -586,6 +599,47 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
                              legs=l.center.reshape(1, 2), points=p[l.index],
                              leg_radius=l.radius, kind='furniture'))
     return out, legs[:n_own]
+
+
+def _ends(seg, p, beams, sensor, view):
+    """``end_seen`` of :func:`fit_rectangle` for the points ``p[seg]``: whether the beam just
+    outside the run, on the side of the point's own end, went past it."""
+    lo, hi = int(beams[seg].min()), int(beams[seg].max())
+
+    def end_seen(i):
+        b = int(beams[seg][i])
+        d = float(np.hypot(*(p[seg][i] - sensor)))
+        return view.end_seen(b, -1 if (b - lo) <= (hi - b) else 1, d)
+    return end_seen
+
+
+def _join_hidden(found, p, beams, sensor, view, noise):
+    """Rectangles that are pieces of one box cut by something nearer in front of it: two pieces
+    next to each other in the scan, every beam between them hitting nearer than both, whose
+    points one rectangle fits (:func:`fit_rectangle`) are one box."""
+    rects = sorted((s for s in found if s.shape == 'rectangle' and s.index is not None),
+                   key=lambda s: int(beams[s.index].min()))
+    others = [s for s in found if not (s.shape == 'rectangle' and s.index is not None)]
+    out = []
+    for s in rects:
+        if out:
+            a = out[-1]
+            lo, hi = int(beams[a.index].max()), int(beams[s.index].min())
+            between = view.r[lo + 1:hi]
+            near = min(float(np.min(np.hypot(*(p[a.index] - sensor).T))),
+                       float(np.min(np.hypot(*(p[s.index] - sensor).T))))
+            hits = between[np.isfinite(between)]
+            if hi > lo + 1 and len(hits) and np.all(hits < near - 0.05):
+                idx = np.concatenate((a.index, s.index))
+                fit = fit_rectangle(p[idx], sensor, noise, _ends(idx, p, beams, sensor, view))
+                if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
+                    joined = fit[0]
+                    joined.index = idx
+                    joined.note += '; seen in pieces either side of something nearer'
+                    out[-1] = joined
+                    continue
+        out.append(s)
+    return others + out
 
 
 def _stands_apart(index, beams, points, sensor, view):
