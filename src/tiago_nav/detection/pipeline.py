@@ -696,7 +696,7 @@ def _shape_detections(points, beams, view, circles, p):
         est = shapes.leg(d.points, sensor, view.inc, p.range_noise, round_checked=True)
         if est is not None:
             small.append(d)
-            extra.append((shapes.Leg(est[0], est[1], None, est[2]), d.points))
+            extra.append((shapes.Leg(est[0], est[1], None, est[2], est[3]), d.points))
     found, _ = shapes.describe(points, beams, view, p.range_noise, p.gap, extra)
     for s in found:
         for k in s.used:

@@ -12,7 +12,9 @@ The constants are the physics of what is measured, not fits to any recording:
   apart: centre to centre at most :data:`PERSON_LEG_SPACING` 0.6 m (a walker's legs swing
   0.2 m ahead and behind and stand 0.1 m either side of its line: 0.45 m);
 * a table's or chair's leg is a tube or a bar of at most :data:`FURNITURE_LEG_RADIUS` 0.04 m;
-  a chair's legs are 0.3-0.6 m apart, a table's 0.4-2.0 m (:data:`FURNITURE_SIDE`);
+  a chair's legs are 0.3-0.6 m apart, a table's 0.4-2.0 m (:data:`FURNITURE_SIDE`), at the
+  corners of a rectangle (right angles within :data:`RIGHT_ANGLE_TOL`: the legs' centres are
+  known to 1-2 cm);
 * a box's face is straight: a rectangle (two perpendicular faces) fits its points to within the
   range noise, a circle does not.
 """
@@ -27,7 +29,8 @@ PERSON_LEG_RADIUS = (0.04, 0.10)   # [m] a calf, bare or in a trouser leg
 PERSON_LEG_SPACING = 0.6           # [m] two legs of one person: centres at most this apart
 FURNITURE_LEG_RADIUS = 0.04        # [m] a table's or chair's leg is at most this thick
 FURNITURE_SIDE = (0.25, 2.2)       # [m] distance between neighbouring legs of one piece
-RIGHT_ANGLE_TOL = math.radians(8.0)   # legs at the corners of a rectangle: 90 deg within this
+RIGHT_ANGLE_TOL = math.radians(4.0)   # legs at the corners of a rectangle: 90 deg within this
+                                      # (leg centres within 1-2 cm over sides of 0.25 m or more)
 SIDE_TOL = 0.06                    # [m] opposite sides of a leg rectangle agree within this
 MIN_FACE_POINTS = 4                # a face of a box: at least this many points ...
 MIN_FACE_LENGTH = 0.08             # [m] ... spanning at least this
@@ -298,13 +301,18 @@ class Leg:
     radius: float
     index: np.ndarray
     var: float
+    low: float = None       # [m] the least radius the arc allows (its points' half span)
+
+    @property
+    def least(self):
+        return self.radius if self.low is None else self.low
 
 
 def leg(points, sensor, increment, noise=0.01, round_checked=False):
     """A small round arc (a leg) fitted to ``(N, 2)`` points: the radius from the arc's width
     (its points' span across the beam plus one beam spacing, halved), the centre from a circle
     fit with that radius (3 points or more) or one radius behind the nearest point along its
-    beam. Returns ``(center, radius, var)``, or None when wider than :data:`LEG_MAX_WIDTH` or,
+    beam. Returns ``(center, radius, var, least radius)``, or None when wider than :data:`LEG_MAX_WIDTH` or,
     with 5 points or more and a radius of 3 ``noise`` or more, flat (a line fits them better
     than that circle)."""
     p = np.asarray(points, dtype=float).reshape(-1, 2)
@@ -338,7 +346,7 @@ def leg(points, sensor, increment, noise=0.01, round_checked=False):
         centre = p[near] + r * (p[near] - sensor) / np.hypot(*(p[near] - sensor))
     # the radius is known to about a beam spacing: the centre's range moves with it
     var = noise * noise / len(p) + spacing * spacing / 12.0
-    return centre, r, var
+    return centre, r, var, 0.5 * (width - spacing)
 
 
 def group_furniture(legs, free=None):
@@ -346,7 +354,8 @@ def group_furniture(legs, free=None):
 
     ``legs``: list of :class:`Leg` (furniture-thin ones); ``free(xy) -> bool``: whether the
     scan saw the place ``xy`` [m] empty (a beam went past it), so that three legs whose fourth
-    corner is seen empty are no table (None: never). Candidates are corners ``j`` with two
+    corner is seen empty are no table (None: never); nor are legs with another leg inside
+    their rectangle. Candidates are corners ``j`` with two
     neighbours at :data:`FURNITURE_SIDE` distances and a right angle within
     :data:`RIGHT_ANGLE_TOL`; a fourth leg within :data:`SIDE_TOL` of the completed corner joins.
     Four-leg groups first, then three, best right angle first, no leg in two groups.
@@ -379,6 +388,14 @@ def group_furniture(legs, free=None):
                 radii = [legs[g].radius for g in group]
                 if max(radii) - min(radii) > 0.03:
                     continue                            # one piece has one kind of leg
+                # no other leg stands inside it (a table's legs with a chair's are no table)
+                e1, e2 = u / lu, v / lv
+                rel = c - c[j]
+                a1, a2 = rel @ e1, rel @ e2
+                inside = (a1 > SIDE_TOL) & (a1 < lu - SIDE_TOL) & (a2 > SIDE_TOL) & (a2 < lv - SIDE_TOL)
+                inside[group] = False
+                if np.any(inside):
+                    continue
                 cands.append((-len(group), err, group))
     cands.sort(key=lambda t: (t[0], t[1]))
     used, groups = set(), []
@@ -423,10 +440,14 @@ def furniture_shape(legs, group):
 
 def pair_people(legs):
     """People: pairs of person-sized legs (radius within :data:`PERSON_LEG_RADIUS`) at most
-    :data:`PERSON_LEG_SPACING` apart, nearest pairs first. Returns ``(pairs, singles)``, index
+    :data:`PERSON_LEG_SPACING` apart, nearest pairs first (the least radius an arc allows, its
+    points' half span, must be a calf's: a beam spacing far away widens a table's leg too). Returns ``(pairs, singles)``, index
     lists into ``legs``."""
     n = len(legs)
-    ok = [i for i in range(n) if PERSON_LEG_RADIUS[0] <= legs[i].radius <= PERSON_LEG_RADIUS[1]]
+    # a person's leg for sure: even the least radius its arc allows is a calf's (far away a
+    # beam spacing widens a table's leg as much)
+    ok = [i for i in range(n) if PERSON_LEG_RADIUS[0] <= legs[i].least
+          and legs[i].radius <= PERSON_LEG_RADIUS[1]]
     pairs = []
     for a in range(len(ok)):
         for b in range(a + 1, len(ok)):
@@ -543,7 +564,7 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
         if span <= LEG_MAX_WIDTH and _stands_apart(seg, beams, p, sensor, view):
             found = leg(q, sensor, view.inc, noise)
             if found is not None:
-                legs.append(Leg(found[0], found[1], seg, found[2]))
+                legs.append(Leg(found[0], found[1], seg, found[2], found[3]))
                 continue
         fit = fit_rectangle(q, sensor, noise, _ends(seg, p, beams, sensor, view))
         if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
