@@ -112,7 +112,7 @@ class DetectionParams:
     max_range: float = param(10.0, '[m] beams longer than this are ignored', ge=0)
     # shapes other than circles (circle_fit only)
     shapes: bool = param(
-        True, 'also report what is not round: boxes (rectangle, an L-shape fit), tables\'s and '
+        True, 'also report what is not round: boxes (rectangle, an L-shape fit), tables\' and '
         'chairs\' legs grouped into one object and people\'s legs (legs), and unknown (see '
         'tiago_nav.detection.shapes)')
     # the discontinuity method
