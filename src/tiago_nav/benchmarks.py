@@ -29,6 +29,8 @@ BENCHMARKS = (
         ('bench/bench_short_arcs.py', ['short_arcs.json'])]),
     ('shapes', 'Shapes: boxes, tables and chairs', [
         ('bench/bench_shapes.py', ['shapes.json'])]),
+    ('legs_real', 'People\'s legs on real laser data (leg_tracker)', [
+        ('bench/bench_legs_real.py', ['legs_real.json'])]),
     ('covariance', 'Obstacle covariance against the errors of ROS missions', [
         ('bench/bench_covariance.py --warm', ['covariance.json'])]),
     ('navigation', 'Navigation (move_base)', [
