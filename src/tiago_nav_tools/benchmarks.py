@@ -27,6 +27,10 @@ BENCHMARKS = (
         ('bench/bench_detection.py --laser-model tiago --no-service', ['detection_tiago.json']),
         ('bench/bench_detection_sensing.py', ['detection_sensing.json']),
         ('bench/bench_short_arcs.py', ['short_arcs.json'])]),
+    ('shapes', 'Shapes: boxes, tables and chairs', [
+        ('bench/bench_shapes.py', ['shapes.json'])]),
+    ('legs_real', 'People\'s legs on real laser data (leg_tracker)', [
+        ('bench/bench_legs_real.py', ['legs_real.json'])]),
     ('covariance', 'Obstacle covariance against the errors of ROS missions', [
         ('bench/bench_covariance.py --warm', ['covariance.json'])]),
     ('navigation', 'Navigation (move_base)', [
@@ -66,6 +70,20 @@ NAMES = [b[0] for b in BENCHMARKS]
 # name -> what the benchmark measures, how it judges and its targets: shown under its title on
 # docs/benchmarks.md (the scripts' docstrings say the same at more length)
 ABOUT = {
+    'shapes': (
+        'Boxes, tables and chairs (and the cylinders among them) in `worlds/room_furniture.yaml` '
+        'and `worlds/lab_mixed.yaml` (walkers left out), 30 seeded random poses each, the tiago '
+        'laser with 0.01 m noise, one scan and the median of 5 at rest, exact pose: found once '
+        'with its shape, centre and orientation errors, where two faces of a box or three legs '
+        'of a table or chair are seen (the targets: <= 3 cm, <= 5 deg) and over all in view '
+        '([detection.md](detection.md#shapes)).'),
+    'legs_real': (
+        'People on leg_tracker\'s real recordings (`../shared/data/real/`): the pipeline on each '
+        'marked scan over an empty map (everything unmapped): recall and precision of the '
+        'legs objects against the hand-marked legs (within 0.15 m; target 85 %); on the demo '
+        'of a standing laser, the service on every 10th scan with the 4 before it: what stands '
+        'in front of the static background (the per-beam median of the whole recording) is '
+        'reported moving, never static ([detection.md](detection.md#people)).'),
     'covariance': (
         'Every detection of the `tiago` profile\'s successful missions in `suites/course.yaml` '
         'and `suites/robustness.yaml` (`rosrun tiago_nav evaluate --warm`, 2 workers; `--from '
@@ -937,6 +955,60 @@ def render_short_arcs(d):
     return out
 
 
+def render_shapes(d):
+    """shapes.json: per mode and shape, the objects where the targets apply (two faces of a box,
+    three legs of a table or chair seen) and all in view."""
+    out = ['Worlds %s, tiago laser, %s m noise, exact pose; targets: centre <= %s m, orientation '
+           '<= %s deg where two faces or three legs are seen.' % (
+               ', '.join(d.get('worlds', [])), _f(d.get('noise_m')),
+               _f((d.get('targets') or {}).get('centre_m')),
+               _f((d.get('targets') or {}).get('orientation_deg'))), '']
+    rows = []
+    for mode, m in (d.get('summary') or {}).items():
+        for which in ('targets_apply', 'all_in_view'):
+            for shape, r in (m.get(which) or {}).items():
+                rows.append((mode, which.replace('_', ' '), shape, r.get('objects'),
+                             r.get('found_once'), r.get('found_as_other'), r.get('missed'),
+                             r.get('centre_rms_m'), r.get('centre_max_m'), r.get('within_3cm'),
+                             r.get('orientation_max_deg'), r.get('within_5deg'),
+                             r.get('inside_95_ellipse')))
+    out += _table(('scans', 'objects', 'shape', 'n', 'found once', 'as another shape', 'missed',
+                   'centre RMS [m]', 'max [m]', 'within 3 cm', 'orientation max [deg]',
+                   'within 5 deg', 'inside 95 % ellipse'), rows)
+    out += ['']
+    for mode, m in (d.get('summary') or {}).items():
+        out += ['- %s: %s false positives; %s objects where the targets apply reported with a '
+                'centre not fixed' % (mode, m.get('false_positives'),
+                                      m.get('center_not_fixed_when_target_applies'))]
+    return out
+
+
+def render_legs_real(d):
+    """legs_real.json: recall and precision on the marked bags, motion on the demo."""
+    m = d.get('marked') or {}
+    out = ['Marked leg clusters (%s): recall %s (by the object\'s centre: %s), precision %s '
+           'over %s person objects (%s over all %s legs objects), within %s m; target %s.' % (
+               m.get('marked_legs'), m.get('recall'), m.get('recall_by_object_centre'),
+               m.get('precision_person'), m.get('person_objects'), m.get('precision_all_legs'),
+               m.get('legs_objects'), _f(d.get('near_m')), _f(d.get('target'))), '']
+    out += _table(('bag', 'scans', 'marked legs', 'recall', 'person objects', 'precision',
+                   'legs objects', 'precision, all legs'),
+                  [(b['bag'], b['scans'], b['marked_legs'], b['recall'], b['person_objects'],
+                    b['precision_person'], b['legs_objects'], b['precision_all_legs'])
+                   for b in d.get('marked_per_bag', [])])
+    dm = d.get('demo') or {}
+    out += ['', '- demo: %s calls, %s objects in front of the static background (people '
+            'passing): %s moving, %s static, %s not judged; of them %s legs objects (%s moving, '
+            '%s static); speed of what moved: median %s m/s, p95 %s m/s.' % (
+                dm.get('calls'), dm.get('foreground'), dm.get('foreground_moving'),
+                dm.get('foreground_static'), dm.get('foreground_unknown'),
+                dm.get('foreground_legs'), dm.get('foreground_legs_moving'),
+                dm.get('foreground_legs_static'), dm.get('speed_median_m_s'),
+                dm.get('speed_p95_m_s'))]
+    return out
+
+
+RENDER.update(shapes=render_shapes, legs_real=render_legs_real)
 RENDER_FILE = {'detection_sensing.json': render_detection_sensing,
                'short_arcs.json': render_short_arcs}
 

@@ -136,8 +136,12 @@ def test_unmapped_wall_and_noise_are_not_obstacles():
                                        {'x': 7.5, 'y': 0.0, 'length': 6.0, 'width': 0.15, 'yaw_deg': 90},
                                        {'x': 3.0, 'y': 1.2, 'length': 1.5, 'width': 0.1, 'yaw_deg': 20}]})
     r, laser, _ = scan_of(extra)
-    det = ObstacleDetector(grid)
+    # nothing round: no circle, no legs (with shapes off, nothing at all; with them, what is
+    # reported of it is straight)
+    det = ObstacleDetector(grid, DetectionParams(shapes=False))
     assert det.detect(r, L.angle_min, L.angle_increment, 0.05, 25, laser) == []
+    found = ObstacleDetector(grid).detect(r, L.angle_min, L.angle_increment, 0.05, 25, laser)
+    assert [d.shape for d in found if d.shape in ('circle', 'legs')] == []
 
 
 def test_bad_ranges_are_ignored():

@@ -66,6 +66,7 @@ import numpy as np
 
 from tiago_nav.detection.centres import (centroid, circle_covariance, circle_fit,
                                         correlation_inflation, radius_std)
+from tiago_nav.detection import shapes
 from tiago_nav.detection.clustering import centroid_clusters
 from tiago_nav.detection.subtraction import MapDistance, subtract
 from tiago_nav.geometry import transform_points, wrap_angle
@@ -110,6 +111,11 @@ class DetectionParams:
     range_noise: float = param(0.01, '[m] the laser\'s range noise std (least residual assumed '
                                'when judging a fitted radius\'s precision)', ge=0)
     max_range: float = param(10.0, '[m] beams longer than this are ignored', ge=0)
+    # shapes other than circles (circle_fit only)
+    shapes: bool = param(
+        True, 'also report what is not round: boxes (rectangle, an L-shape fit), tables\' and '
+        'chairs\' legs grouped into one object and people\'s legs (legs), and unknown (see '
+        'tiago_nav.detection.shapes)')
     # the discontinuity method
     jump: float = param(0.15, '[m] discontinuity method: range jump between segments', ge=0)
     depth: float = param(0.2, '[m] discontinuity method: closest point pushed back this far', ge=0)
@@ -147,8 +153,28 @@ class Detection:
     covariance: np.ndarray = field(repr=False, default=None)
     fit_covariance: np.ndarray = field(repr=False, default=None)
     terms: dict = field(repr=False, default=None)
+    # the shape (tiago_nav.detection.shapes): 'circle', 'rectangle', 'legs' or 'unknown';
+    # extent (length, width) [m] along orientation [rad, map frame] and across (NaN: not
+    # observed); center_fixed False when the points bound the centre without fixing it (the
+    # covariance then spans what is possible); note: what was seen; legs: (K, 2) leg centres
+    shape: str = 'circle'
+    extent: tuple = None
+    orientation: float = math.nan
+    orientation_std: float = math.nan
+    extent_std: tuple = (math.nan, math.nan)
+    center_fixed: bool = True
+    note: str = ''
+    legs: np.ndarray = field(repr=False, default=None)
+    kind: str = ''
+    # motion over the scans at rest (tiago_nav.detection.motion): 'static', 'moving' or
+    # 'unknown' (one scan); velocity (vx, vy) [m/s, map frame] (NaN: not measured)
+    motion: str = 'unknown'
+    velocity: tuple = (math.nan, math.nan)
+    velocity_std: float = math.nan
 
     def __post_init__(self):
+        if self.extent is None:
+            self.extent = (2.0 * self.radius, 2.0 * self.radius)
         if self.fit_covariance is None and self.covariance is not None:
             self.fit_covariance = np.asarray(self.covariance, dtype=float)
         if self.terms is None and self.fit_covariance is not None:
@@ -372,6 +398,7 @@ class ObstacleDetector:
         sensor = np.array(laser_pose[:2])
         rng = np.hypot(*(pts - sensor).T) if len(pts) else np.empty(0)
         cands = []
+        round_pts = np.zeros(len(pts), dtype=bool)
         for idx in centroid_clusters(pts, p.cluster_threshold, _gap(rng, inc, p.gap, holes)):
             c = pts[idx]
             if len(c) < p.min_points:
@@ -380,9 +407,12 @@ class ObstacleDetector:
                                     laser_max, raw)
             margin = PASSING_MARGIN * inc * float(rng[idx].max())
             cx, cy, rad, rms = circle_fit(c, sensor=sensor, passing=passing, margin=margin)
-            if _is_obstacle(c, (cx, cy), rad, rms, sensor, p):
+            if _is_obstacle(c, (cx, cy), rad, rms, sensor, p) and not (
+                    p.shapes and method == 'circle_fit'
+                    and shapes.rectangle_not_circle(c, sensor, rms, p.range_noise)):
                 cands.append((c, cx, cy, rad, rms, radius_std(c, cx, cy, rad, p.range_noise),
                               passing, margin))
+                round_pts[idx] = True
         # The radius to assume where an arc is too short to measure it: the configured one, or,
         # when at least two obstacles of this scan are well measured and agree (all within
         # radius_spread), their median. With shared_radius, an obstacle whose own radius agrees
@@ -448,6 +478,10 @@ class ObstacleDetector:
             if cov is None:
                 cov = circle_covariance(c, cx, cy, rad)
             out.append(Detection((cx, cy), rad, len(c), c, cov))
+        if p.shapes and method == 'circle_fit':
+            view = shapes.ScanView(r, angle_min, inc, laser_pose, rmax)
+            others = _shape_detections(pts[~round_pts], beam[~round_pts], view, out, p)
+            out = out + others      # (after the small circles that joined them left out)
         return out, correction
 
 
@@ -645,4 +679,40 @@ def _discontinuity(r, ang, inc, rmin, rmax, laser_pose, p):
         # no fit: the centre and the radius are the assumed depth's guess, off by about as much
         out.append(Detection((float(cx), float(cy)), p.depth, e - s, pts,
                              np.eye(3) * p.depth ** 2))
+    return out
+
+
+def _shape_detections(points, beams, view, circles, p):
+    """The :class:`Detection` s of what is not round (:func:`tiago_nav.detection.shapes.describe`
+    on ``points``, map frame, the beams ``beams`` of the :class:`shapes.ScanView` ``view``); the
+    small ``circles`` (at most a person's leg, :data:`shapes.PERSON_LEG_RADIUS`) that join a
+    table's, a chair's or a person's legs become part of that ``legs`` object (they are removed
+    from ``circles``, in place); alone they stay circles."""
+    sensor = np.array(view.pose[:2])
+    small, extra = [], []
+    for d in circles:
+        if d.radius > shapes.PERSON_LEG_RADIUS[1]:
+            continue
+        # a leg's radius from its arc's width (a fitted radius on a few points is noisy)
+        est = shapes.leg(d.points, sensor, view.inc, p.range_noise, round_checked=True)
+        if est is not None:
+            small.append(d)
+            extra.append((shapes.Leg(est[0], est[1], None, est[2], est[3]), d.points))
+    found, _ = shapes.describe(points, beams, view, p.range_noise, p.gap, extra)
+    for s in found:
+        for k in s.used:
+            circles.remove(small[k])
+    out = []
+    for s in found:
+        cov = np.zeros((3, 3))
+        cov[:2, :2] = s.covariance
+        half = 0.5 * math.hypot(*[v for v in s.extent if v == v]) if any(
+            v == v for v in s.extent) else 0.0
+        cov[2, 2] = math.nan if not s.center_fixed else float(np.nanmax(
+            [v * v for v in s.extent_std] + [0.0]))
+        d = Detection(s.center, half, len(s.points), s.points, cov, shape=s.shape,
+                      extent=s.extent, orientation=s.orientation,
+                      orientation_std=s.orientation_std, extent_std=s.extent_std,
+                      center_fixed=s.center_fixed, note=s.note, legs=s.legs, kind=s.kind)
+        out.append(d)
     return out

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tiago_nav.detection import motion
 from tiago_nav.detection.pipeline import METHODS, ObstacleDetector
 from tiago_nav.geometry import compose, inverse, wrap_angle
 from tiago_nav.scan import informative_fraction, median_ranges
@@ -68,6 +69,16 @@ class Found:
     center_robot_covariance: tuple = (math.inf, 0.0, 0.0, math.inf)  # [m²] robot frame
     center_variance_terms: tuple = (math.inf, 0.0, 0.0, 0.0)  # [m²] fit, position, heading,
                                                               # raster along center_std's axis
+    shape: str = 'circle'                  # 'circle', 'rectangle', 'legs' or 'unknown'
+    extent: tuple = (math.nan, math.nan)   # [m] (length, width), NaN: not observed
+    extent_std: tuple = (math.nan, math.nan)   # [m]
+    orientation: float = math.nan          # [rad] map frame, in (-pi/2, pi/2]
+    orientation_std: float = math.nan      # [rad]
+    center_fixed: bool = True              # False: the centre is bounded, not fixed
+    note: str = ''                         # what was seen
+    motion: str = 'unknown'                # 'static', 'moving' or 'unknown' (one scan)
+    velocity: tuple = (math.nan, math.nan)  # [m/s] map frame
+    velocity_std: float = math.nan         # [m/s]
 
 
 @dataclass(frozen=True)
@@ -97,6 +108,11 @@ def check_request(method, scan_minus_map_threshold, cluster_threshold, default_m
             raise Failure('bad request: %s must be >= 0 (0 = the node\'s default), got %g'
                           % (name, v))
     return method
+
+
+def _sec(stamp):
+    """A stamp (rospy.Time or seconds) in seconds."""
+    return stamp.to_sec() if hasattr(stamp, 'to_sec') else float(stamp)
 
 
 def _seconds(stamp):
@@ -152,7 +168,11 @@ def found_obstacles(detections, laser_in_map, laser_in_robot):
         out.append(Found((float(d.center[0]), float(d.center[1])), (rx, ry), float(d.radius),
                          int(d.num_points), d.center_std, d.radius_std,
                          tuple(float(v) for v in cov.ravel()),
-                         tuple(float(v) for v in robot.ravel()), variance_terms(d)))
+                         tuple(float(v) for v in robot.ravel()), variance_terms(d),
+                         d.shape, tuple(float(v) for v in d.extent),
+                         tuple(float(v) for v in d.extent_std), float(d.orientation),
+                         float(d.orientation_std), bool(d.center_fixed), d.note, d.motion,
+                         tuple(float(v) for v in d.velocity), float(d.velocity_std)))
     out.sort(key=lambda o: math.hypot(*o.center_robot))
     return tuple(out)
 
@@ -267,6 +287,32 @@ class DetectionService:
             out.append(s)
         return out
 
+    def _motion(self, detector, result, scan, rest, method, scan_minus_map_threshold,
+                cluster_threshold, laser_in_map, laser_in_robot, given):
+        """Judge the motion of ``result``'s detections (the median of the scans at rest
+        ``rest``, newest first) in place (:mod:`tiago_nav.detection.motion`): where beams changed
+        between the oldest and the newest scan, the newest scan's own detections on them are
+        moving."""
+        oldest = rest[-1]
+        dt = _sec(scan.stamp) - _sec(oldest.stamp)
+        changed = motion.changed_beams(scan.ranges, oldest.ranges, scan.range_min,
+                                       scan.range_max)
+        pose = result.correction.laser_pose
+        if not np.any(changed[1:] & changed[:-1]):      # nothing moved (a lone dropout aside)
+            result.detections[:] = motion.combine(result.detections, [], [], changed, dt, pose,
+                                                  scan.angle_min, scan.angle_increment)
+            return
+
+        def one(s):
+            return detector.locate(
+                s.ranges, s.angle_min, s.angle_increment, s.range_min, s.range_max,
+                laser_in_map, method, laser_in_base=laser_in_robot, pose_covariance=given,
+                scan_minus_map_threshold=scan_minus_map_threshold,
+                cluster_threshold=cluster_threshold).detections
+        result.detections[:] = motion.combine(result.detections, one(scan), one(oldest),
+                                              changed, dt, pose, scan.angle_min,
+                                              scan.angle_increment)
+
     def _detect(self, detector, scan, rest, laser_in_map, laser_in_robot, method,
                 scan_minus_map_threshold, cluster_threshold, given=None):
         t0 = time.perf_counter()
@@ -279,6 +325,9 @@ class DetectionService:
                 pose_covariance=given,
                 scan_minus_map_threshold=scan_minus_map_threshold,
                 cluster_threshold=cluster_threshold)
+            if len(rest) > 1:
+                self._motion(detector, result, scan, rest, method, scan_minus_map_threshold,
+                             cluster_threshold, laser_in_map, laser_in_robot, given)
         except Exception as e:   # never a crash: the caller learns what went wrong
             raise Failure('detection failed on this scan: %s: %s'
                           % (type(e).__name__, e)) from None

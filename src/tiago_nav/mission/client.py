@@ -215,3 +215,44 @@ def obstacle_table(rows):
     if not rows:
         lines.append('    (no obstacles)')
     return lines
+
+
+def _num(v, fmt):
+    """``fmt % v``, ``?`` when not known (NaN, inf)."""
+    return fmt % v if v is not None and math.isfinite(v) else '?'
+
+
+def shape_lines(obstacles):
+    """One line per tiago_nav/Obstacle (numbered as in :func:`obstacle_table`): its shape, extent
+    [m] and orientation [deg] with their stds, whether its centre is fixed, its motion and
+    velocity [m/s] (map frame), and the note of what was seen. Messages without the shape
+    fields (older recordings) give ``circle``."""
+    out = []
+    for i, o in enumerate(obstacles, 1):
+        shape = getattr(o, 'shape', '') or 'circle'
+        ext = list(getattr(o, 'extent', ()) or ())
+        estd = list(getattr(o, 'extent_std', ()) or ())
+        ext += [math.nan] * (2 - len(ext))
+        estd += [math.nan] * (2 - len(estd))
+        yaw = getattr(o, 'orientation', math.nan)
+        ystd = getattr(o, 'orientation_std', math.nan)
+        line = '%2d  %-9s  %s x %s m' % (i, shape, _num(ext[0], '%.2f'), _num(ext[1], '%.2f'))
+        if any(math.isfinite(v) for v in estd):
+            line += ' (±%s, ±%s)' % (_num(estd[0], '%.3f'), _num(estd[1], '%.3f'))
+        if math.isfinite(yaw):
+            line += ', heading %.1f deg (±%s)' % (math.degrees(yaw),
+                                                  _num(math.degrees(ystd), '%.1f'))
+        if not getattr(o, 'center_fixed', True):
+            line += ', centre bounded, not fixed'
+        motion = getattr(o, 'motion', '') or 'unknown'
+        line += ', %s' % motion
+        v = getattr(o, 'velocity', None)
+        if motion == 'moving' and v is not None:
+            line += ' at (%s, %s) m/s (±%s)' % (_num(v.x, '%+.2f'), _num(v.y, '%+.2f'),
+                                                 _num(getattr(o, 'velocity_std', math.nan),
+                                                      '%.2f'))
+        note = getattr(o, 'note', '')
+        if note:
+            line += ': ' + note
+        out.append(line)
+    return out

@@ -17,7 +17,7 @@ from actionlib_msgs.msg import GoalStatus
 
 from tiago_nav.mission.client import (EXIT_FAILED, EXIT_OK, EXIT_USAGE, MAP_FRAME,
                                       SERVER_TIMEOUT, USAGE, UsageError, centres_in_frame,
-                                      feedback_line, obstacle_rows, obstacle_table,
+                                      feedback_line, obstacle_rows, obstacle_table, shape_lines,
                                       parse_client_args, table_title)
 from tiago_nav.mission.sentences import fmt_pose
 from tiago_nav.ros.actions import TaskClient, server_connected, wait_server
@@ -136,6 +136,10 @@ def run(goal, out=print, server_timeout=SERVER_TIMEOUT, action='tiago_controller
         out(table_title(shown))
         for line in obstacle_table(rows):
             out(line)
+        if result.obstacles:
+            out('shapes (map frame):')
+            for line in shape_lines(result.obstacles):
+                out(line)
         return EXIT_OK
     name = _NAMES.get(state, 'not finished (state %d)' % state)
     out('%s: %s' % (name, (result.message if result is not None and result.message else text)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import rospy
 import tf2_ros
-from geometry_msgs.msg import Point, Pose2D, PoseWithCovarianceStamped
+from geometry_msgs.msg import Point, Pose2D, PoseWithCovarianceStamped, Vector3
 from nav_msgs.msg import OccupancyGrid
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
@@ -95,7 +95,13 @@ def obstacle_msg(found):
                     center_std=found.center_std, radius_std=found.radius_std,
                     center_covariance=list(found.center_covariance),
                     center_robot_covariance=list(found.center_robot_covariance),
-                    center_variance_terms=list(found.center_variance_terms))
+                    center_variance_terms=list(found.center_variance_terms),
+                    shape=found.shape, extent=list(found.extent),
+                    extent_std=list(found.extent_std), orientation=found.orientation,
+                    orientation_std=found.orientation_std, center_fixed=found.center_fixed,
+                    note=found.note, motion=found.motion,
+                    velocity=Vector3(found.velocity[0], found.velocity[1], 0.0),
+                    velocity_std=found.velocity_std)
 
 
 class RosSensors:

@@ -1,0 +1,92 @@
+"""Motion over the scans a robot at rest takes: what moved between them is reported as moving,
+with its velocity, and never as a static obstacle.
+
+A robot standing still sees its static surroundings at the same range in every scan, to the
+range noise. A beam whose hits differ by more than :data:`CHANGE` between the oldest and the
+newest scan of the window (or hits in one and not in the other) saw something move. The
+per-beam median of the window places what stayed put; an object on changed beams is smeared in
+that median, so it is taken from the newest scan alone, and its velocity is its centre's
+displacement from the same object in the oldest scan (the nearest of a compatible size within
+what :data:`MAX_SPEED` allows) over the time between them. Frames: the map's (points, centres,
+the laser's pose); metres, radians, seconds.
+"""
+import math
+
+import numpy as np
+
+from tiago_nav.scan import HIT, classify
+
+CHANGE = 0.1          # [m] a beam's hit moved by more than this: ten times the range noise
+MAX_SPEED = 2.5       # [m/s] a person walks at up to 2 m/s: an object moves at most this fast
+CHANGED_SHARE = 0.3   # an object with this share of its points on changed beams moved
+
+
+def changed_beams(newest, oldest, range_min, range_max, change=CHANGE):
+    """``(n,)`` bool: the beams whose hit differs by more than ``change`` [m] between two scans
+    of one sensor at one pose (``newest``, ``oldest`` ranges [m], REP 117), or that hit in one
+    and not in the other. A beam saying nothing in either (NaN) is not changed."""
+    a, b = np.asarray(newest, dtype=float), np.asarray(oldest, dtype=float)
+    ca, cb = classify(a, range_min, range_max), classify(b, range_min, range_max)
+    both = (ca == HIT) & (cb == HIT)
+    out = np.zeros(len(a), dtype=bool)
+    out[both] = np.abs(a[both] - b[both]) > change
+    one = (ca == HIT) != (cb == HIT)
+    out |= one & ~np.isnan(a) & ~np.isnan(b)
+    return out
+
+
+def beams_of(points, laser_pose, angle_min, increment, n):
+    """The beam index ``(K,)`` (clipped to ``[0, n)``) of each of ``(K, 2)`` points [m] seen
+    from ``laser_pose`` ``(x, y, yaw)``, all in the map frame."""
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    a = np.arctan2(p[:, 1] - laser_pose[1], p[:, 0] - laser_pose[0]) - laser_pose[2]
+    a = np.arctan2(np.sin(a), np.cos(a))
+    return np.clip(np.round((a - angle_min) / increment).astype(int), 0, n - 1)
+
+
+def moved(detection, changed, laser_pose, angle_min, increment):
+    """Whether at least :data:`CHANGED_SHARE` of the detection's points lie on changed
+    beams."""
+    if detection.points is None or not len(detection.points):
+        return False
+    b = beams_of(detection.points, laser_pose, angle_min, increment, len(changed))
+    return float(np.mean(changed[b])) >= CHANGED_SHARE
+
+
+def velocity(detection, earlier, dt):
+    """``((vx, vy), std)`` [m/s] of ``detection`` from the nearest of the ``earlier``
+    detections (the oldest scan's) within ``MAX_SPEED * dt`` plus the sizes of both, ``dt``
+    [s] before; ``((nan, nan), nan)`` when none is there (it came into view)."""
+    best, d_best = None, math.inf
+    for e in earlier:
+        d = math.hypot(detection.center[0] - e.center[0], detection.center[1] - e.center[1])
+        if d <= MAX_SPEED * dt + detection.radius + e.radius and d < d_best:
+            best, d_best = e, d
+    if best is None or dt <= 0:
+        return (math.nan, math.nan), math.nan
+    v = ((detection.center[0] - best.center[0]) / dt, (detection.center[1] - best.center[1]) / dt)
+    var = 0.0
+    for x in (detection, best):
+        c = np.asarray(x.center_covariance, dtype=float)
+        var += float(np.linalg.eigvalsh(c).max()) if np.all(np.isfinite(c)) else math.inf
+    return v, math.sqrt(var) / dt
+
+
+def combine(still, newest, oldest, changed, dt, laser_pose, angle_min, increment):
+    """The detections of a window of scans at rest: of ``still`` (the per-beam median's), those
+    on unchanged beams, ``motion`` ``'static'`` with velocity 0 (its std from the centre's over
+    ``dt``); of ``newest`` (the newest scan's alone), those on changed beams, ``'moving'`` with
+    their :func:`velocity` from ``oldest`` (the oldest scan's), ``dt`` [s] earlier."""
+    out = []
+    for d in still:
+        if moved(d, changed, laser_pose, angle_min, increment):
+            continue
+        d.motion, d.velocity = 'static', (0.0, 0.0)
+        d.velocity_std = math.sqrt(2.0) * d.center_std / dt if dt > 0 else math.nan
+        out.append(d)
+    for d in newest:
+        if moved(d, changed, laser_pose, angle_min, increment):
+            d.motion = 'moving'
+            d.velocity, d.velocity_std = velocity(d, oldest, dt)
+            out.append(d)
+    return out

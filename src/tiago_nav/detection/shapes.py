@@ -1,0 +1,712 @@
+"""Shapes other than circles: boxes (rectangles), furniture legs and people's legs.
+
+Everything here works on points in one plane frame (the map's for the service, the laser's for
+map-free data), in scan order, with the sensor's position in that frame; lengths in metres,
+angles in radians. No ROS, no map: :mod:`tiago_nav.detection.pipeline` calls it on the points the
+map does not explain, and the real-data benchmark on whole scans.
+
+The constants are the physics of what is measured, not fits to any recording:
+
+* a person's leg at a laser's height (0.1-0.4 m above the floor) is a calf or an ankle in a
+  trouser leg: :data:`PERSON_LEG_RADIUS` 0.04-0.10 m (a calf 8-20 cm across); a person's two legs stand up to a stride
+  apart: centre to centre at most :data:`PERSON_LEG_SPACING` 0.6 m (a walker's legs swing
+  0.2 m ahead and behind and stand 0.1 m either side of its line: 0.45 m);
+* a table's or chair's leg is a tube or a bar of at most :data:`FURNITURE_LEG_RADIUS` 0.04 m;
+  a chair's legs are 0.3-0.6 m apart, a table's 0.4-2.0 m (:data:`FURNITURE_SIDE`), at the
+  corners of a rectangle (right angles within :data:`RIGHT_ANGLE_TOL`: the legs' centres are
+  known to 1-2 cm);
+* a box's face is straight: a rectangle (two perpendicular faces) fits its points to within the
+  range noise, a circle does not.
+"""
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tiago_nav.detection.centres import circle_fit, correlation_inflation
+
+PERSON_LEG_RADIUS = (0.04, 0.10)   # [m] a calf, bare or in a trouser leg
+PERSON_LEG_SPACING = 0.6           # [m] two legs of one person: centres at most this apart
+FURNITURE_LEG_RADIUS = 0.04        # [m] a table's or chair's leg is at most this thick
+FURNITURE_SIDE = (0.25, 2.2)       # [m] distance between neighbouring legs of one piece
+RIGHT_ANGLE_TOL = math.radians(4.0)   # legs at the corners of a rectangle: 90 deg within this
+                                      # (leg centres within 1-2 cm over sides of 0.25 m or more)
+SIDE_TOL = 0.06                    # [m] opposite sides of a leg rectangle agree within this
+MIN_FACE_POINTS = 4                # a face of a box: at least this many points ...
+MIN_FACE_LENGTH = 0.08             # [m] ... spanning at least this
+MAX_DEPTH = 1.0                    # [m] a box seen on one face: its depth is within (0, this]
+LEG_MAX_WIDTH = 0.25               # [m] a cluster narrower than this may be one leg
+FREE_MARGIN = 0.15                 # [m] a beam this far behind a point went past it
+FACE_INCIDENCE = math.radians(10.0)   # a box's face seen at this angle to the beams or more
+
+
+@dataclass
+class Shape:
+    """One object that is not a circle: ``shape`` ``'rectangle'``, ``'legs'`` or ``'unknown'``;
+    ``center`` ``(x, y)`` [m]; ``covariance`` ``(2, 2)`` of the centre [m²] (the fit's: where the
+    points put it relative to the sensor); ``extent`` ``(length, width)`` [m] along
+    ``orientation`` [rad] and across it (NaN: not observed); ``orientation_std`` [rad],
+    ``extent_std`` [m]; ``center_fixed``: False when the points bound the centre without fixing
+    it (a box seen on one face, part of a leg group), the covariance then spans what is
+    possible; ``note``: what was seen; ``legs``: ``(K, 2)`` leg centres [m] of a ``legs`` object;
+    ``points``: the points it was fitted to."""
+    shape: str
+    center: tuple
+    covariance: np.ndarray
+    extent: tuple = (math.nan, math.nan)
+    orientation: float = math.nan
+    orientation_std: float = math.nan
+    extent_std: tuple = (math.nan, math.nan)
+    center_fixed: bool = True
+    note: str = ''
+    legs: np.ndarray = field(default=None, repr=False)
+    points: np.ndarray = field(default=None, repr=False)
+    leg_radius: float = math.nan
+    kind: str = ''              # a legs object's: 'person' or 'furniture'
+    used: list = field(default_factory=list)   # indices of describe()'s extra legs in it
+    index: np.ndarray = field(default=None, repr=False)   # a rectangle's points in describe()
+
+
+# --- segments ------------------------------------------------------------------------------
+def segments(points, beams, sensor, increment, gap=0.08, ranges=None, incidence=0.0,
+             noise=0.01):
+    """Split ``(N, 2)`` points in scan order (beam indices ``beams``) into runs of neighbours:
+    consecutive points belong together when within ``gap`` [m] or three beam spacings at their
+    range (``increment`` [rad]), plus one spacing per beam between them that has no hit
+    (``ranges``: the scan's, NaN or inf where it says nothing; None: every beam between them
+    counts). ``incidence`` [rad] > 0: also join points a surface seen at that angle to the
+    beams or more would put apart (an oblique face), ``noise`` [m] the range noise. Returns a
+    list of index arrays."""
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    if len(p) == 0:
+        return []
+    b = np.asarray(beams, dtype=int)
+    rng = np.hypot(p[:, 0] - sensor[0], p[:, 1] - sensor[1])
+    step = np.hypot(*np.diff(p, axis=0).T)
+    if ranges is None:
+        skipped = np.maximum(np.diff(b) - 1, 0)
+    else:
+        none = np.concatenate(([0], np.cumsum(~np.isfinite(np.asarray(ranges, dtype=float)))))
+        skipped = none[b[1:]] - none[np.minimum(b[:-1] + 1, b[1:])]
+    allow = np.maximum(gap, (3.0 + skipped) * np.maximum(rng[1:], rng[:-1]) * increment)
+    if incidence:
+        # the adaptive breakpoint: a surface seen at ``incidence`` [rad] to the beam puts
+        # neighbouring beams' points r sin(dphi) / sin(incidence - dphi) apart, plus the noise
+        dphi = (1.0 + skipped) * increment
+        allow = np.maximum(allow, np.minimum(rng[1:], rng[:-1]) * np.sin(dphi)
+                           / np.sin(incidence - dphi) + 3.0 * noise)
+    cut = np.flatnonzero(step > allow) + 1
+    return [np.arange(a, e) for a, e in zip(np.concatenate(([0], cut)),
+                                            np.concatenate((cut, [len(p)])))]
+
+
+# --- rectangles (L-shape fit) -----------------------------------------------------------------
+def _l_cost(p, theta, sensor):
+    """The L-shape criterion at orientation ``theta``: each point's squared distance to the
+    nearer of the two edges facing the sensor (each edge at the mean of the points nearer it).
+    Returns ``(cost, a, b, on_a)``: edges ``c1 = a`` and ``c2 = b`` in the axes
+    ``e1 = (cos, sin)``, ``e2 = (-sin, cos)``, and the mask of points on edge ``a``."""
+    c, s = math.cos(theta), math.sin(theta)
+    c1 = p[:, 0] * c + p[:, 1] * s
+    c2 = -p[:, 0] * s + p[:, 1] * c
+    s1 = sensor[0] * c + sensor[1] * s
+    s2 = -sensor[0] * s + sensor[1] * c
+    a = c1.min() if s1 < c1.mean() else c1.max()       # the edges that face the sensor
+    b = c2.min() if s2 < c2.mean() else c2.max()
+    on_a = np.abs(c1 - a) < np.abs(c2 - b)
+    for _ in range(2):                                  # edges at their points' means
+        if np.any(on_a):
+            a = float(c1[on_a].mean())
+        if np.any(~on_a):
+            b = float(c2[~on_a].mean())
+        on_a = np.abs(c1 - a) < np.abs(c2 - b)
+    d = np.where(on_a, c1 - a, c2 - b)
+    return float(d @ d), a, b, on_a
+
+
+def _l_costs(p, thetas, sensor):
+    """:func:`_l_cost`'s cost at each of the orientations ``thetas`` [rad] at once."""
+    c, s = np.cos(thetas), np.sin(thetas)
+    c1 = np.outer(p[:, 0], c) + np.outer(p[:, 1], s)
+    c2 = np.outer(p[:, 1], c) - np.outer(p[:, 0], s)
+    s1 = sensor[0] * c + sensor[1] * s
+    s2 = sensor[1] * c - sensor[0] * s
+    a = np.where(s1 < c1.mean(axis=0), c1.min(axis=0), c1.max(axis=0))
+    b = np.where(s2 < c2.mean(axis=0), c2.min(axis=0), c2.max(axis=0))
+    on_a = np.abs(c1 - a) < np.abs(c2 - b)
+    for _ in range(2):
+        na, nb = on_a.sum(axis=0), (~on_a).sum(axis=0)
+        a = np.where(na > 0, (c1 * on_a).sum(axis=0) / np.maximum(na, 1), a)
+        b = np.where(nb > 0, (c2 * ~on_a).sum(axis=0) / np.maximum(nb, 1), b)
+        on_a = np.abs(c1 - a) < np.abs(c2 - b)
+    d = np.where(on_a, c1 - a, c2 - b)
+    return (d * d).sum(axis=0)
+
+
+def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH):
+    """A rectangle through ``(N, 2)`` points in scan order seen from ``sensor``: the L-shape
+    fit (the orientation in [0, 90°) minimising :func:`_l_cost`, a 1° search refined to
+    0.02°). Returns ``(Shape, rms)`` [m], or None with fewer than ``MIN_FACE_POINTS`` points.
+
+    Two faces (each at least :data:`MIN_FACE_POINTS` points over :data:`MIN_FACE_LENGTH`): the
+    corner is where their lines meet, each face's length is from the corner to its farthest
+    point plus half a beam spacing (the true edge lies between that point and the next beam),
+    the centre half of each length in from the corner. One face: the centre lies behind its
+    middle by half the unseen depth, anywhere in (0, ``max_depth`` / 2]: reported at the middle
+    of that interval with its uniform variance, ``center_fixed`` False.
+    ``end_seen(point_index) -> bool`` says whether the beam just past a face's outer end went
+    past it (a silhouette edge): if not (something nearer hides it, or the scan ends there) the
+    face may go on, and the centre along it is not fixed either. None: every end is seen.
+    ``noise`` [m]: the least residual std assumed."""
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    n = len(p)
+    if n < MIN_FACE_POINTS:
+        return None
+    coarse = np.radians(np.arange(0.0, 90.0, 1.0))
+    t0 = float(coarse[int(np.argmin(_l_costs(p, coarse, sensor)))])
+    fine = t0 + np.radians(np.arange(-1.0, 1.0001, 0.02))
+    best = float(fine[int(np.argmin(_l_costs(p, fine, sensor)))])
+    cost, a, b, on_a = _l_cost(p, float(best), sensor)
+    theta = float(best)
+    e1 = np.array([math.cos(theta), math.sin(theta)])
+    e2 = np.array([-math.sin(theta), math.cos(theta)])
+    c1, c2 = p @ e1, p @ e2
+    rms = math.sqrt(cost / n)
+    sigma2 = max(cost / max(n - 3, 1), noise * noise)
+    sensor = np.asarray(sensor, dtype=float)
+    sgn1 = 1.0 if sensor @ e1 < a else -1.0            # the box lies away from the sensor
+    sgn2 = 1.0 if sensor @ e2 < b else -1.0
+    idx = np.arange(n)
+
+    def face(mask, along, at):
+        """A face's points: how many, their span, the index of the outer end, spacing."""
+        k = int(np.count_nonzero(mask))
+        if k == 0:
+            return 0, 0.0, None, 0.0
+        u = along[mask]
+        span = float(u.max() - u.min())
+        order = np.sort(u)
+        spacing = float(np.median(np.diff(order))) if k > 1 else 0.0
+        return k, span, idx[mask], spacing
+
+    ka, span_a, ia, sp_a = face(on_a, c2, a)
+    kb, span_b, ib, sp_b = face(~on_a, c1, b)
+    good_a = ka >= MIN_FACE_POINTS and span_a >= MIN_FACE_LENGTH
+    good_b = kb >= MIN_FACE_POINTS and span_b >= MIN_FACE_LENGTH
+    res = np.where(on_a, c1 - a, c2 - b)[np.argsort(idx)]
+    k_inf = correlation_inflation(res)
+    seen = end_seen if end_seen is not None else (lambda i: True)
+    if good_a and good_b:
+        # the corner, and each face from it to its farthest point (+ half a spacing)
+        ua, ub = np.abs(c2[on_a] - b), np.abs(c1[~on_a] - a)
+        la = float(ua.max()) + 0.5 * sp_a
+        lb = float(ub.max()) + 0.5 * sp_b
+        end_a = int(ia[int(np.argmax(ua))])
+        end_b = int(ib[int(np.argmax(ub))])
+        # in the axes (e1, e2): the box spans a .. a + sgn1 lb, b .. b + sgn2 la
+        var1 = k_inf * sigma2 / ka + (sp_b ** 2) / 48.0
+        var2 = k_inf * sigma2 / kb + (sp_a ** 2) / 48.0
+        fixed, notes = True, []
+        if not seen(end_b):
+            var1 += (max_depth / 2.0) ** 2 / 12.0
+            fixed = False
+            notes.append('the face along %.0f deg may go on behind what hides its end'
+                         % math.degrees(theta))
+        if not seen(end_a):
+            var2 += (max_depth / 2.0) ** 2 / 12.0
+            fixed = False
+            notes.append('the face along %.0f deg may go on behind what hides its end'
+                         % math.degrees(theta + math.pi / 2))
+        centre = (a + sgn1 * lb / 2.0) * e1 + (b + sgn2 * la / 2.0) * e2
+        # the orientation from both faces' lines (a line of k points over span L: std
+        # sigma / (L sqrt(k / 12)))
+        info = sum(kk * ll * ll / 12.0 for kk, ll in ((ka, span_a), (kb, span_b)))
+        ostd = math.sqrt(k_inf * sigma2 / info)
+        cov = _axes_cov(e1, e2, var1 + (ostd * la / 2.0) ** 2, var2 + (ostd * lb / 2.0) ** 2)
+        # length along the longer side
+        if lb >= la:
+            extent, orient, estd = (lb, la), theta, (sp_b / math.sqrt(12), sp_a / math.sqrt(12))
+        else:
+            extent, orient, estd = (la, lb), theta + math.pi / 2, (sp_a / math.sqrt(12),
+                                                                  sp_b / math.sqrt(12))
+        note = 'two faces seen' + ('; ' + '; '.join(notes) if notes else '')
+        return Shape('rectangle', (float(centre[0]), float(centre[1])), cov, extent,
+                     _half_turn(orient), ostd, estd, fixed, note, points=p), rms
+    # one face: a straight segment, the line through the points of the L's longer face (the
+    # other's few points, a face seen edge-on, do not fix its depth)
+    if not (good_a or good_b):
+        good_a = span_a >= span_b
+    keep = on_a if good_a else ~on_a
+    l_rms = rms
+    p_all, p = p, p[keep]
+    n = len(p)
+    if n < MIN_FACE_POINTS:
+        return None
+    mean = p.mean(axis=0)
+    u, sv, vt = np.linalg.svd(p - mean, full_matrices=False)
+    d = vt[0]
+    nrm = np.array([-d[1], d[0]])
+    if nrm @ (mean - sensor) < 0:
+        nrm = -nrm                                      # pointing away from the sensor
+    along = (p - mean) @ d
+    off = (p - mean) @ nrm
+    rms = l_rms
+    sigma2 = max(off @ off / max(n - 2, 1), noise * noise)
+    order = np.sort(along)
+    spacing = float(np.median(np.diff(order))) if n > 1 else 0.0
+    length = float(along.max() - along.min()) + spacing
+    if length < MIN_FACE_LENGTH:
+        return None
+    where = np.flatnonzero(keep)
+    lo, hi = int(where[np.argmin(along)]), int(where[np.argmax(along)])
+    var_along = spacing ** 2 / 48.0 + k_inf * sigma2 / n
+    fixed_along = seen(lo) and seen(hi)
+    notes = ['one face seen: the centre lies (0, %.2f] m behind its middle (the depth is not '
+             'seen; its std covers it)' % (max_depth / 2.0)]
+    centre_along = 0.5 * (along.max() + along.min())
+    if not fixed_along:
+        var_along += (max_depth / 2.0) ** 2 / 12.0
+        notes.append('an end is hidden: the face may go on')
+    depth_half = max_depth / 4.0
+    centre = mean + centre_along * d + depth_half * nrm
+    var_depth = k_inf * sigma2 / n + (max_depth / 2.0) ** 2 / 12.0
+    cov = _axes_cov(d, nrm, var_along, var_depth)
+    ostd = math.sqrt(k_inf * sigma2 / max(n * length * length / 12.0, 1e-12))
+    return Shape('rectangle', (float(centre[0]), float(centre[1])), cov, (length, math.nan),
+                 _half_turn(math.atan2(d[1], d[0])), ostd,
+                 (spacing / math.sqrt(12), math.nan), False, '; '.join(notes), points=p_all), rms
+
+
+def _axes_cov(e1, e2, v1, v2):
+    """The ``(2, 2)`` covariance with variances ``v1``, ``v2`` along unit vectors e1, e2."""
+    return v1 * np.outer(e1, e1) + v2 * np.outer(e2, e2)
+
+
+def _half_turn(a):
+    """An orientation of a symmetric shape, in (-pi/2, pi/2]."""
+    a = math.fmod(a, math.pi)
+    if a <= -math.pi / 2:
+        a += math.pi
+    elif a > math.pi / 2:
+        a -= math.pi
+    return a
+
+
+# --- legs ----------------------------------------------------------------------------------
+@dataclass
+class Leg:
+    """One small round arc: ``center`` [m], ``radius`` [m] (estimated), its points' indices
+    ``index`` into the caller's point array, ``var`` [m²] of the centre (isotropic)."""
+    center: np.ndarray
+    radius: float
+    index: np.ndarray
+    var: float
+    low: float = None       # [m] the least radius the arc allows (its points' half span)
+
+    @property
+    def least(self):
+        return self.radius if self.low is None else self.low
+
+
+def leg(points, sensor, increment, noise=0.01, round_checked=False):
+    """A small round arc (a leg) fitted to ``(N, 2)`` points: the radius from the arc's width
+    (its points' span across the beam plus one beam spacing, halved), the centre from a circle
+    fit with that radius (3 points or more) or one radius behind the nearest point along its
+    beam. Returns ``(center, radius, var, least radius)``, or None when wider than :data:`LEG_MAX_WIDTH` or,
+    with 5 points or more and a radius of 3 ``noise`` or more, flat (a line fits them better
+    than that circle)."""
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    sensor = np.asarray(sensor, dtype=float)
+    mean = p.mean(axis=0)
+    dist = float(np.hypot(*(mean - sensor)))
+    if dist <= 0:
+        return None
+    ray = (mean - sensor) / dist
+    across = (p - sensor) @ np.array([-ray[1], ray[0]])
+    spacing = dist * increment
+    width = float(across.max() - across.min()) + spacing
+    if width > LEG_MAX_WIDTH:
+        return None
+    r = 0.5 * width
+    near = int(np.argmin(np.hypot(*(p - sensor).T)))
+    if len(p) >= 3:
+        cx, cy, _, rms = circle_fit(p, r, sensor)
+        centre = np.array([cx, cy])
+        if len(p) >= 5 and not round_checked and r >= 3.0 * noise:
+            # round, not flat: the circle of that radius fits at least as well as a line
+            # (a flat end of something, seen square on, is as narrow as a leg; an arc whose
+            # depth, about its radius, is within 3 noise stds cannot tell)
+            q = p - p.mean(axis=0)
+            line_rms = float(np.linalg.svd(q, compute_uv=False)[-1]) / math.sqrt(len(p))
+            if line_rms < rms:
+                return None
+        if not np.all(np.isfinite(centre)) or np.hypot(*(centre - p[near])) > 2 * r + 0.02:
+            centre = p[near] + r * (p[near] - sensor) / np.hypot(*(p[near] - sensor))
+    else:
+        centre = p[near] + r * (p[near] - sensor) / np.hypot(*(p[near] - sensor))
+    # the radius is known to about a beam spacing: the centre's range moves with it
+    var = noise * noise / len(p) + spacing * spacing / 12.0
+    return centre, r, var, 0.5 * (width - spacing)
+
+
+def group_furniture(legs, free=None):
+    """Legs of tables and chairs: sets of 3 or 4 legs at the corners of one rectangle.
+
+    ``legs``: list of :class:`Leg` (furniture-thin ones); ``free(xy) -> bool``: whether the
+    scan saw the place ``xy`` [m] empty (a beam went past it), so that three legs whose fourth
+    corner is seen empty are no table (None: never); nor are legs with another leg inside
+    their rectangle. Candidates are corners ``j`` with two
+    neighbours at :data:`FURNITURE_SIDE` distances and a right angle within
+    :data:`RIGHT_ANGLE_TOL`; a fourth leg within :data:`SIDE_TOL` of the completed corner joins.
+    Four-leg groups first, then three, best right angle first, no leg in two groups.
+    Returns ``(groups, rest)``: lists of index lists into ``legs``."""
+    n = len(legs)
+    c = np.array([l.center for l in legs]).reshape(-1, 2)
+    cands = []
+    for j in range(n):
+        for i in range(n):
+            for k in range(i + 1, n):
+                if j in (i, k):
+                    continue
+                u, v = c[i] - c[j], c[k] - c[j]
+                lu, lv = float(np.hypot(*u)), float(np.hypot(*v))
+                if not (FURNITURE_SIDE[0] <= lu <= FURNITURE_SIDE[1]
+                        and FURNITURE_SIDE[0] <= lv <= FURNITURE_SIDE[1]):
+                    continue
+                err = math.asin(min(1.0, abs(float(u @ v)) / (lu * lv)))   # off 90 deg
+                if err > RIGHT_ANGLE_TOL:
+                    continue
+                fourth = c[i] + c[k] - c[j]
+                dist4 = np.hypot(*(c - fourth).T)
+                dist4[[i, j, k]] = np.inf
+                m = int(np.argmin(dist4)) if n > 3 else -1
+                group = [j, i, k]
+                if m >= 0 and dist4[m] <= SIDE_TOL:
+                    group.append(m)
+                elif free is not None and free(fourth):
+                    continue                            # the fourth corner is seen empty
+                radii = [legs[g].radius for g in group]
+                if max(radii) - min(radii) > 0.03:
+                    continue                            # one piece has one kind of leg
+                # no other leg stands inside it (a table's legs with a chair's are no table)
+                e1, e2 = u / lu, v / lv
+                rel = c - c[j]
+                a1, a2 = rel @ e1, rel @ e2
+                inside = (a1 > SIDE_TOL) & (a1 < lu - SIDE_TOL) & (a2 > SIDE_TOL) & (a2 < lv - SIDE_TOL)
+                inside[group] = False
+                if np.any(inside):
+                    continue
+                cands.append((-len(group), err, group))
+    cands.sort(key=lambda t: (t[0], t[1]))
+    used, groups = set(), []
+    for _, _, g in cands:
+        if used.isdisjoint(g):
+            groups.append(g)
+            used.update(g)
+    return groups, [i for i in range(n) if i not in used]
+
+
+def furniture_shape(legs, group):
+    """The ``legs`` :class:`Shape` of a leg group (3 or 4 :class:`Leg` s, the corner first,
+    then its two neighbours, then the opposite corner when seen): the rectangle's centre (the
+    middle of the diagonal(s)), its sides as ``extent`` (leg centre to leg centre, length the
+    longer), its orientation along the longer side."""
+    c = np.array([legs[g].center for g in group])
+    var = np.array([legs[g].var for g in group])
+    j, i, k = c[0], c[1], c[2]
+    if len(group) == 4:
+        centre = c.mean(axis=0)
+        vc = var.sum() / 16.0
+    else:
+        centre = 0.5 * (i + k)                          # the middle of the seen diagonal
+        vc = (var[1] + var[2]) / 4.0
+    u, v = i - j, k - j
+    if len(group) == 4:                                 # both pairs of opposite sides
+        m = c[3]
+        lu = 0.5 * (np.hypot(*u) + np.hypot(*(m - k)))
+        lv = 0.5 * (np.hypot(*v) + np.hypot(*(m - i)))
+    else:
+        lu, lv = float(np.hypot(*u)), float(np.hypot(*v))
+    long_vec = u if lu >= lv else v
+    ext = (float(max(lu, lv)), float(min(lu, lv)))
+    side = float(min(lu, lv))
+    ostd = math.sqrt(2.0 * float(var.max())) / max(side, 1e-3)
+    return Shape('legs', (float(centre[0]), float(centre[1])), vc * np.eye(2), ext,
+                 _half_turn(math.atan2(long_vec[1], long_vec[0])), ostd,
+                 (math.sqrt(2 * float(var.max())),) * 2, True,
+                 '%d legs of a table or chair seen' % len(group), legs=c,
+                 leg_radius=float(np.mean([legs[g].radius for g in group])), kind='furniture')
+
+
+def pair_people(legs):
+    """People: pairs of person-sized legs (radius within :data:`PERSON_LEG_RADIUS`) at most
+    :data:`PERSON_LEG_SPACING` apart, nearest pairs first (the least radius an arc allows, its
+    points' half span, must be a calf's: a beam spacing far away widens a table's leg too). Returns ``(pairs, singles)``, index
+    lists into ``legs``."""
+    n = len(legs)
+    # a person's leg for sure: even the least radius its arc allows is a calf's (far away a
+    # beam spacing widens a table's leg as much)
+    ok = [i for i in range(n) if PERSON_LEG_RADIUS[0] <= legs[i].least
+          and legs[i].radius <= PERSON_LEG_RADIUS[1]]
+    pairs = []
+    for a in range(len(ok)):
+        for b in range(a + 1, len(ok)):
+            d = float(np.hypot(*(legs[ok[a]].center - legs[ok[b]].center)))
+            if d <= PERSON_LEG_SPACING:
+                pairs.append((d, ok[a], ok[b]))
+    pairs.sort()
+    used, out = set(), []
+    for _, i, j in pairs:
+        if i not in used and j not in used:
+            out.append([i, j])
+            used.update((i, j))
+    return out, [i for i in ok if i not in used]
+
+
+def person_shape(legs, group):
+    """The ``legs`` :class:`Shape` of a person: the middle of the legs seen (one or two)."""
+    c = np.array([legs[g].center for g in group])
+    centre = c.mean(axis=0)
+    var = float(np.mean([legs[g].var for g in group])) / len(group)
+    if len(group) == 1:
+        # the other leg is hidden: the person's centre is within a stride's half of this one
+        var += (PERSON_LEG_SPACING / 2.0) ** 2 / 3.0
+        note = 'one leg of a person seen (the other hidden): the centre is within %.1f m' % (
+            PERSON_LEG_SPACING / 2.0)
+    else:
+        note = 'two legs of a person seen, %.2f m apart' % float(np.hypot(*(c[0] - c[1])))
+    span = float(np.hypot(*(c[0] - c[-1]))) + 2 * max(legs[g].radius for g in group)
+    return Shape('legs', (float(centre[0]), float(centre[1])), var * np.eye(2),
+                 (span, 2 * max(legs[g].radius for g in group)), math.nan, math.nan,
+                 (math.nan, math.nan), len(group) == 2, note, legs=c,
+                 leg_radius=float(np.mean([legs[g].radius for g in group])), kind='person')
+
+
+# --- one scan's objects --------------------------------------------------------------------
+class ScanView:
+    """What one scan says about places (beam geometry in the plane frame of the points):
+    ``ranges`` [m] (REP 117, NaN for beams a filter dropped), the beams' first angle
+    ``angle_min`` and step ``increment`` [rad] in the laser frame, the laser's pose ``(x, y,
+    yaw)`` in the points' frame, ``range_max`` [m]."""
+
+    def __init__(self, ranges, angle_min, increment, laser_pose, range_max):
+        self.r = np.asarray(ranges, dtype=float)
+        self.angle_min, self.inc = float(angle_min), float(increment)
+        self.pose = tuple(float(v) for v in laser_pose)
+        self.range_max = float(range_max)
+
+    def _past(self, j, dist):
+        """Whether beam ``j`` went past range ``dist`` (a return well behind it, or none); a
+        beam a filter dropped (NaN) says nothing: None."""
+        if not 0 <= j < len(self.r):
+            return False                 # outside the scan: not seen
+        v = float(self.r[j])
+        if v != v:
+            return None
+        return v == math.inf or (dist + FREE_MARGIN < v <= self.range_max) or v > self.range_max
+
+    def free(self, xy):
+        """Whether the scan saw the place ``xy`` [m] empty: its beam went past it."""
+        x, y, yaw = self.pose
+        dist = math.hypot(xy[0] - x, xy[1] - y)
+        bearing = math.atan2(xy[1] - y, xy[0] - x) - yaw
+        bearing = math.atan2(math.sin(bearing), math.cos(bearing))
+        j = int(round((bearing - self.angle_min) / self.inc))
+        return bool(self._past(j, dist))
+
+    def end_seen(self, beam, step, dist):
+        """Whether the object's edge at beam ``beam`` is a silhouette edge: the next beam
+        outward (``step`` ±1; past one a filter dropped) went past range ``dist`` [m]."""
+        for j in (beam + step, beam + 2 * step, beam + 3 * step):
+            past = self._past(j, dist)
+            if past is not None:
+                return past
+        return False
+
+
+def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
+    """The non-round objects among ``(N, 2)`` points in scan order (beam indices ``beams``,
+    the :class:`ScanView` ``view`` of their scan): each run of neighbours (:func:`segments`)
+    wider than :data:`LEG_MAX_WIDTH` is a rectangle (:func:`fit_rectangle`) when its residual
+    is within ``max(3 noise, 0.02)`` m, otherwise ``unknown``; each narrower run is a leg
+    (:func:`leg`). Legs at the corners of a rectangle are one table or chair
+    (:func:`group_furniture`), person-sized legs within a stride one person
+    (:func:`pair_people`); what is left is reported alone (``legs`` not fixed: a table's or
+    chair's other legs hidden, a person's other leg hidden). Returns ``(shapes, legs_left)``:
+    :class:`Shape` s and, for the caller to pair with its own small circles, nothing more
+    (``legs_left`` is the :class:`Leg` list of every leg found, for the benchmarks).
+    ``extra``: ``(Leg, points)`` pairs found elsewhere (small circles the caller fitted) that
+    may join a table, a chair or a person; one that joins nothing is not reported here. The
+    :class:`Shape` s built with them have ``used`` set to their indices in ``extra``."""
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    beams = np.asarray(beams)
+    sensor = np.array(view.pose[:2])
+    out, legs = [], []
+    runs = []
+    for coarse in segments(p, beams, sensor, view.inc, gap, view.r, FACE_INCIDENCE, noise):
+        fine = [coarse[f] for f in segments(p[coarse], beams[coarse], sensor, view.inc, gap,
+                                            view.r)]
+        # an oblique face breaks into pieces between beams: one run, unless its pieces are
+        # each as narrow as legs (a person's two legs side by side)
+        narrow = all(np.hypot(*(p[f].max(axis=0) - p[f].min(axis=0))) <= LEG_MAX_WIDTH
+                     for f in fine)
+        if len(fine) > 1 and not narrow:
+            fit = fit_rectangle(p[coarse], sensor, noise)
+            if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
+                runs.append(coarse)
+                continue
+        runs.extend(fine)
+    for seg in runs:
+        q = p[seg]
+        if len(q) < 2:
+            continue
+        span = float(np.hypot(*(q.max(axis=0) - q.min(axis=0))))
+        if span <= LEG_MAX_WIDTH and _stands_apart(seg, beams, p, sensor, view):
+            found = leg(q, sensor, view.inc, noise)
+            if found is not None:
+                legs.append(Leg(found[0], found[1], seg, found[2], found[3]))
+                continue
+        fit = fit_rectangle(q, sensor, noise, _ends(seg, p, beams, sensor, view))
+        if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
+            fit[0].index = seg
+            out.append(fit[0])
+        else:
+            out.append(unknown(q))
+    out = _join_hidden(out, p, beams, sensor, view, noise)
+    n_own = len(legs)
+    extra_pts = {}
+    for k, (l, q) in enumerate(extra):
+        extra_pts[len(legs)] = (k, np.asarray(q, dtype=float))
+        legs.append(l)
+
+    def pts_of(i):
+        return extra_pts[i][1] if i in extra_pts else p[legs[i].index]
+
+    def used_of(idx):
+        return [extra_pts[i][0] for i in idx if i in extra_pts]
+
+    thin = [i for i, l in enumerate(legs) if l.radius <= FURNITURE_LEG_RADIUS]
+    groups, _ = group_furniture([legs[i] for i in thin], view.free)
+    grouped = set()
+    for g in groups:
+        idx = [thin[i] for i in g]
+        grouped.update(idx)
+        s = furniture_shape(legs, idx)
+        s.points = np.concatenate([pts_of(i) for i in idx])
+        s.used = used_of(idx)
+        out.append(s)
+    rest = [i for i in range(len(legs)) if i not in grouped]
+    pairs, singles = pair_people([legs[i] for i in rest])
+    done = set()
+    for g in pairs + [[s] for s in singles]:
+        idx = [rest[i] for i in g]
+        if len(idx) == 1 and idx[0] >= n_own:
+            continue                      # the caller's own circle alone stays theirs
+        done.update(idx)
+        s = person_shape(legs, idx)
+        s.points = np.concatenate([pts_of(i) for i in idx])
+        s.used = used_of(idx)
+        out.append(s)
+    for i in rest:
+        l = legs[i]
+        if i in done or i >= n_own or len(l.index) < 3 or not _isolated(l.index, beams, p, sensor, view):
+            continue                      # a stub of something larger, or too few points
+        if True:                          # a thin leg alone: furniture whose other legs hide
+            out.append(Shape('legs', (float(l.center[0]), float(l.center[1])),
+                             (l.var + (FURNITURE_SIDE[1] / 2.0) ** 2 / 3.0) * np.eye(2),
+                             note='one leg of a table or chair seen (the others hidden or out '
+                             'of view): the piece\'s centre is within %.1f m of it'
+                             % (FURNITURE_SIDE[1] / 2.0), center_fixed=False,
+                             legs=l.center.reshape(1, 2), points=p[l.index],
+                             leg_radius=l.radius, kind='furniture'))
+    return out, legs[:n_own]
+
+
+def _ends(seg, p, beams, sensor, view):
+    """``end_seen`` of :func:`fit_rectangle` for the points ``p[seg]``: whether the beam just
+    outside the run, on the side of the point's own end, went past it."""
+    lo, hi = int(beams[seg].min()), int(beams[seg].max())
+
+    def end_seen(i):
+        b = int(beams[seg][i])
+        d = float(np.hypot(*(p[seg][i] - sensor)))
+        return view.end_seen(b, -1 if (b - lo) <= (hi - b) else 1, d)
+    return end_seen
+
+
+def _join_hidden(found, p, beams, sensor, view, noise):
+    """Rectangles that are pieces of one box cut by something nearer in front of it: two pieces
+    next to each other in the scan, every beam between them hitting nearer than both, whose
+    points one rectangle fits (:func:`fit_rectangle`) are one box."""
+    rects = sorted((s for s in found if s.shape == 'rectangle' and s.index is not None),
+                   key=lambda s: int(beams[s.index].min()))
+    others = [s for s in found if not (s.shape == 'rectangle' and s.index is not None)]
+    out = []
+    for s in rects:
+        if out:
+            a = out[-1]
+            lo, hi = int(beams[a.index].max()), int(beams[s.index].min())
+            between = view.r[lo + 1:hi]
+            near = min(float(np.min(np.hypot(*(p[a.index] - sensor).T))),
+                       float(np.min(np.hypot(*(p[s.index] - sensor).T))))
+            hits = between[np.isfinite(between)]
+            if hi > lo + 1 and len(hits) and np.all(hits < near - 0.05):
+                idx = np.concatenate((a.index, s.index))
+                fit = fit_rectangle(p[idx], sensor, noise, _ends(idx, p, beams, sensor, view))
+                if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
+                    joined = fit[0]
+                    joined.index = idx
+                    joined.note += '; seen in pieces either side of something nearer'
+                    out[-1] = joined
+                    continue
+        out.append(s)
+    return others + out
+
+
+def _stands_apart(index, beams, points, sensor, view):
+    """Whether a run (``index`` into ``points``) stands apart from what is beside it, as a leg
+    does: the beam next to it on each side either went past it (:data:`FREE_MARGIN` behind or
+    no return) or hit something nearer that hides it; a beam a filter dropped is looked past.
+    A neighbour at about its range is the rest of a larger surface (a wall's end seen edge-on)."""
+    b = np.asarray(beams)[index]
+    d = float(np.min(np.hypot(*(points[index] - sensor).T)))
+    for j0, step in ((int(b.min()) - 1, -1), (int(b.max()) + 1, 1)):
+        for j in (j0, j0 + step):
+            if not 0 <= j < len(view.r):
+                break
+            v = float(view.r[j])
+            if v != v:
+                continue
+            if not (v < d - 0.05 or v > d + FREE_MARGIN):
+                return False
+            break
+    return True
+
+
+def _isolated(index, beams, points, sensor, view):
+    """Whether the beams either side of a run (``index`` into ``points``) went past it."""
+    b = np.asarray(beams)[index]
+    d = float(np.max(np.hypot(*(points[index] - sensor).T)))
+    return view.end_seen(int(b.min()), -1, d) and view.end_seen(int(b.max()), 1, d)
+
+
+def unknown(points):
+    """An ``unknown`` :class:`Shape`: the centre of the points' bounding box, its half sizes'
+    squares as the covariance (the object is somewhere around what was seen)."""
+    q = np.asarray(points, dtype=float)
+    lo, hi = q.min(axis=0), q.max(axis=0)
+    c = 0.5 * (lo + hi)
+    half = np.maximum(0.5 * (hi - lo), 0.05)
+    return Shape('unknown', (float(c[0]), float(c[1])), np.diag(half ** 2), center_fixed=False,
+                 note='neither round, nor straight, nor legs', points=q)
+
+
+def rectangle_not_circle(points, sensor, circle_rms, noise=0.01):
+    """Whether a cluster a circle fits (residual ``circle_rms`` [m]) is a box: an L-shape fit
+    (:func:`fit_rectangle`, ``noise`` [m]) fits it with 0.7 of its residual or less. A cylinder's arc is
+    fitted by a circle to the noise and by an L worse."""
+    p = np.asarray(points, dtype=float)
+    if len(p) < 2 * MIN_FACE_POINTS or np.hypot(*(p.max(axis=0) - p.min(axis=0))) <= LEG_MAX_WIDTH:
+        return False
+    fit = fit_rectangle(p, sensor, noise)
+    return fit is not None and fit[1] < 0.7 * circle_rms
