@@ -6,7 +6,7 @@ Over seeded random robot poses (reachable, clear of every body) in the shipped w
 (ias_lab_room_full: cylinders of r = 0.183 m; open_hall: r = 0.10-0.30 m), each scan is the
 pybullet ray cast plus seeded 0.01 m Gaussian range noise, exactly what the simulator publishes.
 Ground truth: the world file's movable obstacles; "in view" is the one definition the
-evaluator and the tests use (tiago_nav_tools.evaluate.inview, Scene.visible_obstacles: >= 7 usable beams
+evaluator and the tests use (tiago_nav_tools.evaluate.inview: >= 7 usable beams
 of the noise-free cast for the laser profile); a found centre on a glimpsed obstacle (reached by
 a beam, not in view) is no false positive. "In clear view" also asks the obstacle to be within
 the detector's max_range and unoccluded (hit by >= 80 % of the beams its silhouette spans).
@@ -41,6 +41,7 @@ from tiago_nav.detection import METHODS, DetectionParams, ObstacleDetector  # no
 from tiago_nav.detection.subtraction import MapDistance, brute_force_distance  # noqa: E402
 from tiago_nav import robot  # noqa: E402
 from tiago_nav_tools.benchmarks import meta  # noqa: E402
+from tiago_nav_tools.evaluate.inview import view_from  # noqa: E402
 from tiago_nav.geometry import compose, inverse, transform_points, wrap_angle  # noqa: E402
 from tiago_nav.scan import scan_to_points  # noqa: E402
 from tiago_nav.sim.laser import LaserModel  # noqa: E402
@@ -82,7 +83,7 @@ def sample_poses(world, grid, n, rng, max_tries):
             x += rng.uniform(-0.5, 0.5) * grid.resolution
             y += rng.uniform(-0.5, 0.5) * grid.resolution
             pose = (float(x), float(y), float(rng.uniform(-math.pi, math.pi)))
-            if scene.visible_obstacles(pose):
+            if view_from(scene, pose).in_view:
                 poses.append(pose)
     return poses, tried
 
@@ -154,7 +155,7 @@ def evaluate_world(path, n_poses, seed, repeats, laser_model=LaserModel(laser_mo
             ranges = laser_model.apply(clean, cfg, NOISE, rng).ranges     # ideal: noisy()
             laser = scene.laser_pose(pose)
             laser_in_base = compose(inverse(pose), laser)
-            visible = scene.visible_obstacles(pose, laser_model.laser_model)
+            visible = view_from(scene, pose, laser_model.laser_model).in_view
             clear = clear_view(world, scene, pose, ids, params.max_range, visible)
             for m in METHODS:
                 best = math.inf
@@ -473,7 +474,7 @@ def live_comparison(laser_model, scans):
                         raise RuntimeError('%s failed: %s' % (k, resp[k].message))
                 _wait(lambda: stamp in circles, 'obstacle_detector did not answer the scan at '
                       '%.3f' % stamp.to_sec())
-                must = scene.visible_obstacles(h.pose(), laser_model)
+                must = view_from(scene, h.pose(), laser_model).in_view
                 rows.append({'truth': [(world.movable_obstacles[i].x,
                                         world.movable_obstacles[i].y) for i in must],
                              'rest_message': resp['tiago_nav'].message,
@@ -551,7 +552,7 @@ def plot(path, runs, scale_rows):
         with Scene(world, robot_radius=ROBOT_RADIUS) as scene:
             clean, _ = scene.cast(pose)
             laser = scene.laser_pose(pose)
-            visible = scene.visible_obstacles(pose)
+            visible = view_from(scene, pose).in_view
         ranges = noisy(clean, NOISE, np.random.default_rng(1), cfg.range_min, cfg.range_max)
         det = ObstacleDetector(grid, DetectionParams(correct_pose=False))   # exact poses
         x0, y0, x1, y1 = grid.bounds

@@ -36,7 +36,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.append(os.path.join(ROOT, 'src'))     # after the workspace's (which has the messages)
 
-from tiago_nav.benchmarks import meta  # noqa: E402
+from tiago_nav_tools.benchmarks import meta  # noqa: E402
 from tiago_nav.detection import DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.gridmap import GridMap  # noqa: E402
 
@@ -147,7 +147,8 @@ class BagSensors:
 
 
 def demo(data, every):
-    from tiago_nav.detection.service import DetectionService, Scan
+    from tiago_nav.detection.service import DetectionService
+    from tiago_nav.scan import Scan
     from tiago_nav.nodes.obstacle_detection import Params
     msgs = read(os.path.join(data, DEMO), ['/scan'])
     scans = [Scan(tuple(m.ranges), m.angle_min, m.angle_increment, m.range_min, m.range_max,

@@ -7,7 +7,7 @@ Per world, one launch; missions follow each other (each starts where the last en
 ias_lab_room_full the first mission is the course's (pose B (11, 0, -45 deg), corridor law on);
 the others are seeded random poses B (mission_eval.sample_goals), corridor law off.
 Figures: success, wall time per mission (target <= 20 s), simulated time, obstacles' recall,
-false positives, RMS centre error (ground truth: Scene.visible_obstacles from the final pose),
+false positives, RMS centre error (ground truth: tiago_nav_tools.evaluate.inview.view_from the final pose),
 collisions. Run at each requested real_time_factor (default 5, the demo's, then 0 = flat out).
 Writes bench/results/mission.json and mission.png.
 

@@ -8,7 +8,7 @@ movable obstacle in view), one scan with 0.01 m range noise and the tiago laser 
 per-beam median of 5 such scans (as the service combines them at rest), placed with the exact
 pose (no pose correction: the figures are the shape fits', not the localisation's).
 
-Per object in view (tiago_nav.sim.inview), by shape: found once (a detection of the matching
+Per object in view (tiago_nav_tools.evaluate.inview), by shape: found once (a detection of the matching
 shape, box -> rectangle, table/chair -> legs, cylinder -> circle, within the object's radius +
 0.1 m), found as something else, missed; centre error; orientation error (of a box's edges:
 modulo 90 deg; of a table's length modulo 180 deg, 90 deg for a square); whether its 95 %
@@ -33,7 +33,8 @@ sys.path.insert(0, os.path.join(ROOT, 'src'))
 sys.path.insert(0, os.path.join(ROOT, 'bench'))
 
 from bench_detection import sample_poses  # noqa: E402
-from tiago_nav.benchmarks import meta  # noqa: E402
+from tiago_nav_tools.benchmarks import meta  # noqa: E402
+from tiago_nav_tools.evaluate.inview import view_from  # noqa: E402
 from tiago_nav.detection import DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.geometry import compose, inverse  # noqa: E402
 from tiago_nav.scan import median_ranges  # noqa: E402
@@ -115,7 +116,7 @@ def run(poses_n, seed):
                 clean, ids = scene.cast(pose)
                 laser = scene.laser_pose(pose)
                 in_base = compose(inverse(pose), laser)
-                visible = set(scene.visible_obstacles(pose, 'tiago'))
+                visible = set(view_from(scene, pose, 'tiago').in_view)
                 ang = cfg.angles() + laser[2]
                 pts = np.column_stack((laser[0] + clean * np.cos(ang), laser[1] + clean * np.sin(ang)))
                 usable = np.abs(cfg.angles()) <= inview.usable_angle('tiago')

@@ -98,7 +98,6 @@ def test_an_unmapped_wall_end_is_not_a_leg():
 @pytest.mark.ros
 def test_what_moves_between_the_scans_at_rest_is_moving_with_its_velocity():
     from test_detection_service import FakeSensors, POSE, service
-    from tiago_nav.detection.service import Scan  # noqa: F401
     still = {'x': 4.0, 'y': 1.5, 'radius': 0.183}
 
     def scan(dx, seed):
