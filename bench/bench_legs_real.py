@@ -77,7 +77,7 @@ def marked(data):
                 continue                 # a scan without its marks (they come just before)
             if det is None:
                 det = ObstacleDetector(empty_map(msg.range_max + 0.5),
-                                       DetectionParams(correct_pose=False))
+                                       DetectionParams(correct_pose=False, shapes=True))
             found = det.detect(np.asarray(msg.ranges, dtype=float), msg.angle_min,
                                msg.angle_increment, msg.range_min, msg.range_max,
                                (0.0, 0.0, 0.0))
@@ -158,7 +158,7 @@ def demo(data, every):
     background = np.nanmedian(r, axis=0)
     background[np.isnan(background)] = np.inf
     first = scans[0]
-    service = DetectionService(Params(detection=DetectionParams(correct_pose=False)))
+    service = DetectionService(Params(detection=DetectionParams(correct_pose=False, shapes=True)))
     service.set_map(empty_map(first.range_max + 0.5))
     counts = {'calls': 0, 'objects': 0, 'foreground': 0, 'foreground_moving': 0,
               'foreground_static': 0, 'foreground_unknown': 0, 'foreground_legs': 0,

@@ -108,7 +108,7 @@ def run(poses_n, seed):
     for name in WORLDS:
         w = load(name)
         grid = rasterise_world(w)
-        det = ObstacleDetector(grid, DetectionParams(correct_pose=False))
+        det = ObstacleDetector(grid, DetectionParams(correct_pose=False, shapes=True))
         rng = np.random.default_rng(seed)
         poses, _ = sample_poses(w, grid, poses_n, rng, max_tries=40 * poses_n)
         with Scene(w) as scene:

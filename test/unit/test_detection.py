@@ -140,7 +140,7 @@ def test_unmapped_wall_and_noise_are_not_obstacles():
     # reported of it is straight)
     det = ObstacleDetector(grid, DetectionParams(shapes=False))
     assert det.detect(r, L.angle_min, L.angle_increment, 0.05, 25, laser) == []
-    found = ObstacleDetector(grid).detect(r, L.angle_min, L.angle_increment, 0.05, 25, laser)
+    found = ObstacleDetector(grid, DetectionParams(shapes=True)).detect(r, L.angle_min, L.angle_increment, 0.05, 25, laser)
     assert [d.shape for d in found if d.shape in ('circle', 'legs')] == []
 
 

@@ -31,7 +31,7 @@ def detect(w, seed=0, pose=(0.0, 0.0, 0.0), grid_world=None):
         r, _ = s.cast(pose)
         laser = s.laser_pose(pose)
     r = noisy(r, 0.01, np.random.default_rng(seed), L.range_min, L.range_max)
-    det = ObstacleDetector(rasterise_world(grid_world or w), DetectionParams(correct_pose=False))
+    det = ObstacleDetector(rasterise_world(grid_world or w), DetectionParams(correct_pose=False, shapes=True))
     return det.detect(r, L.angle_min, L.angle_increment, L.range_min, L.range_max, laser)
 
 
