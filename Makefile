@@ -12,6 +12,7 @@ APT_PACKAGES := ros-core-dev catkin python3-catkin-pkg python3-rospy python3-act
 	python3-actionlib-msgs python3-tf2-ros python3-tf2-msgs \
 	python3-move-base-msgs ros-move-base-msgs libmove-base-msgs-dev python3-nav-msgs \
 	python3-sensor-msgs python3-geometry-msgs python3-std-msgs python3-std-srvs \
+	python3-diagnostic-msgs \
 	python3-visualization-msgs python3-rosgraph-msgs python3-rostest python3-roslaunch \
 	python3-dynamic-reconfigure libdynamic-reconfigure-config-init-mutex-dev \
 	python3-rosnode python3-rostopic python3-rosservice python3-rosgraph rosbash python3-rosbag \

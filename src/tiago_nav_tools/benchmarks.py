@@ -56,6 +56,8 @@ BENCHMARKS = (
         ('bench/bench_localisation.py', ['localisation.json'])]),
     ('localisation_real', 'Localisation on real building logs', [
         ('bench/bench_localisation_real.py', ['localisation_real.json'])]),
+    ('localisation_recovery', 'Lost and found on real building logs, in process', [
+        ('bench/bench_localisation_recovery.py', ['localisation_recovery.json'])]),
     ('soak', 'Soak', [
         ('bench/bench_soak.py', ['soak.json'])]),
     ('evaluate', 'Batch evaluation', [
@@ -284,6 +286,17 @@ ABOUT = {
         '(`laser_max_beams` 90, `odom_alpha1`-`4` 0.05, `min_particles` 500, '
         '`laser_sigma_hit` 0.1, `update_min_a` 0.2), only the frames, the initial pose and '
         '`use_map_topic` set besides.'),
+    'localisation_recovery': (
+        'The localisation library (`RecoveringLocaliser`, no ROS) replayed scan by scan on the '
+        'same logs, scenarios, odometry and maps as `localisation_real` (every scan taken in, '
+        'no timing): the scans until the estimate is back within 0.2 m of the reference for 3 '
+        'scans in a row (from the start or the kidnap; for `global` from the first scan at '
+        'which the relocalisation was accepted), what `/diagnostics` said before (OK / '
+        'degraded / lost scans), the scans said lost after it, the error p95 / max and the '
+        'share of scans lost (> 0.3 m) after it, the mean NEES of the position (1 when the '
+        'covariance covers the error as it claims) and the share within its 95 % ellipse, the '
+        'CPU per scan. Targets (issue 48): back within 30 scans of an offset start or a kidnap '
+        'with lost reported meanwhile, 60 after `/global_localization`; never lost after.'),
     'soak': (
         'Many whole missions over `demo.launch`, one launch (a private master) per world, each '
         'mission starting where the last ended: `--n` (10; 2 with `--quick`) seeded random '
@@ -927,11 +940,33 @@ def render_localisation_real(d):
     return out
 
 
+def render_localisation_recovery(d):
+    """localisation_recovery.json: per log and scenario the recovery and the error after it."""
+    rows = []
+    for r in d.get('runs', []):
+        st = r.get('status_before_back', {})
+        back = r.get('back_within_0_2_m_after_scans')
+        rows.append((r['log'], r['scenario'], r.get('scans'),
+                     '%s%s' % ('never' if back is None else back,
+                               '' if r.get('limit_scans') is None
+                               else ' (limit %s)' % r['limit_scans']),
+                     '%s / %s / %s' % (st.get('ok'), st.get('degraded'), st.get('lost')),
+                     r.get('lost_reported_after_back_scans'), r.get('p95_after_m'),
+                     r.get('max_after_m'), _pct(r.get('lost_share_after')),
+                     _f(r.get('nees_mean_after'), '%.1f'), _pct(r.get('nees_share_within_95')),
+                     _f(r.get('cpu_ms_per_scan'), '%.1f')))
+    return _table(('log', 'scenario', 'scans', 'back within 0.2 m after [scans]',
+                   'status before: OK / degraded / lost [scans]', 'said lost after [scans]',
+                   'p95 after [m]', 'max after [m]', 'lost after', 'NEES mean',
+                   'within the 95 % ellipse', 'CPU per scan [ms]'), rows)
+
+
 RENDER = {'mission_cpu': render_mission_cpu, 'covariance': render_covariance, 'suites': render_suites, 'evaluate': render_evaluate, 'simulator': render_simulator, 'detection': render_detection,
           'navigation': render_navigation, 'corridor': render_corridor,
           'mission': render_mission, 'demo': render_demo, 'lockstep': render_lockstep,
           'soak': render_soak, 'localisation': render_localisation,
-          'localisation_real': render_localisation_real}
+          'localisation_real': render_localisation_real,
+          'localisation_recovery': render_localisation_recovery}
 # a JSON whose structure is not its benchmark's usual one: rendered by its own function
 def render_short_arcs(d):
     """short_arcs.json: per cut of the arc, profile and count of usable beams, how often the

@@ -131,6 +131,9 @@ NODES = (
              'the obstacle layer, placed in the map with tf at each scan\'s stamp'),
             ('move_base_simple/goal', 'geometry_msgs/PoseStamped',
              'a goal without a client (sent on as an action goal)'),
+            ('{localisation_state_topic}', 'std_msgs/String',
+             'latched: the localisation\'s state; while `lost` the base stops and the goal '
+             'waits, at most `~localisation_patience`'),
             _CLOCK, _TICK,
         ],
         'published_topics': [
@@ -261,7 +264,10 @@ NODES = (
     },
     {
         'node': 'localisation',
-        'services_provided': _RESET,
+        'services_provided': [
+            ('/global_localization', 'std_srvs/Empty',
+             'forget the pose and search the whole map for it (as AMCL\'s)'),
+        ] + _RESET,
         'executable': 'localisation',
         'params': 'tiago_nav.nodes.localisation',
         'launch': 'localisation.launch',
@@ -274,14 +280,21 @@ NODES = (
              '`~rest_updates` at rest'),
             ('{map_topic}', 'nav_msgs/OccupancyGrid', 'latched: the static map'),
             ('{initialpose_topic}', 'geometry_msgs/PoseWithCovarianceStamped',
-             'resets the pose (in `~map_frame`), as AMCL takes it'),
+             'resets the pose (in `~map_frame`), as AMCL takes it; a covariance reaching beyond '
+             '`~search_radius` / `~search_yaw_deg` is searched as far as it reaches'),
             _CLOCK, _TICK,
         ],
         'published_topics': [
             ('{tf_topic}', 'tf2_msgs/TFMessage',
              'the map -> odom transform (another topic keeps it out of the tf tree)'),
             ('{pose_topic}', 'geometry_msgs/PoseWithCovarianceStamped',
-             'the estimated pose of `~base_frame` in `~map_frame`'),
+             'the estimated pose of `~base_frame` in `~map_frame`; its covariance widened '
+             'while the fit is degraded, the searched region\'s while lost'),
+            ('/diagnostics', 'diagnostic_msgs/DiagnosticArray',
+             'at every scan: OK (tracking) / WARN (degraded) / ERROR (lost) with the reason '
+             'and key values'),
+            ('{state_topic}', 'std_msgs/String',
+             'latched: `ok`, `degraded` or `lost`, when it changes'),
             _ACK,
         ],
         'tf_provided': [

@@ -239,6 +239,34 @@ def test_a_short_laser_gap_only_pauses():
     assert all(v == 0.0 for v in speed_after(rig, 2.6)[:7])   # stopped while stale
 
 
+def lost_between(rig, t0, t1):
+    """The rig's localisation says it is lost from ROS time ``t0`` to ``t1``."""
+    rig.runner.io.localisation_lost = \
+        lambda: 'lost for the test' if t0 <= rig.clock.now() < t1 else ''
+
+
+def test_a_lost_pose_stops_the_base_until_relocalised():
+    rig = Rig()
+    lost_between(rig, 2.0, 4.0)
+    rig.run(7.0, 2.0)
+    assert rig.server.state == 'succeeded', rig.server.text
+    assert max(speed_after(rig, 0.0)[:20]) > 0.5             # it was driving
+    assert all(v == 0.0 for v in speed_after(rig, 2.05)[:19])  # stopped while lost
+    assert max(speed_after(rig, 4.0)) > 0.0                  # and drove on once relocalised
+
+
+def test_lost_beyond_the_patience_aborts_naming_the_localisation():
+    rig = Rig(config=NavConfig(localisation_patience=3.0))
+    lost_between(rig, 2.0, 1e9)
+    rig.run(7.5, 2.0)
+    assert rig.server.state == 'aborted'
+    assert rig.server.text.startswith('localisation lost for 3.'), rig.server.text
+    assert 'lost for the test' in rig.server.text
+    assert 4.9 <= rig.clock.now() <= 5.3
+    assert all(v == 0.0 for v in speed_after(rig, 2.05))
+    assert rig.stopped_at_end()
+
+
 @pytest.mark.parametrize('glitch', [lambda r: np.full(0, 0.0), lambda r: np.full(len(r), np.nan),
                                     lambda r: np.zeros(len(r))])
 def test_empty_or_all_invalid_scan_is_blocked(glitch):

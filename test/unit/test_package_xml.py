@@ -19,7 +19,7 @@ KEYS = {
     'dask': None, 'distributed': None,
 }
 # ROS packages: the module is the package's name and its key
-ROS = ('rospy', 'dynamic_reconfigure', 'rosgraph', 'roslaunch', 'rosbag', 'rosservice', 'rostest', 'roslib', 'actionlib',
+ROS = ('rospy', 'diagnostic_msgs', 'dynamic_reconfigure', 'rosgraph', 'roslaunch', 'rosbag', 'rosservice', 'rostest', 'roslib', 'actionlib',
        'tf2_ros', 'tf2_msgs', 'actionlib_msgs', 'geometry_msgs', 'move_base_msgs', 'nav_msgs',
        'rosgraph_msgs', 'sensor_msgs', 'std_msgs', 'std_srvs', 'visualization_msgs')
 KEYS.update((m, m) for m in ROS)

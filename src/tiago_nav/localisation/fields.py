@@ -7,6 +7,7 @@ import numpy as np
 
 from tiago_nav.geometry import compose, inverse
 from tiago_nav.gridmap import DistanceField
+from tiago_nav.localisation.global_search import LikelihoodPyramid
 
 _FIELD = []     # [(map key, DistanceField)]: the last map's field
 
@@ -40,3 +41,15 @@ def turn_covariance(cov, yaw):
     c, s = math.cos(yaw), math.sin(yaw)
     t = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     return t @ np.asarray(cov, dtype=float) @ t.T
+
+
+_PYRAMID = []   # [(map key, LikelihoodPyramid)]: the last map's
+
+
+def likelihood_pyramid(grid):
+    """``grid``'s :class:`tiago_nav.localisation.global_search.LikelihoodPyramid` (the global
+    search's), built once per map as :func:`distance_field`."""
+    key = (grid.data.tobytes(), grid.resolution, tuple(grid.origin))
+    if not _PYRAMID or _PYRAMID[0][0] != key:
+        _PYRAMID[:] = [(key, LikelihoodPyramid(grid))]
+    return _PYRAMID[0][1]

@@ -66,6 +66,11 @@ class NavConfig:
                                   'or the robot pose is older than this', gt=0)
     sensor_abort_timeout: float = param(3.0, '[s] abort the goal when a sensor stays that '
                                         'stale this long', gt=0)
+    localisation_patience: float = param(
+        20.0, '[s] while the localisation says it is lost the base stops and waits for it to '
+              'relocalise; lost for longer than this, the goal aborts naming the localisation '
+              '(a global relocalisation takes a few scans, a stretch where the scans cannot '
+              'tell the place apart takes driving, which a lost robot must not do)', gt=0)
     controller: ControllerConfig = nested(ControllerConfig)
 
     def __post_init__(self):

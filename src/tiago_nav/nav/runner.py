@@ -151,6 +151,14 @@ class GoalRunner:
             stale, fatal = watch.check(t, nav.scan_stamp)
             if fatal:
                 return self._end(ABORTED, fatal)
+            lost = watch.lost(t, getattr(io, 'localisation_lost', lambda: '')())
+            if lost and t - watch.lost_since > nav.cfg.localisation_patience:
+                return self._end(ABORTED, 'localisation lost for %.1f s (longer than '
+                                 'localisation_patience): %s' % (t - watch.lost_since, lost))
+            if lost and not stale:
+                stale = 'localisation lost: %s; waiting for it to relocalise' % lost
+                if watch.lost_since == t:
+                    self.log('warn', 'base stopped: %s' % stale)
             if stale:
                 io.send_cmd(0.0, 0.0)
                 with self.lock:
@@ -184,6 +192,16 @@ class SensorWatch:
         self.pose_stamp = None
         self.pose_error = ''
         self.stale_cycles = 0
+        self.lost_since = None      # [s] ROS time since when the localisation says it is lost
+
+    def lost(self, t, reason):
+        """The localisation's word at ``t``: ``reason`` ('' when not lost); keeps
+        :attr:`lost_since`."""
+        if not reason:
+            self.lost_since = None
+        elif self.lost_since is None:
+            self.lost_since = t
+        return reason
 
     def pose_seen(self, stamp):
         self.pose_stamp, self.pose_error = stamp, ''

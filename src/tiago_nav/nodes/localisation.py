@@ -31,15 +31,21 @@ from dataclasses import dataclass
 import numpy as np
 import rospy
 import tf2_ros
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import OccupancyGrid
 from sensor_msgs.msg import LaserScan
+from std_msgs.msg import String
+from std_srvs.srv import Empty, EmptyResponse
 from tf2_msgs.msg import TFMessage
 
 from tiago_nav.clock import Ticker
 from tiago_nav.geometry import compose
-from tiago_nav.localisation.fields import distance_field, from_grid, to_grid, turn_covariance
-from tiago_nav.localisation.localiser import Localiser, LocaliserConfig
+from tiago_nav.localisation.fields import (distance_field, from_grid, likelihood_pyramid, to_grid,
+                                           turn_covariance)
+from tiago_nav.localisation.health import LEVEL_NAMES
+from tiago_nav.localisation.localiser import LocaliserConfig
+from tiago_nav.localisation.recovery import RecoveringLocaliser
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as rosparams
 from tiago_nav.ros.clock import RosClock, reaches_past
@@ -94,6 +100,9 @@ class Params:
             'taken in): a search after a (re)set takes longer than a scan period, and the scans '
             'meanwhile wait; when the queue is full the oldest is skipped, counted and logged',
         ge=1)
+    state_topic: str = param('~state', 'latched std_msgs/String: "ok", "degraded" or "lost", '
+                             'sent when it changes (what /diagnostics says, for nodes that '
+                             'must not drive on a lost pose)', nonempty=True)
     localiser: LocaliserConfig = nested(LocaliserConfig)
 
     def __post_init__(self):
@@ -149,6 +158,27 @@ class ScanQueue:
             self.cond.notify_all()
 
 
+def diagnostic_status(health, pose, covariance, name='localisation', hardware_id='',
+                      relocalising=False):
+    """A diagnostic_msgs/DiagnosticStatus of a :class:`tiago_nav.localisation.health.Health`:
+    level OK / WARN (degraded) / ERROR (lost), the reason as message, and key values (state,
+    the fit, rejected corrections, the pose and its standard deviations)."""
+    st = DiagnosticStatus()
+    st.level = health.level
+    st.name, st.hardware_id, st.message = name, hardware_id, health.message
+    sd = np.sqrt(np.maximum(np.diag(np.asarray(covariance, dtype=float)), 0.0))
+    values = [('state', LEVEL_NAMES[health.level]),
+              ('relocalising', 'true' if relocalising else 'false'),
+              ('fit', 'nan' if health.fit != health.fit else '%.3f' % health.fit),
+              ('rejected corrections', '%d of %d' % (health.rejected, health.scans)),
+              ('x [m]', '%.3f' % pose[0]), ('y [m]', '%.3f' % pose[1]),
+              ('yaw [deg]', '%.1f' % math.degrees(pose[2])),
+              ('std x [m]', '%.3f' % sd[0]), ('std y [m]', '%.3f' % sd[1]),
+              ('std yaw [deg]', '%.1f' % math.degrees(sd[2]))]
+    st.values = [KeyValue(k, v) for k, v in values]
+    return st
+
+
 class LocalisationNode:
     def __init__(self, params):
         self.p = params
@@ -169,6 +199,10 @@ class LocalisationNode:
         self.pub_tf = rospy.Publisher(params.tf_topic, TFMessage, queue_size=10, latch=True)
         self.map_ready = threading.Event()
         self.pub_pose = rospy.Publisher(params.pose_topic, PoseWithCovarianceStamped, queue_size=5)
+        self.pub_diag = rospy.Publisher('/diagnostics', DiagnosticArray, queue_size=5)
+        self.pub_state = rospy.Publisher(params.state_topic, String, queue_size=1, latch=True)
+        self.state = None           # the last state sent on state_topic
+        self.srv_global = rospy.Service('/global_localization', Empty, self.on_global_localization)
         Subscription(params.map_topic, OccupancyGrid, self.on_map, queue_size=1)
         rospy.Subscriber(params.initialpose_topic, PoseWithCovarianceStamped, self.on_initialpose,
                          queue_size=1)
@@ -210,7 +244,8 @@ class LocalisationNode:
             pose, odom = (from_grid(self.frame, self.localiser.pose), self.localiser.odom) \
                 if self.localiser is not None else (self.pose, (0.0, 0.0, 0.0))
             self.frame = frame
-            self.localiser = Localiser(grid, to_grid(frame, pose), self.p.localiser, odom, field)
+            self.localiser = RecoveringLocaliser(grid, to_grid(frame, pose), self.p.localiser, odom,
+                                                 field, likelihood_pyramid(grid))
         self.map_ready.set()
         rospy.loginfo('localisation: map %dx%d at %.3f m%s; starting at (%.2f, %.2f, %.1f deg)',
                       msg.info.width, msg.info.height, msg.info.resolution,
@@ -231,6 +266,17 @@ class LocalisationNode:
                                      turn_covariance(cov, -self.frame[2]) if np.any(cov) else None)
         rospy.loginfo('localisation: reset to (%.2f, %.2f, %.1f deg)', pose[0], pose[1],
                       math.degrees(pose[2]))
+
+    def on_global_localization(self, _req):
+        """``/global_localization`` (std_srvs/Empty, as AMCL's): the pose is searched for over
+        the whole map from the next scans."""
+        with self.lock:
+            if self.localiser is None:
+                rospy.logwarn('localisation: /global_localization before any map: ignored')
+                return EmptyResponse()
+            self.localiser.global_localization()
+        rospy.loginfo('localisation: global localisation requested: searching the whole map')
+        return EmptyResponse()
 
     def on_tick(self, tick):
         """Before an idle lockstep answer: every scan up to the tick's is taken in; then the
@@ -291,23 +337,30 @@ class LocalisationNode:
                     pts = self.localiser.scan_points(msg.ranges, msg.angle_min,
                                                      msg.angle_increment, msg.range_min,
                                                      msg.range_max, laser)
+                before = self.localiser.health.level
                 up = self.localiser.update(odom, pts, laser[:2])
                 m2o, pose, cov, rejected = up.map_to_odom, up.pose, up.covariance, up.reason
                 change = self.degeneracy(up) if up.corrected else None
             else:                           # about where the last registered scan was taken
                 # (a re-acquired direction's pending correction takes its step here too)
                 skipped = None
+                before = self.localiser.health.level
                 pose, cov = self.localiser.follow(odom)
                 m2o, rejected, change = self.localiser.map_to_odom, '', None
             if not skipped:                 # from the grid's frame to map (a rotated origin)
                 self.map_to_odom = from_grid(self.frame, m2o)
                 pose, cov = from_grid(self.frame, pose), turn_covariance(cov, self.frame[2])
+                health, relocalising = self.localiser.health, self.localiser.relocalising
         if skipped:
             self.skip(msg, skipped)
             return
         if change:
             rospy.loginfo('localisation: %s', change)
-        if rejected:
+        if health.level != before:
+            log = {0: rospy.loginfo, 1: rospy.logwarn, 2: rospy.logerr}[health.level]
+            log('localisation: %s', health.message)
+        self.publish_health(stamp, health, pose, cov, relocalising)
+        if rejected and not relocalising:
             rospy.logwarn_throttle(5.0, 'localisation: correction rejected (%s); following '
                                    'odometry', rejected)
         # the first estimate also at the scan's own stamp, in the same (latched) message: sent
@@ -338,6 +391,19 @@ class LocalisationNode:
         self.degenerate = False
         return ('scan geometry constrains every direction again at (%.2f, %.2f)'
                 % (update.pose[0], update.pose[1]))
+
+    def publish_health(self, stamp, health, pose, covariance, relocalising):
+        """``/diagnostics`` at every scan, and ``state_topic`` when the state changes."""
+        out = DiagnosticArray()
+        out.header.stamp = stamp
+        out.status = [diagnostic_status(health, pose, covariance,
+                                        '%s: pose' % rospy.get_name().lstrip('/'),
+                                        self.p.map_frame, relocalising)]
+        self.pub_diag.publish(out)
+        name = LEVEL_NAMES[health.level]
+        if name != self.state:
+            self.state = name
+            self.pub_state.publish(String(name))
 
     def publish_pose(self, stamp, pose, covariance):
         out = PoseWithCovarianceStamped()

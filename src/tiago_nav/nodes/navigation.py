@@ -25,6 +25,7 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseFeedb
 from nav_msgs.msg import OccupancyGrid, Path
 from nav_msgs.srv import GetPlan, GetPlanResponse
 from sensor_msgs.msg import LaserScan
+from std_msgs.msg import String
 from std_srvs.srv import Empty, EmptyResponse
 
 from tiago_nav.cfg import MoveBaseConfig
@@ -60,6 +61,10 @@ class Params:
                             'and odometry at their own time', nonempty=True)
     scan_topic: str = param('/scan', 'sensor_msgs/LaserScan in', nonempty=True)
     map_topic: str = param('/map', 'nav_msgs/OccupancyGrid in (latched)', nonempty=True)
+    localisation_state_topic: str = param(
+        '/localisation/state', 'std_msgs/String in (latched): the localisation\'s "ok", '
+        '"degraded" or "lost"; while "lost" the base stops (nav.localisation_patience); no '
+        'publisher: never lost', nonempty=True)
     cmd_vel_topic: str = param('/mobile_base_controller/cmd_vel', 'geometry_msgs/Twist out',
                                nonempty=True)
     controller_frequency: float = param(10.0, '[Hz] control cycle and feedback rate', gt=0)
@@ -159,6 +164,9 @@ class MoveBase:
         # in lockstep every scan, in order (the cycle waits for its own); else the newest only
         Subscription(p.scan_topic, LaserScan, self.on_scan, tcp_nodelay=True,
                      queue_size=None if self.lockstep.enabled else 1)
+        self.localisation_state = ''
+        rospy.Subscriber(p.localisation_state_topic, String, self.on_localisation_state,
+                         queue_size=1)
         self._wait(lambda: self.nav.scan_stamp is not None,
                    lambda: 'no usable laser scan within %g s: %s' % (p.ready_timeout, self.scan_problem))
         self._wait(self._has_pose,
@@ -175,6 +183,7 @@ class MoveBase:
         io = ActionIO(self.server, self.cmd_pub, self.plan_pub, self.clock, self.cycle_pose,
                       self.to_map, self.map_frame, self.lockstep, self.sense)
         self.changes = ParamChanges(p, self._reconfigure)
+        io.localisation_lost = self.localisation_lost
         self.runner = GoalRunner(self.nav, io, 1.0 / p.controller_frequency, self.lock, self._log,
                                  ticker=self.lockstep if self.lockstep.enabled else None,
                                  changes=self.changes)
@@ -310,6 +319,17 @@ class MoveBase:
                      scan.range_max, scan.header.stamp.to_sec(), pose_from_transform(t.transform))
         with self.lock:
             self.nav.add_scan(ms)
+
+    def on_localisation_state(self, msg):
+        self.localisation_state = msg.data
+
+    def localisation_lost(self):
+        """Why the pose must not be driven on ('' when the localisation does not say it is
+        lost)."""
+        if self.localisation_state != 'lost':
+            return ''
+        return 'the localisation (%s) reports the robot pose lost (reason on /diagnostics)' \
+            % self.p.localisation_state_topic
 
     def cycle_pose(self):
         """The control loop's pose: at the cycle's odometry stamp in lockstep, else the newest."""
