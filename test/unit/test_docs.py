@@ -13,7 +13,7 @@ from tiago_nav.params import param_fields
 from tiago_nav_tools.interfaces import NODES, SECTIONS
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-README_MAX_LINES = 300
+README_MAX_LINES = 250
 
 
 def _read(rel):
