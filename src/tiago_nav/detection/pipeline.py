@@ -66,7 +66,7 @@ import numpy as np
 
 from tiago_nav.detection.centres import (centroid, circle_covariance, circle_fit,
                                         correlation_inflation, radius_std)
-from tiago_nav.detection import shapes
+import tiago_nav.detection.shapes as shapes
 from tiago_nav.detection.clustering import centroid_clusters
 from tiago_nav.detection.subtraction import MapDistance, subtract
 from tiago_nav.geometry import transform_points, wrap_angle
