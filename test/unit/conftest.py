@@ -1,6 +1,7 @@
 """Makes the library importable from the source tree (no ROS master needed). The generated
-message modules (``tiago_nav.msg``, ``tiago_nav.srv``) live in the catkin workspace's devel space:
-when it has been built, they are joined to the package so the node modules import too.
+message modules (``tiago_nav.msg``, ``tiago_nav.srv``) live in the catkin workspace's devel space
+(``.ws/``, or the sourced workspace's on ``PYTHONPATH``): when it has been built, they are joined
+to the package so the node modules import too.
 
 The ``ros`` marker: tests that need ROS 1's Python packages (rospy, actionlib, tf2_ros, message
 packages) or the built workspace. ``-m "not ros"`` runs the library tests alone, where ROS is
@@ -24,7 +25,12 @@ for sp in sorted(glob.glob(os.path.join(ROOT, '.venv', 'lib', 'python%d.%d' % sy
         sys.path.append(sp)
 import tiago_nav  # noqa: E402
 
-for d in glob.glob(os.path.join(ROOT, '.ws', 'devel', 'lib', 'python3*', 'dist-packages', 'tiago_nav')):
+# this repository's .ws (make setup), or the sourced workspace the package is built in (a catkin
+# workspace of the user's, `rosdep install` and catkin_make): its devel space is on PYTHONPATH
+_devel = glob.glob(os.path.join(ROOT, '.ws', 'devel', 'lib', 'python3*', 'dist-packages', 'tiago_nav'))
+_devel += [os.path.join(p, 'tiago_nav') for p in os.environ.get('PYTHONPATH', '').split(os.pathsep)
+           if p and os.path.isdir(os.path.join(p, 'tiago_nav', 'msg'))]
+for d in _devel:
     if d not in tiago_nav.__path__:
         tiago_nav.__path__.append(d)
 WORLDS = os.path.join(ROOT, 'worlds')
