@@ -110,9 +110,8 @@ def test_what_moves_between_the_scans_at_rest_is_moving_with_its_velocity():
     # a person walking +x at 0.9 m/s: 0.06 m between scans 1/15 s apart
     scans = [scan(0.06 * (4 - k), k) for k in range(5)]      # newest first
     rest = [(r, (1.0, 2.0, 0.5)) for r in scans[1:]]
-    a = service(rasterise_world(world([]))).handle('', 0.0, 0.0,
-                                                   FakeSensors(scans[0], earlier=rest),
-                                                   scan_stamp=12.5)
+    a = service(rasterise_world(world([])), detection=DetectionParams(shapes=True)).handle(
+        '', 0.0, 0.0, FakeSensors(scans[0], earlier=rest), scan_stamp=12.5)
     assert a.success, a.message
     motions = sorted((o.motion, o.shape) for o in a.obstacles)
     assert ('static', 'circle') in motions

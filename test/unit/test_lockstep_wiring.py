@@ -195,18 +195,19 @@ class CorridorParticipant(Participant):
 
 
 def test_corridor_server_claims_the_goal_answers_each_cycle_and_releases():
-    from test_corridor_node import Rig as CorridorRig, msg
+    from test_corridor_node import msg, node, wired
     from tiago_nav.sim.worlds import corridor_world
-    rig = CorridorRig(corridor_world(1.07, 4.0, start=(-0.8, 0.05, 5.0)))
-    part = CorridorParticipant(rig.clock)
-    rig.node.participant = part
+    io, _, clock = wired(corridor_world(1.07, 4.0, start=(-0.8, 0.05, 5.0)))
+    part = CorridorParticipant(clock)
+    io.participant = part
+    io.corridor = node.CorridorServer(node.Params(), clock, io, part)
     goal_id = type('GoalId', (), {'stamp': rospy.Time(0)})()
-    rig.server.current_goal = type('Handle', (), {'get_goal_id': lambda self: goal_id})()
+    io.server.current_goal = type('Handle', (), {'get_goal_id': lambda self: goal_id})()
     reported = []
-    succeed = rig.server.set_succeeded
-    rig.server.set_succeeded = lambda *a: reported.append((part.stamp, part.answers[-1][0])) or succeed(*a)
-    rig.node.execute(msg.CorridorGoal())
-    assert rig.server.state == 'succeeded', rig.server.text
+    succeed = io.server.set_succeeded
+    io.server.set_succeeded = lambda *a: reported.append((part.stamp, part.answers[-1][0])) or succeed(*a)
+    io.execute(msg.CorridorGoal())
+    assert io.server.state == 'succeeded', io.server.text
     # the result goes out while its cycle is still open (simulated time holds at its stamp)
     assert len(reported) == 1 and reported[0][1] < reported[0][0]
     assert part.claims == [None] and part.releases == 1
