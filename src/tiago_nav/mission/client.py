@@ -223,7 +223,7 @@ def _num(v, fmt):
 
 
 def shape_lines(obstacles):
-    """One line per tiago_nav/Obstacle (numbered as in :func:`obstacle_table`): its shape, extent
+    """One line per tiago_nav/Obstacle (``#N``, N as in :func:`obstacle_table`): its shape, extent
     [m] and orientation [deg] with their stds, whether its centre is fixed, its motion and
     velocity [m/s] (map frame), and the note of what was seen. Messages without the shape
     fields (older recordings) give ``circle``."""
@@ -236,7 +236,7 @@ def shape_lines(obstacles):
         estd += [math.nan] * (2 - len(estd))
         yaw = getattr(o, 'orientation', math.nan)
         ystd = getattr(o, 'orientation_std', math.nan)
-        line = '%2d  %-9s  %s x %s m' % (i, shape, _num(ext[0], '%.2f'), _num(ext[1], '%.2f'))
+        line = '#%d  %-9s  %s x %s m' % (i, shape, _num(ext[0], '%.2f'), _num(ext[1], '%.2f'))
         if any(math.isfinite(v) for v in estd):
             line += ' (±%s, ±%s)' % (_num(estd[0], '%.3f'), _num(estd[1], '%.3f'))
         if math.isfinite(yaw):
