@@ -68,6 +68,16 @@ def read_reference(path):
     return rows[:, 0], rows[:, 1:4], rows[:, 4:7]
 
 
+def cached_info(info_path, key):
+    """What ``info_path`` (an ``info.json``) records of the files beside it, or ``{}`` when it
+    is absent or was written for another ``key`` (source, seed, format version)."""
+    if not os.path.exists(info_path):
+        return {}
+    with open(info_path) as f:
+        info = json.load(f)
+    return info if info.get('key') == key else {}
+
+
 def prepare(log_path, out_dir, scenarios=SCENARIOS, seed=SEED, bags=True):
     """Write the map and each scenario's reference (and bag, with ``bags``) of the log at
     ``log_path`` into ``out_dir`` (files already there from the same log, seed and code are
@@ -78,12 +88,7 @@ def prepare(log_path, out_dir, scenarios=SCENARIOS, seed=SEED, bags=True):
     stat = os.stat(log_path)
     key = {'log': os.path.abspath(log_path), 'size': stat.st_size, 'seed': seed,
            'version': FORMAT_VERSION}
-    info = {}
-    if os.path.exists(info_path):
-        with open(info_path) as f:
-            info = json.load(f)
-        if info.get('key') != key:
-            info = {}
+    info = cached_info(info_path, key)
     log = read_log(log_path)
     map_yaml = os.path.join(out_dir, 'map.yaml')
     if 'map' not in info or not os.path.exists(map_yaml):

@@ -19,7 +19,8 @@ import numpy as np
 from tiago_nav.gridmap import FREE, OCCUPIED, GridMap
 from tiago_nav_tools.testing.realdata import mapping, odometry
 from tiago_nav_tools.testing.realdata.carmen import CarmenLog, beam_angles
-from tiago_nav_tools.testing.realdata.convert import FORMAT_VERSION, Scenario, write_reference
+from tiago_nav_tools.testing.realdata.convert import (FORMAT_VERSION, Scenario, cached_info,
+                                                      write_reference)
 
 NAME = 'synthetic-100m'
 SIZE_M = 100.0          # [m] the building's side
@@ -109,12 +110,7 @@ def prepare(out_dir, scenarios=('tracking',), seed=SEED, bags=True):
     os.makedirs(out_dir, exist_ok=True)
     info_path = os.path.join(out_dir, 'info.json')
     key = {'log': NAME, 'seed': seed, 'version': FORMAT_VERSION, 'size_m': SIZE_M}
-    info = {}
-    if os.path.exists(info_path):
-        with open(info_path) as f:
-            info = json.load(f)
-        if info.get('key') != key:
-            info = {}
+    info = cached_info(info_path, key)
     map_yaml = os.path.join(out_dir, 'map.yaml')
     ref = os.path.join(out_dir, 'tracking_reference.csv')
     bag = os.path.join(out_dir, 'tracking.bag')
