@@ -521,9 +521,10 @@ def render_detection(d):
                         r.get('brute_force_ms'), _f(r.get('speedup'), '%.0f')) for r in scaling])
     s = d.get('service')
     if s:
-        out += ['', 'Service round trip (%s calls): median %s ms, p95 %s ms (processing %s ms).'
+        out += ['', 'Service round trip (%s calls): median %s ms, p95 %s ms (mostly the wait for '
+                'the next scan; the answer carries no processing time).'
                 % (_f(s.get('calls')), _f(s.get('round_trip_ms_median')),
-                   _f(s.get('round_trip_ms_p95')), _f(s.get('processing_ms_median')))]
+                   _f(s.get('round_trip_ms_p95')))]
     od = d.get('obstacle_detector')
     if od and od.get('skipped'):
         out += ['', 'obstacle_detector comparison: skipped (%s).' % od.get('reason')]
