@@ -322,7 +322,8 @@ def leg(points, sensor, increment, noise=0.01, round_checked=False):
     fit with that radius (3 points or more) or one radius behind the nearest point along its
     beam. Returns ``(center, radius, var, least radius)``, or None when wider than :data:`LEG_MAX_WIDTH` or,
     with 5 points or more and a radius of 3 ``noise`` or more, flat (a line fits them better
-    than that circle)."""
+    than that circle and than one of the widest leg's radius, ``LEG_MAX_WIDTH / 2``: a trouser
+    leg is flatter than the calf in it)."""
     p = np.asarray(points, dtype=float).reshape(-1, 2)
     sensor = np.asarray(sensor, dtype=float)
     mean = p.mean(axis=0)
@@ -346,7 +347,10 @@ def leg(points, sensor, increment, noise=0.01, round_checked=False):
             # depth, about its radius, is within 3 noise stds cannot tell)
             q = p - p.mean(axis=0)
             line_rms = float(np.linalg.svd(q, compute_uv=False)[-1]) / math.sqrt(len(p))
-            if line_rms < rms:
+            # cloth round a calf is flatter than the calf: flat when a line fits better than
+            # the circle of its width and than the widest leg's (radius LEG_MAX_WIDTH / 2)
+            flat_rms = circle_fit(p, LEG_MAX_WIDTH / 2.0, sensor)[3]
+            if line_rms < min(rms, flat_rms):
                 return None
         if not np.all(np.isfinite(centre)) or np.hypot(*(centre - p[near])) > 2 * r + 0.02:
             centre = p[near] + r * (p[near] - sensor) / np.hypot(*(p[near] - sensor))
