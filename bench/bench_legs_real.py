@@ -29,8 +29,10 @@
    scan, each combined with the 4 before it (``rest_scans`` 5, 0.4 s at 10 Hz), over the static
    background built from the whole recording (as in 1). A reported object most of whose points
    lie at least 0.3 m in front of their own beam's background (or on a beam with none) is
-   something that is not always there: a person passing (nothing else moves there); of those,
-   how many are reported ``moving`` and how many ``static`` (the target: none).
+   something that is not always there; one whose place was seen free (most of its beams past
+   it, two scans in a row) both within 1 s before the call and within 1 s after it is a person
+   walking past (nothing else moves there); of those, how many are reported ``moving`` and how
+   many ``static`` (the target: none).
 
 Writes bench/results/legs_real.json and legs_real.png.
 
@@ -228,11 +230,13 @@ def demo(data, every):
             key = {'moving': 'foreground_moving', 'static': 'foreground_static'}.get(
                 o.motion, 'foreground_unknown')
             counts[key] += 1
-            # walking past: its place seen free (most of its beams past it, or no return)
-            # both within WINDOW scans before the call and within WINDOW scans after it
+            # walking past: its place seen free (most of its beams past it, or no return, in
+            # two scans in a row: a dark object's dropout in one scan is no free space) both
+            # within WINDOW scans before the call and within WINDOW scans after it
             def free(js):
-                return any(np.mean(~(ranges[j][b] <= rng + FOREGROUND)) >= 0.5 for j in js
-                           if 0 <= j < len(scans))
+                seen = [0 <= j < len(scans) and np.mean(~(ranges[j][b] <= rng + FOREGROUND))
+                        >= 0.5 for j in js]
+                return any(a and c for a, c in zip(seen[:-1], seen[1:]))
             if free(range(i - 4 - WINDOW, i - 4)) and free(range(i + 1, i + 1 + WINDOW)):
                 counts['passing'] += 1
                 counts['passing_' + (o.motion if o.motion in ('moving', 'static')
