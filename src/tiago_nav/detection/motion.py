@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from tiago_nav.detection.shapes import PERSON_LEG_SPACING
 from tiago_nav.scan import HIT, classify
 
 CHANGE = 0.1          # [m] a beam's hit moved by more than this: ten times the range noise
@@ -72,21 +73,71 @@ def velocity(detection, earlier, dt):
     return v, math.sqrt(var) / dt
 
 
+def leg_like(d):
+    """Whether a detection may be one or two legs of a person: a ``legs`` object (the shapes
+    detection's) of at most two legs. Circles are not: without the shapes detection, motion is
+    judged object by object, as before."""
+    return d.shape == 'legs' and (d.legs is None or len(d.legs) <= 2)
+
+
+def _legs_of(d):
+    return np.asarray(d.legs if d.legs is not None else [d.center], dtype=float).reshape(-1, 2)
+
+
 def combine(still, newest, oldest, changed, dt, laser_pose, angle_min, increment):
-    """The detections of a window of scans at rest: of ``still`` (the per-beam median's), those
-    on unchanged beams, ``motion`` ``'static'`` with velocity 0 (its std from the centre's over
-    ``dt``); of ``newest`` (the newest scan's alone), those on changed beams, ``'moving'`` with
-    their :func:`velocity` from ``oldest`` (the oldest scan's), ``dt`` [s] earlier."""
-    out = []
-    for d in still:
-        if moved(d, changed, laser_pose, angle_min, increment):
-            continue
-        d.motion, d.velocity = 'static', (0.0, 0.0)
-        d.velocity_std = math.sqrt(2.0) * d.center_std / dt if dt > 0 else math.nan
-        out.append(d)
+    """The detections of a window of scans at rest: of ``newest`` (the newest scan's alone),
+    those on changed beams, ``'moving'`` with their :func:`velocity` from ``oldest`` (the
+    oldest scan's), ``dt`` [s] earlier; of ``still`` (the per-beam median's), those on
+    unchanged beams, ``motion`` ``'static'`` with velocity 0 (its std from the centre's over
+    ``dt``), except a leg (:func:`leg_like`) within a stride (:data:`PERSON_LEG_SPACING`) of a
+    moving one's leg: a walker's foot stands on the floor for most of a stride (the stance,
+    about 0.6 s of a 1 s stride, longer than a window of scans at rest), so that leg is the
+    moving person's planted one. It joins that person (its legs, their middle as the centre)
+    and is not reported as a static object. A leg with no moving one near it but points of
+    ``newest`` or ``oldest`` on changed beams within a stride is a walker's planted leg whose
+    other leg swung beside or behind it (a person walking toward the laser hides one leg behind
+    the other): ``'moving'``, its velocity not measured (NaN)."""
+    out, moving = [], []
+    swung = [d.points[changed[beams_of(d.points, laser_pose, angle_min, increment,
+                                       len(changed))]]
+             for d in list(newest) + list(oldest) if d.points is not None and len(d.points)]
+    swung = np.concatenate(swung) if swung else np.empty((0, 2))
     for d in newest:
         if moved(d, changed, laser_pose, angle_min, increment):
             d.motion = 'moving'
             d.velocity, d.velocity_std = velocity(d, oldest, dt)
-            out.append(d)
-    return out
+            moving.append(d)
+    for d in still:
+        if moved(d, changed, laser_pose, angle_min, increment):
+            continue
+        walker = None
+        if leg_like(d):
+            legs = _legs_of(d)
+            best = PERSON_LEG_SPACING
+            for m in moving:
+                if not leg_like(m):
+                    continue
+                gap = float(np.min(np.hypot(*(legs[:, None, :] - _legs_of(m)[None]).reshape(
+                    -1, 2).T)))
+                if gap <= best:
+                    walker, best = m, gap
+        if walker is not None:
+            have = _legs_of(walker)
+            new = [l for l in _legs_of(d) if np.min(np.hypot(*(have - l).T)) > 0.1]
+            if new:
+                walker.legs = np.vstack([have] + [np.reshape(l, (1, 2)) for l in new])
+                walker.center = tuple(float(v) for v in walker.legs.mean(axis=0))
+                walker.note = (walker.note + '; ' if walker.note else '') + (
+                    'a planted leg that stood still over the scans at rest joined')
+            continue
+        if leg_like(d) and len(swung) and float(np.min(np.hypot(
+                *(_legs_of(d)[:, None, :] - swung[None]).reshape(-1, 2).T))) <= PERSON_LEG_SPACING:
+            d.motion, d.velocity, d.velocity_std = 'moving', (math.nan, math.nan), math.nan
+            d.note = (d.note + '; ' if d.note else '') + (
+                'a planted leg: beams beside it changed (a walker\'s other leg)')
+            moving.append(d)
+            continue
+        d.motion, d.velocity = 'static', (0.0, 0.0)
+        d.velocity_std = math.sqrt(2.0) * d.center_std / dt if dt > 0 else math.nan
+        out.append(d)
+    return out + moving

@@ -410,7 +410,8 @@ class ObstacleDetector:
             cx, cy, rad, rms = circle_fit(c, sensor=sensor, passing=passing, margin=margin)
             if _is_obstacle(c, (cx, cy), rad, rms, sensor, p) and not (
                     p.shapes and method == 'circle_fit'
-                    and shapes.rectangle_not_circle(c, sensor, rms, p.range_noise)):
+                    and (shapes.rectangle_not_circle(c, sensor, rms, p.range_noise)
+                         or shapes.split_pair(c, sensor, inc, p.range_noise) is not None)):
                 cands.append((c, cx, cy, rad, rms, radius_std(c, cx, cy, rad, p.range_noise),
                               passing, margin))
                 round_pts[idx] = True
@@ -686,15 +687,16 @@ def _discontinuity(r, ang, inc, rmin, rmax, laser_pose, p):
 def _shape_detections(points, beams, view, circles, p):
     """The :class:`Detection` s of what is not round (:func:`tiago_nav.detection.shapes.describe`
     on ``points``, map frame, the beams ``beams`` of the :class:`shapes.ScanView` ``view``); the
-    small ``circles`` (at most a person's leg, :data:`shapes.PERSON_LEG_RADIUS`) that join a
-    table's, a chair's or a person's legs become part of that ``legs`` object (they are removed
-    from ``circles``, in place); alone they stay circles."""
+    small ``circles`` (an arc no wider than a leg, :data:`shapes.LEG_MAX_WIDTH`) that join a
+    table's, a chair's or a person's legs become part of that ``legs`` object, and so does one
+    of a person's leg's size alone (:func:`tiago_nav.detection.shapes.person_sized`: a person
+    whose other leg is hidden); they are removed from ``circles``, in place. The others stay
+    circles."""
     sensor = np.array(view.pose[:2])
     small, extra = [], []
     for d in circles:
-        if d.radius > shapes.PERSON_LEG_RADIUS[1]:
-            continue
-        # a leg's radius from its arc's width (a fitted radius on a few points is noisy)
+        # a leg's radius from its arc's width (a fitted radius on a few points is noisy, and
+        # cloth round a calf is no cylinder: its fitted radius may be a wide one's)
         est = shapes.leg(d.points, sensor, view.inc, p.range_noise, round_checked=True)
         if est is not None:
             small.append(d)

@@ -8,9 +8,15 @@ map does not explain, and the real-data benchmark on whole scans.
 The constants are the physics of what is measured, not fits to any recording:
 
 * a person's leg at a laser's height (0.1-0.4 m above the floor) is a calf or an ankle in a
-  trouser leg: :data:`PERSON_LEG_RADIUS` 0.04-0.10 m (a calf 8-20 cm across); a person's two legs stand up to a stride
-  apart: centre to centre at most :data:`PERSON_LEG_SPACING` 0.6 m (a walker's legs swing
-  0.2 m ahead and behind and stand 0.1 m either side of its line: 0.45 m);
+  trouser leg: 5-25 cm across, :data:`PERSON_LEG_RADIUS` 0.025-0.125 m (an ankle 6-7 cm, a
+  calf 8-20 cm, a wide trouser leg up to 25 cm); its points span at least 5 cm even without
+  the beam spacing (the least radius its arc allows: far away a beam spacing widens a table's
+  leg of 1-2.5 cm radius as much); a person's two legs stand
+  up to a stride apart: centre to centre at most :data:`PERSON_LEG_SPACING` 0.6 m (a walker's
+  legs swing 0.2 m ahead and behind and stand 0.1 m either side of its line: 0.45 m); two
+  legs side by side within the points' join distance are one run up to
+  :data:`PERSON_PAIR_WIDTH` 0.5 m wide (two calves and the gap between them) with a notch
+  between two fronts (:func:`split_pair`);
 * a table's or chair's leg is a tube or a bar of at most :data:`FURNITURE_LEG_RADIUS` 0.04 m;
   a chair's legs are 0.3-0.6 m apart, a table's 0.4-2.0 m (:data:`FURNITURE_SIDE`), at the
   corners of a rectangle (right angles within :data:`RIGHT_ANGLE_TOL`: the legs' centres are
@@ -25,7 +31,9 @@ import numpy as np
 
 from tiago_nav.detection.centres import circle_fit, correlation_inflation
 
-PERSON_LEG_RADIUS = (0.04, 0.10)   # [m] a calf, bare or in a trouser leg
+PERSON_LEG_RADIUS = (0.025, 0.125)  # [m] an ankle or a calf, bare or in a trouser leg
+PERSON_PAIR_WIDTH = 0.5            # [m] two legs side by side seen as one run: at most this wide
+MIN_PERSON_LEG_POINTS = 3          # a person's leg: seen by this many beams or more
 PERSON_LEG_SPACING = 0.6           # [m] two legs of one person: centres at most this apart
 FURNITURE_LEG_RADIUS = 0.04        # [m] a table's or chair's leg is at most this thick
 FURNITURE_SIDE = (0.25, 2.2)       # [m] distance between neighbouring legs of one piece
@@ -314,7 +322,8 @@ def leg(points, sensor, increment, noise=0.01, round_checked=False):
     fit with that radius (3 points or more) or one radius behind the nearest point along its
     beam. Returns ``(center, radius, var, least radius)``, or None when wider than :data:`LEG_MAX_WIDTH` or,
     with 5 points or more and a radius of 3 ``noise`` or more, flat (a line fits them better
-    than that circle)."""
+    than that circle and than one of the widest leg's radius, ``LEG_MAX_WIDTH / 2``: a trouser
+    leg is flatter than the calf in it)."""
     p = np.asarray(points, dtype=float).reshape(-1, 2)
     sensor = np.asarray(sensor, dtype=float)
     mean = p.mean(axis=0)
@@ -338,7 +347,10 @@ def leg(points, sensor, increment, noise=0.01, round_checked=False):
             # depth, about its radius, is within 3 noise stds cannot tell)
             q = p - p.mean(axis=0)
             line_rms = float(np.linalg.svd(q, compute_uv=False)[-1]) / math.sqrt(len(p))
-            if line_rms < rms:
+            # cloth round a calf is flatter than the calf: flat when a line fits better than
+            # the circle of its width and than the widest leg's (radius LEG_MAX_WIDTH / 2)
+            flat_rms = circle_fit(p, LEG_MAX_WIDTH / 2.0, sensor)[3]
+            if line_rms < min(rms, flat_rms):
                 return None
         if not np.all(np.isfinite(centre)) or np.hypot(*(centre - p[near])) > 2 * r + 0.02:
             centre = p[near] + r * (p[near] - sensor) / np.hypot(*(p[near] - sensor))
@@ -347,6 +359,38 @@ def leg(points, sensor, increment, noise=0.01, round_checked=False):
     # the radius is known to about a beam spacing: the centre's range moves with it
     var = noise * noise / len(p) + spacing * spacing / 12.0
     return centre, r, var, 0.5 * (width - spacing)
+
+
+def split_pair(points, sensor, increment, noise=0.01):
+    """Two legs side by side seen as one run of ``(N, 2)`` points in scan order: at most
+    :data:`PERSON_PAIR_WIDTH` wide, and the point farthest from ``sensor`` between the two ends
+    (at least 3 points either side) lies behind the nearest point of each side by more than
+    ``max(3 noise, 0.02)`` [m] (a notch between two fronts: one surface bulging toward the sensor
+    has none), each side a leg (:func:`leg`, at least 3 points) of a person's width
+    (:func:`person_sized`). Returns ``(left, right)``, each ``(index array, leg)`` with
+    :func:`leg`'s tuple, or None."""
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    n = len(p)
+    if n < 7 or float(np.hypot(*(p.max(axis=0) - p.min(axis=0)))) > PERSON_PAIR_WIDTH:
+        return None
+    rng = np.hypot(*(p - np.asarray(sensor, dtype=float)).T)
+    j = 3 + int(np.argmax(rng[3:n - 3]))
+    notch = float(rng[j]) - max(float(rng[:j].min()), float(rng[j + 1:].min()))
+    if notch <= max(3.0 * noise, 0.02):
+        return None
+    out = []
+    for idx in (np.arange(0, j), np.arange(j + 1, n)):
+        found = leg(p[idx], sensor, increment, noise)
+        if found is None or not person_sized(found[1], found[3]):
+            return None
+        out.append((idx, found))
+    return tuple(out)
+
+
+def person_sized(radius, least):
+    """Whether a leg of ``radius`` [m] (from its arc's width) whose points alone allow
+    ``least`` [m] is a person's: both within :data:`PERSON_LEG_RADIUS`."""
+    return PERSON_LEG_RADIUS[0] <= least and radius <= PERSON_LEG_RADIUS[1]
 
 
 def group_furniture(legs, free=None):
@@ -439,15 +483,16 @@ def furniture_shape(legs, group):
 
 
 def pair_people(legs):
-    """People: pairs of person-sized legs (radius within :data:`PERSON_LEG_RADIUS`) at most
+    """People: pairs of person-sized legs (:func:`person_sized`, seen by at least
+    :data:`MIN_PERSON_LEG_POINTS` beams) at most
     :data:`PERSON_LEG_SPACING` apart, nearest pairs first (the least radius an arc allows, its
     points' half span, must be a calf's: a beam spacing far away widens a table's leg too). Returns ``(pairs, singles)``, index
     lists into ``legs``."""
     n = len(legs)
     # a person's leg for sure: even the least radius its arc allows is a calf's (far away a
     # beam spacing widens a table's leg as much)
-    ok = [i for i in range(n) if PERSON_LEG_RADIUS[0] <= legs[i].least
-          and legs[i].radius <= PERSON_LEG_RADIUS[1]]
+    ok = [i for i in range(n) if person_sized(legs[i].radius, legs[i].least)
+          and (legs[i].index is None or len(legs[i].index) >= MIN_PERSON_LEG_POINTS)]
     pairs = []
     for a in range(len(ok)):
         for b in range(a + 1, len(ok)):
@@ -566,6 +611,12 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
             if found is not None:
                 legs.append(Leg(found[0], found[1], seg, found[2], found[3]))
                 continue
+        elif span <= PERSON_PAIR_WIDTH and _stands_apart(seg, beams, p, sensor, view):
+            two = split_pair(q, sensor, view.inc, noise)
+            if two is not None:                 # a person's two legs side by side
+                for idx, found in two:
+                    legs.append(Leg(found[0], found[1], seg[idx], found[2], found[3]))
+                continue
         fit = fit_rectangle(q, sensor, noise, _ends(seg, p, beams, sensor, view))
         if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
             fit[0].index = seg
@@ -600,8 +651,6 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
     done = set()
     for g in pairs + [[s] for s in singles]:
         idx = [rest[i] for i in g]
-        if len(idx) == 1 and idx[0] >= n_own:
-            continue                      # the caller's own circle alone stays theirs
         done.update(idx)
         s = person_shape(legs, idx)
         s.points = np.concatenate([pts_of(i) for i in idx])
