@@ -38,7 +38,7 @@ from tiago_nav_tools.evaluate.inview import view_from  # noqa: E402
 from tiago_nav.detection import DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.geometry import compose, inverse  # noqa: E402
 from tiago_nav.scan import median_ranges  # noqa: E402
-from tiago_nav.sim import inview  # noqa: E402
+from tiago_nav_tools.evaluate import inview  # noqa: E402
 from tiago_nav.sim.laser import LaserModel  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.scene import LaserConfig, Scene  # noqa: E402

@@ -78,3 +78,42 @@ def test_module_imports(name):
         pytest.skip('%s needs the built workspace (make setup) for %s' % (name, detail))
     assert status == 'ok', '%s: %s' % (name, detail)
 
+
+
+def bench_imports():
+    """``(script, module, name)`` for each name a bench/ script imports from this package
+    (``name`` None for a plain ``import module``): the scripts run only under ``make bench``,
+    so a module moved or renamed would otherwise break them unseen."""
+    import ast
+    import glob
+    out = []
+    for path in sorted(glob.glob(os.path.join(ROOT, 'bench', '*.py'))
+                       + glob.glob(os.path.join(ROOT, 'bench', '*', '*.py'))):
+        with open(path) as f:
+            tree = ast.parse(f.read(), path)
+        script = os.path.relpath(path, ROOT)
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module \
+                    and node.module.split('.')[0] in ('tiago_nav', 'tiago_nav_tools'):
+                out += [(script, node.module, a.name) for a in node.names]
+            elif isinstance(node, ast.Import):
+                out += [(script, a.name, None) for a in node.names
+                        if a.name.split('.')[0] in ('tiago_nav', 'tiago_nav_tools')]
+    return out
+
+
+def test_bench_scripts_import_from_the_package():
+    assert any(s == 'bench/bench_shapes.py' for s, _, _ in bench_imports())
+
+
+@pytest.mark.parametrize('script,module,name', bench_imports(),
+                         ids=lambda v: v if isinstance(v, str) else '')
+def test_bench_script_imports_resolve(script, module, name):
+    status, detail = try_import(module)
+    if status in ('ros', 'workspace'):
+        pytest.skip('%s needs %s' % (module, detail))
+    assert status == 'ok', '%s: %s: %s' % (script, module, detail)
+    if name is not None:
+        mod = importlib.import_module(module)
+        assert hasattr(mod, name) or try_import(module + '.' + name)[0] == 'ok', \
+            '%s: %s has no %s' % (script, module, name)
