@@ -36,7 +36,8 @@ The result gives ``map → odom`` (``pose_map ∘ inverse(pose_odom)``), what a 
 publishes on tf, and a 3 × 3 covariance of ``(x, y, yaw)`` for a PoseWithCovarianceStamped.
 """
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field as dataclass_field
+from functools import cached_property
 
 import numpy as np
 
@@ -111,7 +112,8 @@ class LocaliserConfig:
                'shared by everything a scan sees (the map\'s local error: a map built by SLAM '
                'from scans is locally consistent to about half a 0.05 m cell; 0 for a map '
                'rasterised from the world itself, as the simulator\'s): the published '
-               'covariance adds it to the position (the registration cannot see it)', ge=0)
+               'covariance adds it to the position, and it over the scan points\' RMS '
+               'distance to the heading (the registration cannot see it)', ge=0)
     max_correction_step: float = param(
         0.01, '[m] after a registration that left a position unobservable (a corridor\'s '
               'axis), a position correction (the axis seen again after a long stretch) moves '
@@ -473,10 +475,9 @@ def register_with_information(field, points, guess, config, sensor=(0.0, 0.0), a
     along = gx * (math.cos(pose[2]) * beams[:, 0] - math.sin(pose[2]) * beams[:, 1]) \
         + gy * (math.sin(pose[2]) * beams[:, 0] + math.cos(pose[2]) * beams[:, 1])
     w[along > BACKFACE_COS] = 0.0
-    scan_cov = scan_covariance(points, normals, has_normal, r, w, pose[2], b, sensor,
-                               field.grid.resolution)
+    scan = (points, normals, has_normal, r, w, pose[2], b, sensor, field.grid.resolution)
     return ((float(pose[0]), float(pose[1]), float(pose[2])), cov, r,
-            Information(strong, weak, vals, length, scan_cov))
+            Information(strong, weak, vals, length, scan))
 
 
 SEGMENT_COS = 0.9   # neighbouring scan points whose normals differ by more than ~25 deg are
@@ -581,12 +582,25 @@ def scan_covariance(points, normals, has_normal, residuals, weights, yaw, basis,
     tilt = tilt * (resolution / np.sqrt(6.0) / length)[:, None]
     h = jw.T @ j
     m = sw2 * (jw.T @ jw) + ss2 * (g.T @ g) + tilt.T @ tilt
-    hb = basis.T @ h @ basis
-    try:
-        hinv = np.linalg.inv(hb)
-    except np.linalg.LinAlgError:
+    hinv = _inverse_small(basis.T @ h @ basis)
+    if hinv is None:
         return np.zeros((3, 3))
     return basis @ (hinv @ (basis.T @ m @ basis) @ hinv) @ basis.T
+
+
+def _inverse_small(a):
+    """The inverse of a 1 × 1, 2 × 2 or 3 × 3 matrix by its adjugate (a LAPACK call costs
+    more than the arithmetic at this size), or None when it is singular."""
+    n = a.shape[0]
+    if n == 1:
+        return None if a[0, 0] == 0 else np.array([[1.0 / a[0, 0]]])
+    if n == 2:
+        det = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+        return None if det == 0 else np.array([[a[1, 1], -a[0, 1]], [-a[1, 0], a[0, 0]]]) / det
+    adj = np.array([np.cross(a[1], a[2]), np.cross(a[2], a[0]), np.cross(a[0], a[1])]).T
+    det = float(a[0] @ adj[:, 0])
+    scale = float(np.max(np.abs(a))) ** 3
+    return None if not abs(det) > 1e-12 * scale else adj / det
 
 
 def _rotate_rows(j, yaw):
@@ -641,14 +655,20 @@ class Information:
     """How a registration's scan constrains the pose (:func:`observable_directions`):
     orthonormal bases ``strong`` ``(3, k)`` and ``weak`` ``(3, 3 - k)`` in the scaled space
     ``(x, y, length · yaw)`` [m], the scaled eigenvalues (ascending) and ``length`` [m];
-    ``covariance``: ``(3, 3)`` [m², m·rad, rad²] of the registered pose from the scan with its
-    points' shared errors counted (:func:`scan_covariance`; zero along ``weak``), what the
-    localiser publishes for the corrected directions."""
+    ``scan``: the arguments of :func:`scan_covariance` for the registered pose (None: none)."""
     strong: np.ndarray
     weak: np.ndarray
     eigenvalues: np.ndarray
     length: float
-    covariance: np.ndarray = None
+    scan: tuple = dataclass_field(default=None, repr=False, compare=False)
+
+    @cached_property
+    def covariance(self):
+        """``(3, 3)`` [m², m·rad, rad²] of the registered pose from the scan with its points'
+        shared errors counted (:func:`scan_covariance`; zero along ``weak``), what the
+        localiser publishes for the corrected directions; computed when first asked for (a
+        search registers several start poses and keeps one)."""
+        return np.zeros((3, 3)) if self.scan is None else scan_covariance(*self.scan)
 
     @property
     def degenerate(self):
