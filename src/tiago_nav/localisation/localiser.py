@@ -597,10 +597,15 @@ def _inverse_small(a):
     if n == 2:
         det = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
         return None if det == 0 else np.array([[a[1, 1], -a[0, 1]], [-a[1, 0], a[0, 0]]]) / det
-    adj = np.array([np.cross(a[1], a[2]), np.cross(a[2], a[0]), np.cross(a[0], a[1])]).T
-    det = float(a[0] @ adj[:, 0])
-    scale = float(np.max(np.abs(a))) ** 3
-    return None if not abs(det) > 1e-12 * scale else adj / det
+    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = a.tolist()
+    c00, c01, c02 = a11 * a22 - a12 * a21, a12 * a20 - a10 * a22, a10 * a21 - a11 * a20
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    scale = max(abs(v) for v in (a00, a01, a02, a10, a11, a12, a20, a21, a22)) ** 3
+    if not abs(det) > 1e-12 * scale:
+        return None
+    return np.array([[c00, a02 * a21 - a01 * a22, a01 * a12 - a02 * a11],
+                     [c01, a00 * a22 - a02 * a20, a02 * a10 - a00 * a12],
+                     [c02, a01 * a20 - a00 * a21, a00 * a11 - a01 * a10]]) / det
 
 
 def _rotate_rows(j, yaw):
