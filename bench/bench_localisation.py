@@ -12,6 +12,12 @@ worlds/corridor_long.yaml (through a 20 m featureless corridor: along it, the lo
 growth against dead reckoning's over the stretch where the scan leaves the axis unobservable,
 the steps between consecutive estimates (in that stretch and over the whole run, where the
 axis is re-acquired) and how many estimates a re-acquired correction took to converge; :func:`tiago_nav_tools.testing.localisation.corridor_figures`).
+Both parts also score the published covariance (/amcl_pose's) against the truth: the NEES of
+the position, ``eᵀ Σ⁻¹ e`` with ``Σ`` its x-y block (2 degrees of freedom: mean 2 and 95 % of
+the scans within 5.99 when the covariance covers the error as it claims), and of the heading
+(``e² / σ²``, mean 1, 95 % within 3.84). The simulator's map is its world's own raster, so the
+localiser runs with ``map_sigma`` 0 (as sim.launch sets it).
+
 Writes bench/results/localisation.json.
 
 Usage: bench/bench_localisation.py [--seeds 5] [--only course|corridors]
@@ -29,12 +35,35 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
 
+CHI2_95 = {1: 3.841, 2: 5.991}      # the 95 % quantiles of chi-square with 1 and 2 degrees
+
+
+def nees_figures(runs):
+    """The NEES of the published covariance over the scans of ``runs``
+    (:class:`~tiago_nav_tools.testing.localisation.RouteResult` s): position (2 degrees of
+    freedom) mean, p95 and share within the 95 % ellipse; heading (1 degree) mean and share."""
+    err = np.concatenate([r.loc_err for r in runs])
+    cov = np.concatenate([r.covariance for r in runs])
+    xy = np.einsum('ni,nij,nj->n', err[:, :2], np.linalg.inv(cov[:, :2, :2]), err[:, :2])
+    yaw = err[:, 2] ** 2 / cov[:, 2, 2]
+    return {'nees_mean': float(np.mean(xy)), 'nees_p95': float(np.percentile(xy, 95)),
+            'nees_within_95_share': float(np.mean(xy <= CHI2_95[2])),
+            'nees_yaw_mean': float(np.mean(yaw)),
+            'nees_yaw_within_95_share': float(np.mean(yaw <= CHI2_95[1]))}
+
+
+def sim_config():
+    """The localiser's configuration in the simulator: its map is the world's own raster."""
+    from tiago_nav.localisation.localiser import LocaliserConfig
+    return LocaliserConfig(map_sigma=0.0)
+
+
 def summary(runs):
     """Pooled figures of :class:`tiago_nav_tools.testing.localisation.RouteResult` s."""
     cat = {k: np.concatenate([getattr(r, k) for r in runs])
            for k in ('loc_xy', 'loc_yaw', 'odo_xy', 'odo_yaw')}
     secs = [t for r in runs for t in r.seconds]
-    return {'scans': int(len(cat['loc_xy'])), 'registered': len(secs),
+    return {**nees_figures(runs), 'scans': int(len(cat['loc_xy'])), 'registered': len(secs),
             'rejected': int(sum(r.rejected for r in runs)),
             'localised_p95_m': float(np.percentile(cat['loc_xy'], 95)),
             'localised_max_m': float(cat['loc_xy'].max()),
@@ -83,26 +112,29 @@ def corridors(args, out):
     res = {}
     print('| world | seed | scans | featureless (m) | localised along growth | dead reckoning '
           'along growth | max step in it | max step, run | pending | converged in | '
-          'max error increase | max correction | p95 / max |')
-    print('|---|---|---|---|---|---|---|---|---|---|---|---|---|')
+          'max error increase | max correction | p95 / max | NEES x-y mean / within 95 % / '
+          'yaw mean |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|')
     for name, route in (('corridor_start', CORRIDOR_START_ROUTE),
                         ('corridor_long', CORRIDOR_LONG_ROUTE)):
         world = load_world(os.path.join(ROOT, 'worlds', name + '.yaml'))
         runs = []
         for seed in range(args.seeds):
             r = run_route(world, route=route, seed=seed, max_time=200.0,
-                          laser=LaserModel(laser_model='tiago'))
+                          laser=LaserModel(laser_model='tiago'), config=sim_config())
             f = corridor_figures(r)
+            f.update(nees_figures([r]))
             f['seed'] = seed
             runs.append(f)
             print('| %s | %d | %d | %.1f | %.3f m | %.3f m | %.3f m | %.3f m | %.3f m | %d | '
-                  '%.3f m | %.3f m | %.3f / %.3f m |' % (
+                  '%.3f m | %.3f m | %.3f / %.3f m | %.2f / %.0f %% / %.2f |' % (
                       name, seed, f['scans'], f.get('featureless_m', 0.0),
                       f.get('loc_along_growth_m', 0.0), f.get('odo_along_growth_m', 0.0),
                       f.get('max_step_featureless_m', 0.0), f['max_step_m'],
                       f['max_pending_m'], f['converge_estimates'],
                       f['max_error_increase_m'], f['max_correction_m'],
-                      f['localised_p95_m'], f['localised_max_m']), flush=True)
+                      f['localised_p95_m'], f['localised_max_m'], f['nees_mean'],
+                      100 * f['nees_within_95_share'], f['nees_yaw_mean']), flush=True)
         res[name] = {'route': [list(p) for p in route], 'runs': runs,
                      'worst': {k: max(r.get(k, 0.0) for r in runs)
                                for k in ('localised_p95_m', 'localised_max_m',
@@ -120,17 +152,21 @@ def course(args, out):
     world = load_world(os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml'))
     out.update({'world': world.name, 'seeds': args.seeds, 'lasers': {}})
     print('| laser | scans | registered | rejected | localised p95 / max | dead reckoning p95 | '
-          'update median |')
-    print('|---|---|---|---|---|---|---|')
+          'update median | NEES x-y mean / p95 / within 95 % | NEES yaw mean / within 95 % |')
+    print('|---|---|---|---|---|---|---|---|---|')
     for laser in ('ideal', 'tiago'):
-        s = summary([run_route(world, seed=seed, laser=LaserModel(laser_model=laser))
-                     for seed in range(args.seeds)])
+        s = summary([run_route(world, seed=seed, laser=LaserModel(laser_model=laser),
+                               config=sim_config()) for seed in range(args.seeds)])
         out['lasers'][laser] = s
         print('| %s | %d | %d | %d | %.1f cm / %.2f deg, max %.1f cm | %.1f cm / %.2f deg | '
-              '%.1f ms |' % (laser, s['scans'], s['registered'], s['rejected'],
+              '%.1f ms | %.2f / %.1f / %.1f %% | %.2f / %.1f %% |' % (
+                  laser, s['scans'], s['registered'], s['rejected'],
                              100 * s['localised_p95_m'], s['localised_p95_deg'],
                              100 * s['localised_max_m'], 100 * s['dead_reckoning_p95_m'],
-                             s['dead_reckoning_p95_deg'], s['update_median_ms'] or 0.0), flush=True)
+                             s['dead_reckoning_p95_deg'], s['update_median_ms'] or 0.0,
+                             s['nees_mean'], s['nees_p95'], 100 * s['nees_within_95_share'],
+                             s['nees_yaw_mean'], 100 * s['nees_yaw_within_95_share']),
+              flush=True)
 
 
 if __name__ == '__main__':

@@ -11,8 +11,10 @@ turned 90°; ``kidnap``: carried 3 m at 40 % of the log, the odometry silent; ``
 0.2 m of the reference for 3 scans in a row (from the start or the kidnap; targets 30, and 60
 for ``global``), how many of the scans before it the status said lost / degraded / OK, the scans
 the status said lost while the estimate was right (after convergence), the error p95 / max and
-the share of scans lost (> 0.3 m) after convergence, the mean NEES of the position
-(``eᵀ Σ⁻¹ e / 2``, 1 when the covariance covers the error as it claims), the CPU per scan.
+the share of scans lost (> 0.3 m) after convergence, the NEES of the published covariance
+after convergence (position ``eᵀ Σ⁻¹ e`` with ``Σ`` its x-y block, 2 degrees of freedom: mean 2
+and 95 % of the scans within 5.99 when the covariance covers the error as it claims; heading
+``e² / σ²``, 1 degree: mean 1, 95 % within 3.84), the CPU per scan.
 For ``global`` the convergence counts from the first scan at which the relocalisation was
 accepted (before it the estimate is the odometry's from the reference's first pose).
 
@@ -38,10 +40,13 @@ LOGS = ('intel', 'freiburg-079', 'aces')
 SCENARIOS = ('tracking', 'offset', 'kidnap', 'global')
 WITHIN = {'offset': 30, 'kidnap': 30, 'global': 60}
 BACK_M, LOST_M, IN_A_ROW = 0.2, 0.3, 3
+CHI2_95 = {1: 3.841, 2: 5.991}      # the 95 % quantiles of chi-square with 1 and 2 degrees
 
 
 def replay(grid, field, pyr, sc, name):
-    """Errors [m], position NEES, status levels and relocalising flags per scan, CPU [s]."""
+    """Errors [m], NEES ``(N, 2)`` (position, heading), status levels and relocalising flags
+    per scan, CPU [s]."""
+    from tiago_nav.geometry import wrap_angle
     from tiago_nav.localisation.recovery import RecoveringLocaliser
     loc = RecoveringLocaliser(grid, sc.start, odom=tuple(sc.odom[0]), field=field, pyramid=pyr)
     if name == 'global':
@@ -60,13 +65,15 @@ def replay(grid, field, pyr, sc, name):
             pose, cov = loc.follow(od)
         e = np.array(pose[:2]) - sc.log.poses[i, :2]
         errs.append(float(np.hypot(*e)))
+        eyaw = wrap_angle(pose[2] - sc.log.poses[i, 2])
         try:
-            nees.append(float(e @ np.linalg.solve(cov[:2, :2], e)) / 2.0)
+            nees.append((float(e @ np.linalg.solve(cov[:2, :2], e)),
+                         eyaw ** 2 / cov[2, 2] if cov[2, 2] > 0 else float('inf')))
         except np.linalg.LinAlgError:
-            nees.append(float('inf'))
+            nees.append((float('inf'), float('inf')))
         levels.append(loc.health.level)
         reloc.append(loc.relocalising)
-    return np.array(errs), np.array(nees), np.array(levels), np.array(reloc), \
+    return np.array(errs), np.array(nees).reshape(-1, 2), np.array(levels), np.array(reloc), \
         time.process_time() - t0
 
 
@@ -100,8 +107,11 @@ def figures(name, sc, errs, nees, levels, reloc, cpu):
         out.update({'p95_after_m': float(np.percentile(after, 95)),
                     'max_after_m': float(after.max()),
                     'lost_share_after': float(np.mean(after > LOST_M)),
-                    'nees_mean_after': float(np.mean(nees[conv:])),
-                    'nees_share_within_95': float(np.mean(nees[conv:] <= 5.991 / 2.0))})
+                    'nees_xy_mean_after': float(np.mean(nees[conv:, 0])),
+                    'nees_xy_p95_after': float(np.percentile(nees[conv:, 0], 95)),
+                    'nees_xy_within_95_share': float(np.mean(nees[conv:, 0] <= CHI2_95[2])),
+                    'nees_yaw_mean_after': float(np.mean(nees[conv:, 1])),
+                    'nees_yaw_within_95_share': float(np.mean(nees[conv:, 1] <= CHI2_95[1]))})
     return out
 
 
@@ -157,12 +167,13 @@ def main():
             out['runs'].append(f)
             write(out, args, meta)        # after every run: a long one keeps what is done
             print('%-13s %-8s back within 0.2 m after %s scans (limit %s); status before: %s; '
-                  'after: p95 %s m, lost %s, NEES %s; %.1f ms/scan'
+                  'after: p95 %s m, lost %s, NEES %s (2) / yaw %s (1); %.1f ms/scan'
                   % (name, sn, f['back_within_0_2_m_after_scans'], f['limit_scans'],
                      f['status_before_back'], '%.3f' % f['p95_after_m'] if 'p95_after_m' in f
                      else '-', '%.1f %%' % (100 * f['lost_share_after'])
                      if 'lost_share_after' in f else '-',
-                     '%.1f' % f['nees_mean_after'] if 'nees_mean_after' in f else '-',
+                     '%.2f' % f['nees_xy_mean_after'] if 'nees_xy_mean_after' in f else '-',
+                     '%.2f' % f['nees_yaw_mean_after'] if 'nees_yaw_mean_after' in f else '-',
                      f['cpu_ms_per_scan']), flush=True)
     write(out, args, meta)
     print('wrote %s' % os.path.relpath(args.out, ROOT))

@@ -252,7 +252,9 @@ ABOUT = {
         'corridor; bar: the error along it grows no faster than dead reckoning\'s, no step '
         'over 2 cm between consecutive estimates over the whole run, re-acquisition of the axis '
         'included, which the published estimate approaches by at most `max_correction_step` '
-        'per estimate).'),
+        'per estimate). Both score the published covariance: the NEES of the position '
+        '(`eᵀ Σ⁻¹ e`, mean 2 and 95 % of the scans within the 95 % ellipse when it is right) and '
+        'of the heading (mean 1), with `map_sigma` 0 (the map is the world\'s own raster).'),
     'localisation_real': (
         'Real laser data: the Radish building logs in `../shared/data/real/` (Intel Research '
         'Lab, Freiburg building 079, ACES; CARMEN format, SLAM-corrected poses as the reference; '
@@ -294,9 +296,9 @@ ABOUT = {
         'scans in a row (from the start or the kidnap; for `global` from the first scan at '
         'which the relocalisation was accepted), what `/diagnostics` said before (OK / '
         'degraded / lost scans), the scans said lost after it, the error p95 / max and the '
-        'share of scans lost (> 0.3 m) after it, the mean NEES of the position (1 when the '
-        'covariance covers the error as it claims) and the share within its 95 % ellipse, the '
-        'CPU per scan. Targets (issue 48): back within 30 scans of an offset start or a kidnap '
+        'share of scans lost (> 0.3 m) after it, the NEES of `/amcl_pose`\'s covariance after '
+        'it (position `eᵀ Σ⁻¹ e`: mean 2 and 95 % of the scans within the 95 % ellipse when the '
+        'covariance covers the error as it claims; heading: mean 1), the CPU per scan. Targets (issue 48): back within 30 scans of an offset start or a kidnap '
         'with lost reported meanwhile, 60 after `/global_localization`; never lost after.'),
     'soak': (
         'Many whole missions over `demo.launch`, one launch (a private master) per world, each '
@@ -683,11 +685,14 @@ def render_lockstep(d):
 def render_localisation(d):
     rows = [(laser, s.get('scans'), s.get('registered'), s.get('rejected'),
              s.get('localised_p95_m'), s.get('localised_p95_deg'), s.get('localised_max_m'),
-             s.get('dead_reckoning_p95_m'), s.get('update_median_ms'))
+             s.get('dead_reckoning_p95_m'), s.get('update_median_ms'),
+             _f(s.get('nees_mean'), '%.2f'), _pct(s.get('nees_within_95_share')),
+             _f(s.get('nees_yaw_mean'), '%.2f'))
             for laser, s in d.get('lasers', {}).items()]
     out = ['%s, %s seeds, drifting odometry.' % (d.get('world'), _f(d.get('seeds'))), ''] + \
         _table(('laser', 'scans', 'registered', 'rejected', 'p95 [m]', 'p95 [deg]', 'max [m]',
-                'dead reckoning p95 [m]', 'update median [ms]'), rows)
+                'dead reckoning p95 [m]', 'update median [ms]', 'NEES x-y mean (2)',
+                'within the 95 % ellipse', 'NEES yaw mean (1)'), rows)
     c = d.get('corridors')
     if c:
         rows = [(name, r.get('seed'), r.get('scans'), r.get('featureless_m'),
@@ -695,7 +700,8 @@ def render_localisation(d):
                  r.get('sigma_along_end_m'), r.get('max_step_featureless_m'),
                  r.get('max_step_m'), r.get('max_pending_m'), r.get('converge_estimates'),
                  r.get('max_error_increase_m'), r.get('max_correction_m'),
-                 r.get('localised_p95_m'), r.get('localised_max_m'))
+                 r.get('localised_p95_m'), r.get('localised_max_m'),
+                 _f(r.get('nees_mean'), '%.2f'), _f(r.get('nees_yaw_mean'), '%.2f'))
                 for name, w in c.get('worlds', {}).items() for r in w.get('runs', [])]
         out += ['', 'Corridors, %s laser, %s seeds: featureless = the longest unbroken stretch '
                 'where the scan left the axis unobservable; growth = change of the along-axis '
@@ -710,7 +716,8 @@ def render_localisation(d):
         out += _table(('world', 'seed', 'scans', 'featureless [m]', 'localised growth [m]',
                        'dead reckoning growth [m]', 'σ along at its end [m]',
                        'step in it [m]', 'step, run [m]', 'pending [m]',
-                       'converged in [estimates]', 'increase [m]', 'correction [m]', 'p95 [m]', 'max [m]'), rows)
+                       'converged in [estimates]', 'increase [m]', 'correction [m]', 'p95 [m]', 'max [m]',
+                       'NEES x-y mean (2)', 'NEES yaw mean (1)'), rows)
     return out
 
 
@@ -955,12 +962,14 @@ def render_localisation_recovery(d):
                      '%s / %s / %s' % (st.get('ok'), st.get('degraded'), st.get('lost')),
                      r.get('lost_reported_after_back_scans'), r.get('p95_after_m'),
                      r.get('max_after_m'), _pct(r.get('lost_share_after')),
-                     _f(r.get('nees_mean_after'), '%.1f'), _pct(r.get('nees_share_within_95')),
+                     _f(r.get('nees_xy_mean_after'), '%.2f'),
+                     _pct(r.get('nees_xy_within_95_share')),
+                     _f(r.get('nees_yaw_mean_after'), '%.2f'),
                      _f(r.get('cpu_ms_per_scan'), '%.1f')))
     return _table(('log', 'scenario', 'scans', 'back within 0.2 m after [scans]',
                    'status before: OK / degraded / lost [scans]', 'said lost after [scans]',
-                   'p95 after [m]', 'max after [m]', 'lost after', 'NEES mean',
-                   'within the 95 % ellipse', 'CPU per scan [ms]'), rows)
+                   'p95 after [m]', 'max after [m]', 'lost after', 'NEES x-y mean (2)',
+                   'within the 95 % ellipse', 'NEES yaw mean (1)', 'CPU per scan [ms]'), rows)
 
 
 RENDER = {'mission_cpu': render_mission_cpu, 'covariance': render_covariance, 'suites': render_suites, 'evaluate': render_evaluate, 'simulator': render_simulator, 'detection': render_detection,

@@ -36,7 +36,8 @@ The result gives ``map → odom`` (``pose_map ∘ inverse(pose_odom)``), what a 
 publishes on tf, and a 3 × 3 covariance of ``(x, y, yaw)`` for a PoseWithCovarianceStamped.
 """
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field as dataclass_field
+from functools import cached_property
 
 import numpy as np
 
@@ -106,6 +107,13 @@ class LocaliserConfig:
               'along unobservable directions grows by it', ge=0)
     odometry_sigma_yaw: float = param(
         0.03, '[rad/rad] std of the odometry\'s heading error per radian turned', ge=0)
+    map_sigma: float = param(
+        0.025, '[m] std of where the map puts the building\'s surfaces, beyond its raster, '
+               'shared by everything a scan sees (the map\'s local error: a map built by SLAM '
+               'from scans is locally consistent to about half a 0.05 m cell; 0 for a map '
+               'rasterised from the world itself, as the simulator\'s): the published '
+               'covariance adds it to the position, and it over the scan points\' RMS '
+               'distance to the heading (the registration cannot see it)', ge=0)
     max_correction_step: float = param(
         0.01, '[m] after a registration that left a position unobservable (a corridor\'s '
               'axis), a position correction (the axis seen again after a long stretch) moves '
@@ -456,14 +464,155 @@ def register_with_information(field, points, guess, config, sensor=(0.0, 0.0), a
         pose[:2] = refine_on_raster(field, points, pose)[0][:2]
         if weak.shape[1]:
             pose = _keep_weak(pose, anchor, strong, length)
-    r = field(transform_points(tuple(pose), points))[0]
+    r, gx, gy = field(transform_points(tuple(pose), points))
     w = 1.0 / (1.0 + (r / config.robust_scale) ** 2)
     dof = max(float(np.sum(w)) - 3.0, 1.0)
     sigma2 = max(float(np.sum(w * r ** 2)) / dof, (0.25 * field.grid.resolution) ** 2)
     normal = h - jtwj / scale ** 2 + jtwj / sigma2
     cov = b @ np.linalg.inv(b.T @ normal @ b) @ b.T if b.shape[1] else np.zeros((3, 3))
+    # what the localiser publishes: the same pose's covariance with the beams' shared errors
+    # (one surface's map error is every one of its points') counted
+    along = gx * (math.cos(pose[2]) * beams[:, 0] - math.sin(pose[2]) * beams[:, 1]) \
+        + gy * (math.sin(pose[2]) * beams[:, 0] + math.cos(pose[2]) * beams[:, 1])
+    w[along > BACKFACE_COS] = 0.0
+    scan = (points, normals, has_normal, r, w, pose[2], b, sensor, field.grid.resolution)
     return ((float(pose[0]), float(pose[1]), float(pose[2])), cov, r,
-            Information(strong, weak, vals, length))
+            Information(strong, weak, vals, length, scan))
+
+
+SEGMENT_COS = 0.9   # neighbouring scan points whose normals differ by more than ~25 deg are
+                    # not on one surface (a corner between them)
+SEGMENT_MIN_WEIGHT = 3.0   # a surface's mean residual tells its offset once it has this much
+                           # weight (points) behind it
+
+
+def scan_segments(points, normals, has_normal, max_gap=NORMAL_GAP):
+    """Which surface each scan point lies on: runs of consecutive points (scan order) with a
+    normal (:func:`scan_normals`), no more than ``max_gap`` [m] apart, whose normals agree
+    within :data:`SEGMENT_COS`. Returns ``(N,)`` int labels (points without a normal get a label
+    of their own)."""
+    pts = np.asarray(points, dtype=float)
+    n = len(pts)
+    if n == 0:
+        return np.zeros(0, dtype=int)
+    gap = np.hypot(*(pts[1:] - pts[:-1]).T) > max_gap
+    turn = np.abs(np.sum(normals[1:] * normals[:-1], axis=1)) < SEGMENT_COS
+    cut = gap | turn | ~has_normal[1:] | ~has_normal[:-1]
+    return np.concatenate(([0], np.cumsum(cut)))
+
+
+def scan_covariance(points, normals, has_normal, residuals, weights, yaw, basis, sensor,
+                    resolution):
+    """The covariance [m², m·rad, rad²] of a registered pose ``(x, y, yaw)`` with the scan's
+    errors as they are: not independent per beam.
+
+    A point's residual (its signed distance to the map, along the surface's normal) is the sum
+    of an error of its own (range noise, surface roughness) and one its whole surface shares:
+    where the map put that surface, known only to within its raster cell (a straight surface
+    lies anywhere in its cell, uniformly: ``resolution² / 12``) and to within how well the map
+    and the surface agree (a map built from scans, a wall moved since). The shared part does
+    not average out over the surface's points: a surface bounds the pose to its offset whatever
+    its number of points. The pose error of the weighted least squares is ``H⁻¹ Jᵀ W e`` (``H
+    = Jᵀ W J``), so its covariance is the sandwich ``H⁻¹ Jᵀ W C W J H⁻¹`` with ``C = σ_w² I +
+    σ_s² Σ_s 1_s 1_sᵀ``:
+
+    - the surfaces ``s`` are :func:`scan_segments`; ``J`` has the rows ``(n, n · ∂q/∂yaw)`` of
+      the points' own normals (:func:`normal_jacobian`), which hold only across a surface;
+    - ``σ_w²``: the weighted variance of the residuals about their surface's mean (measured on
+      this scan, ``Σ w (r - m_s)² / (Σ w - surfaces)``), at least ``(resolution / 4)²``
+      (the field's own interpolation between cell centres);
+    - ``σ_s²``: the surfaces' mean residuals' spread (those with at least
+      :data:`SEGMENT_MIN_WEIGHT` of weight, less their own noise ``σ_w² / Σ w``, over the
+      surfaces less the 3 the pose absorbs), at least ``resolution² / 12``.
+
+    Both are measured per scan, so a blurred map, a cluttered room or a noisier laser widen the
+    covariance by what they do to this scan.
+
+    Args:
+        points: ``(N, 2)`` scan points [m] in base_footprint (scan order).
+        normals, has_normal: their :func:`scan_normals`.
+        residuals: ``(N,)`` [m] signed distances to the map at the pose.
+        weights: ``(N,)`` the points' weights in the registration (0: not used).
+        yaw: [rad] the pose's heading.
+        basis: ``(3, k)`` directions of ``(x, y, yaw)`` the registration corrected (the
+            covariance is zero along the others).
+        sensor: ``(x, y)`` [m] of the laser in base_footprint (the normals are turned to face
+            it).
+        resolution: [m] the map's cell size.
+
+    Returns:
+        ``(3, 3)`` covariance in map.
+    """
+    basis = np.asarray(basis, dtype=float).reshape(3, -1)
+    if not basis.shape[1]:
+        return np.zeros((3, 3))
+    pts = np.asarray(points, dtype=float)
+    n = np.array(normals, dtype=float)
+    flip = np.sum(n * (np.asarray(sensor, dtype=float) - pts), axis=1) < 0
+    n[flip] *= -1.0
+    w = np.where(has_normal, np.asarray(weights, dtype=float), 0.0)
+    r = np.asarray(residuals, dtype=float)
+    seg = scan_segments(pts, n, has_normal)
+    if not len(seg):
+        return np.zeros((3, 3))
+    # the labels rise along the scan: each surface is one run, summed at once
+    starts = np.flatnonzero(np.r_[True, seg[1:] != seg[:-1]])
+    j = _rotate_rows(normal_jacobian(pts, n), yaw)
+    jw = j * w[:, None]
+    # each point's position along its surface [m] (from the surface's middle)
+    along = pts[:, 1] * n[:, 0] - pts[:, 0] * n[:, 1]
+    sums = np.add.reduceat(np.column_stack((w, w * r, jw, along)), starts, axis=0)
+    ws, g = sums[:, 0], sums[:, 2:5]
+    counts = np.diff(np.r_[starts, len(seg)])
+    along = along - (sums[:, 5] / counts)[seg]
+    length = np.maximum(np.maximum.reduceat(along, starts) - np.minimum.reduceat(along, starts),
+                        resolution)
+    tilt = np.add.reduceat(jw * along[:, None], starts, axis=0)
+    mean = sums[:, 1] / np.maximum(ws, 1e-12)
+    surfaces = int(np.count_nonzero(ws > 0))
+    within = float(np.sum(w * (r - mean[seg]) ** 2)) / max(float(np.sum(w)) - surfaces, 1.0)
+    sw2 = max(within, (0.25 * resolution) ** 2)
+    big = ws >= SEGMENT_MIN_WEIGHT
+    shared = float(np.sum(mean[big] ** 2 - sw2 / ws[big])) / max(int(np.sum(big)) - 3, 1)
+    ss2 = max(shared, resolution ** 2 / 12.0)
+    # a straight surface lies anywhere within its raster cell: its offset uniform across the
+    # cell (resolution² / 12: the grid aligned with the surface, every point of it shifted
+    # alike), and its direction as far as its two ends can move within their cells
+    # independently (a tilt of variance 2 (resolution² / 12) / L² over its length L)
+    tilt = tilt * (resolution / np.sqrt(6.0) / length)[:, None]
+    h = jw.T @ j
+    m = sw2 * (jw.T @ jw) + ss2 * (g.T @ g) + tilt.T @ tilt
+    hinv = _inverse_small(basis.T @ h @ basis)
+    if hinv is None:
+        return np.zeros((3, 3))
+    return basis @ (hinv @ (basis.T @ m @ basis) @ hinv) @ basis.T
+
+
+def _inverse_small(a):
+    """The inverse of a 1 × 1, 2 × 2 or 3 × 3 matrix by its adjugate (a LAPACK call costs
+    more than the arithmetic at this size), or None when it is singular."""
+    n = a.shape[0]
+    if n == 1:
+        return None if a[0, 0] == 0 else np.array([[1.0 / a[0, 0]]])
+    if n == 2:
+        det = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+        return None if det == 0 else np.array([[a[1, 1], -a[0, 1]], [-a[1, 0], a[0, 0]]]) / det
+    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = a.tolist()
+    c00, c01, c02 = a11 * a22 - a12 * a21, a12 * a20 - a10 * a22, a10 * a21 - a11 * a20
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    scale = max(abs(v) for v in (a00, a01, a02, a10, a11, a12, a20, a21, a22)) ** 3
+    if not abs(det) > 1e-12 * scale:
+        return None
+    return np.array([[c00, a02 * a21 - a01 * a22, a01 * a12 - a02 * a11],
+                     [c01, a00 * a22 - a02 * a20, a02 * a10 - a00 * a12],
+                     [c02, a01 * a20 - a00 * a21, a00 * a11 - a01 * a10]]) / det
+
+
+def _rotate_rows(j, yaw):
+    """Rows ``(nx, ny, t)`` of a Jacobian at heading 0 turned to heading ``yaw`` (the normal
+    turns, the heading's column does not: :func:`normal_jacobian`)."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.column_stack((c * j[:, 0] - s * j[:, 1], s * j[:, 0] + c * j[:, 1], j[:, 2]))
 
 
 def _observable_everywhere(info, moment, total, ratio):
@@ -510,11 +659,21 @@ def _scales(config):
 class Information:
     """How a registration's scan constrains the pose (:func:`observable_directions`):
     orthonormal bases ``strong`` ``(3, k)`` and ``weak`` ``(3, 3 - k)`` in the scaled space
-    ``(x, y, length · yaw)`` [m], the scaled eigenvalues (ascending) and ``length`` [m]."""
+    ``(x, y, length · yaw)`` [m], the scaled eigenvalues (ascending) and ``length`` [m];
+    ``scan``: the arguments of :func:`scan_covariance` for the registered pose (None: none)."""
     strong: np.ndarray
     weak: np.ndarray
     eigenvalues: np.ndarray
     length: float
+    scan: tuple = dataclass_field(default=None, repr=False, compare=False)
+
+    @cached_property
+    def covariance(self):
+        """``(3, 3)`` [m², m·rad, rad²] of the registered pose from the scan with its points'
+        shared errors counted (:func:`scan_covariance`; zero along ``weak``), what the
+        localiser publishes for the corrected directions; computed when first asked for (a
+        search registers several start poses and keeps one)."""
+        return np.zeros((3, 3)) if self.scan is None else scan_covariance(*self.scan)
 
     @property
     def degenerate(self):
@@ -720,9 +879,15 @@ class Localiser:
 
     def published_covariance(self, covariance):
         """``covariance`` (the registered pose's) widened by the pending offset ``o`` (``+ o
-        oᵀ`` in x, y): the published estimate is that much further from the best one."""
+        oᵀ`` in x, y): the published estimate is that much further from the best one; and by
+        the map's own error, ``map_sigma²`` in x and y (the same for every scan of a place, so
+        it is no part of the filter's state: it neither grows with the odometry nor widens the
+        gate)."""
         out = np.array(covariance, dtype=float)
-        out[:2, :2] += np.outer(self._offset, self._offset)
+        out[:2, :2] += np.outer(self._offset, self._offset) \
+            + np.eye(2) * self.config.map_sigma ** 2
+        if self.information is not None:
+            out[2, 2] += (self.config.map_sigma / self.information.length) ** 2
         return out
 
     def _step_pending(self):
@@ -936,7 +1101,9 @@ class Localiser:
                 reason = 'correction of %.2f m / %.1f deg is implausible' % (jump, math.degrees(turn))
         if reason:
             self.pose = predicted
-            self.covariance = self.covariance + UNCORRECTED_GROWTH
+            # the prediction's covariance (odometry since the last correction included), and
+            # what a scan that does not fit may say about the pose
+            self.covariance = predicted_cov + UNCORRECTED_GROWTH
         else:
             # along the unobservable directions the pose is the prediction, and so is its
             # uncertainty: the prediction's covariance projected on them
@@ -955,7 +1122,7 @@ class Localiser:
                 self._offset = self._offset - np.array([pose[0] - predicted[0],
                                                         pose[1] - predicted[1]])
             self.pose = pose
-            self.covariance = cov + weak @ predicted_cov @ weak.T
+            self.covariance = info.covariance + weak @ predicted_cov @ weak.T
             self._searching = False
             if info.degenerate:
                 self._axes = weak_axes(info)

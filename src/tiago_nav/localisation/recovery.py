@@ -222,7 +222,8 @@ class RecoveringLocaliser:
                                      self.health.scans)
                 m2o = self.tracker.map_to_odom
                 return Update(won['pose'], m2o, self._published_covariance(
-                    self.tracker.covariance), pose, True, 0, len(pts), '', '', won['pose'], 0.0)
+                    self.tracker.published_covariance(self.tracker.covariance)), pose, True, 0,
+                    len(pts), '', '', won['pose'], 0.0)
             best = max((np.mean(h['fits'][-VERIFY_SCANS:]) for h in r['hyps']), default=0.0)
             reason = 'relocalising: %d hypotheses, best fit %.0f %%' % (len(r['hyps']),
                                                                           100 * best)

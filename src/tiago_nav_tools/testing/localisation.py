@@ -66,7 +66,8 @@ class RouteResult:
     map, ``sigma`` ``(N, 3)`` the standard deviations of the localiser's covariance, and
     ``weak`` ``(N,)`` whether the last registration found a direction unobservable, ``pending``
     ``(N,)`` [m] how far the published estimate still was from the registered pose (a
-    re-acquired direction's correction converging, ``max_correction_step`` per estimate)."""
+    re-acquired direction's correction converging, ``max_correction_step`` per estimate),
+    ``covariance`` ``(N, 3, 3)`` the published covariance of the estimate (/amcl_pose's)."""
     loc_xy: np.ndarray
     loc_yaw: np.ndarray
     odo_xy: np.ndarray
@@ -79,6 +80,7 @@ class RouteResult:
     sigma: np.ndarray = None
     weak: np.ndarray = None
     pending: np.ndarray = None
+    covariance: np.ndarray = None
 
     def p95(self, what):
         return float(np.percentile(getattr(self, what), 95))
@@ -113,7 +115,7 @@ def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=L
         start = tuple(a + b for a, b in zip(sim.pose, initial_error))
         loc = Localiser(grid, start, config)
         errs = {k: [] for k in ('lx', 'ly', 'ox', 'oy')}
-        rows = {k: [] for k in ('truth', 'loc', 'odo', 'sigma', 'weak', 'pending')}
+        rows = {k: [] for k in ('truth', 'loc', 'odo', 'sigma', 'weak', 'pending', 'cov')}
         secs, rejected, i = [], 0, 0
         while i < len(route) and sim.time < max_time:
             pose = sim.pose
@@ -135,9 +137,9 @@ def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=L
                 up = loc.update(odom, pts, (las.offset, 0.0))
                 secs.append(time.thread_time() - t0)
                 rejected += not up.corrected
-                estimate = up.pose
+                estimate, cov = up.pose, up.covariance
             else:
-                estimate, _ = loc.follow(odom)      # as the node does between registrations
+                estimate, cov = loc.follow(odom)    # as the node does between registrations
             truth = sim.pose
             dead = compose(sim.start_pose, odom)
             for key, est in (('l', estimate), ('o', dead)):
@@ -149,13 +151,14 @@ def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=L
             rows['sigma'].append(tuple(np.sqrt(np.maximum(np.diag(loc.covariance), 0.0))))
             rows['weak'].append(loc.information is not None and loc.information.degenerate)
             rows['pending'].append(float(np.hypot(*loc.pending)))
+            rows['cov'].append(np.asarray(cov, dtype=float))
         return RouteResult(np.array(errs['lx']), np.array(errs['ly']), np.array(errs['ox']),
                            np.array(errs['oy']), secs, rejected,
                            np.array(rows['truth']).reshape(-1, 3),
                            np.array(rows['loc']).reshape(-1, 3),
                            np.array(rows['odo']).reshape(-1, 3),
                            np.array(rows['sigma']).reshape(-1, 3), np.array(rows['weak'], dtype=bool),
-                           np.array(rows['pending']))
+                           np.array(rows['pending']), np.array(rows['cov']).reshape(-1, 3, 3))
     finally:
         sim.close()
 
