@@ -181,10 +181,11 @@ class DistanceField:
         rows, cols = g.data.shape
         # continuous (column, row) of the points, cell centres at integers, clamped to the
         # grid (the border's value beyond it)
-        fc = np.clip((np.asarray(x, dtype=float) - g.origin[0]) / g.resolution - 0.5,
-                     0.0, cols - 1)
-        fr = np.clip((np.asarray(y, dtype=float) - g.origin[1]) / g.resolution - 0.5,
-                     0.0, rows - 1)
+        # (np.minimum / np.maximum: np.clip costs tens of microseconds a call on older numpy)
+        fc = np.minimum(np.maximum((np.asarray(x, dtype=float) - g.origin[0]) / g.resolution
+                                   - 0.5, 0.0), cols - 1)
+        fr = np.minimum(np.maximum((np.asarray(y, dtype=float) - g.origin[1]) / g.resolution
+                                   - 0.5, 0.0), rows - 1)
         c0 = np.minimum(fc.astype(np.intp), max(cols - 2, 0))
         r0 = np.minimum(fr.astype(np.intp), max(rows - 2, 0))
         tc = (fc - c0)[:, None]

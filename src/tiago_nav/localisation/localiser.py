@@ -418,9 +418,31 @@ def register_with_information(field, points, guess, config, sensor=(0.0, 0.0), a
     info_prior = np.diag([1.0 / config.prior_sigma_xy ** 2] * 2
                          + [1.0 / math.radians(config.prior_sigma_yaw_deg) ** 2])
     scales = _scales(config)
-    for it in range(config.iterations):
+    last = None         # (pose, r, back, step) before the last step
+    for it in range(config.iterations + 1):
         scale = scales[min(it, len(scales) - 1)]
         r, gx, gy, back = _sample_one(field, pose, points, beams)
+        if last is not None:
+            # a step is kept only if it lowers the objective: the scan's misfit (the truncated
+            # loss of score(), a back-face point at the cap) plus the prior's. The Gauss-Newton
+            # step gives the back-face points no weight, which alone would let it slide the
+            # scan behind surfaces, where they cost nothing; a step that does not lower it is
+            # halved, and after HALVINGS the pose stays where it was
+            before = _objective(last[1], last[2], scale, last[0], prior, info_prior)
+            for _ in range(HALVINGS):
+                if _objective(r, back, scale, pose, prior, info_prior) <= before:
+                    break
+                step = 0.5 * last[3]
+                last = last[:3] + (step,)
+                pose = last[0] + step
+                pose[2] = wrap_angle(pose[2])
+                r, gx, gy, back = _sample_one(field, pose, points, beams)
+            else:
+                if _objective(r, back, scale, pose, prior, info_prior) > before:
+                    pose = last[0]
+                    break
+        if it == config.iterations:
+            break
         c, s = math.cos(pose[2]), math.sin(pose[2])
         # d q / d yaw = R'(yaw) p
         dqx = -s * points[:, 0] - c * points[:, 1]
@@ -453,7 +475,8 @@ def register_with_information(field, points, guess, config, sensor=(0.0, 0.0), a
             # the step within the observable subspace: pose = pose + B a, B = S⁻¹ strong
             b = strong / np.array([1.0, 1.0, length])[:, None]
             step = b @ np.linalg.solve(b.T @ h @ b, b.T @ g) if b.shape[1] else np.zeros(3)
-        pose += step
+        last = (pose.copy(), r, back, step)
+        pose = pose + step
         pose[2] = wrap_angle(pose[2])
         if abs(step[0]) + abs(step[1]) < 1e-4 and abs(step[2]) < 1e-4 and scale == scales[-1]:
             break
@@ -613,6 +636,24 @@ def _rotate_rows(j, yaw):
     turns, the heading's column does not: :func:`normal_jacobian`)."""
     c, s = math.cos(yaw), math.sin(yaw)
     return np.column_stack((c * j[:, 0] - s * j[:, 1], s * j[:, 0] + c * j[:, 1], j[:, 2]))
+
+
+HALVINGS = 3     # a registration step that raises the objective is halved at most this often
+
+
+def _objective(r, back, scale, pose, prior, info_prior):
+    """What a registration step must lower: the scan's misfit at the residuals ``r`` [m] and
+    back-face flags ``back`` (:func:`score`'s truncated Cauchy loss at ``scale``) plus the
+    prior's ``dpᵀ P dp`` (``dp`` from ``pose`` to ``prior``), in the units of ``2 ×`` the
+    negative log-likelihood the Gauss-Newton step approximates."""
+    rho = np.minimum(np.log1p((r / scale) ** 2), _CAP)
+    rho[back] = _CAP
+    dp = prior - pose
+    dp[2] = wrap_angle(dp[2])
+    return float(rho.sum()) + float(dp @ info_prior @ dp)
+
+
+_CAP = math.log1p(9.0)      # the truncated loss's cap (at 3 scales)
 
 
 def _observable_everywhere(info, moment, total, ratio):

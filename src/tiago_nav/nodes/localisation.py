@@ -192,6 +192,8 @@ class LocalisationNode:
         self.frame = (0.0, 0.0, 0.0)    # the grid's frame in map (a rotated map origin)
         self.skipped = collections.Counter()    # scans skipped, by reason
         self.sent = collections.deque(maxlen=64)    # recent stamps sent (tf refuses repeats)
+        self.sent_ns = set()        # the same, in nanoseconds (a repeat found without comparing
+                                    # rospy.Time objects one by one at each send)
         self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
         self.listener = tf2_ros.TransformListener(self.tf)
         # latched: a node that starts while simulated time stands still (the simulator waits
@@ -418,10 +420,15 @@ class LocalisationNode:
         stamps = ([stamp] if also_now else []) + [stamp + rospy.Duration(self.p.transform_tolerance)]
         with self.lock:
             m2o = self.map_to_odom
-            stamps = [t for t in stamps if t not in self.sent]     # tf refuses a repeated stamp
+            # tf refuses a repeated stamp
+            stamps = [t for t in stamps if t.to_nsec() not in self.sent_ns]
             if m2o is None or not stamps:
                 return
-            self.sent.extend(stamps)
+            for t in stamps:
+                if len(self.sent) == self.sent.maxlen:
+                    self.sent_ns.discard(self.sent[0].to_nsec())
+                self.sent.append(t)
+                self.sent_ns.add(t.to_nsec())
         self.pub_tf.publish(TFMessage([transform_stamped(m2o, self.p.map_frame, self.p.odom_frame, t)
                                        for t in stamps]))
 
