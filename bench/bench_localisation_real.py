@@ -84,6 +84,13 @@ def score(prep, run, scenario):
         s['back_within_0_2_m_after_scans'] = rec
         s['back_within_limit'] = rec is not None and rec <= WITHIN_SCANS[scenario]
         s['limit_scans'] = WITHIN_SCANS[scenario]
+        # what the node's /diagnostics said from the start or the kidnap until it was back
+        d = np.array([r[:2] for r in run.get('diagnostics') or []], dtype=float).reshape(-1, 2)
+        t1 = t[min(start + rec, len(t) - 1)] if rec is not None else t[-1]
+        during = d[(d[:, 0] >= t[start] - 1e-6) & (d[:, 0] <= t1 + 1e-6), 1]
+        s['lost_reported_before_back'] = bool(np.any(during >= 2)) if len(d) else None
+    skipped = [r[2] for r in run.get('diagnostics') or [] if r[2] is not None]
+    s['skipped_scans'] = skipped[-1] if skipped else None
     return s, est
 
 
