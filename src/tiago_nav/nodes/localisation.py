@@ -10,7 +10,9 @@ publishes tf ``map → odom`` (on ``tf_topic``, ``/tf`` by default) and ``/amcl_
 Scans: any beam count and angular range (REP 117 values). Outside lockstep they wait in a
 queue of ``scan_queue_size`` and are processed in order by one thread, so none is lost while a
 search runs; when the queue is full the oldest is skipped. Every skipped scan (queue full, no
-map yet, no odometry tf at its stamp) is counted and logged with the counts so far. The map may
+map yet, no odometry tf at its stamp) is counted and logged with the counts so far, and the
+counts go on ``/diagnostics`` (sent every ``diagnostic_period`` and at once when the state
+changes, as diagnostic_updater does). The map may
 come after the scans (those before it are skipped) and be replaced; its origin may be rotated
 (MapMetaData's origin with a yaw): the localiser then works in the grid's own frame and the
 node turns what it takes in and gives out between that frame and ``map``.
