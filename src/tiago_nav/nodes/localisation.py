@@ -65,9 +65,6 @@ from tiago_nav.sim.world import WorldError
 REPUBLISH_OFFSET = rospy.Duration(0, 100000)   # 0.1 ms
 REPUBLISH_NAP = 0.02    # [s wall] at most this late a re-send of map -> odom (outside lockstep)
 
-# [s] of tf history kept (see LocalisationNode.__init__)
-TF_CACHE = 120.0
-
 # registrations in a row observing every direction before the node logs that the geometry
 # recovered from a degenerate one
 RECOVERED_AFTER = 3
@@ -204,9 +201,7 @@ class LocalisationNode:
         self.frame = (0.0, 0.0, 0.0)    # the grid's frame in map (a rotated map origin)
         self.skipped = collections.Counter()    # scans skipped, by reason
         self.sent = collections.deque(maxlen=64)    # recent stamps sent (tf refuses repeats)
-        # long enough for the odometry of every scan the queue can hold (30 scans of a laser
-        # as slow as one scan per 3 s): a scan that waited out a search is still taken in
-        self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(TF_CACHE))
+        self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
         self.listener = tf2_ros.TransformListener(self.tf)
         # latched: a node that starts while simulated time stands still (the simulator waits
         # for work or for everyone to join) still gets map -> odom
