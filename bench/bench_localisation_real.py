@@ -19,7 +19,10 @@ Scenarios: ``tracking`` (started at the reference's first pose), ``offset`` (sta
 its left and turned 90°), ``kidnap`` (carried 3 m in one step at 40 % of the log, the
 odometry reporting no motion), ``global`` (``/global_localization`` called before the bag
 plays; "not offered" when the node has no such service). Judged: back within 0.2 m for 3
-scans in a row within 30 scans of the start or the kidnap, 60 after ``/global_localization``.
+scans in a row within 30 scans of the start or the kidnap, 60 after ``/global_localization``
+(counted from the first scan at which the node's ``/diagnostics`` no longer says lost: before,
+its estimate is the odometry from the reference's first pose); whether ``/diagnostics`` said
+lost meanwhile, and the scans the node says it skipped.
 
 ``--amcl-setup PATH/devel/setup.bash``: also ROS's amcl (ros-planning/navigation, built by
 the user against the platform's ROS 1) on the same bags, with its defaults and with the tuned
@@ -79,11 +82,27 @@ def score(prep, run, scenario):
         # the covariance the node claimed: its position sigma at the scans it published
         s['sigma_xy_median_m'] = float(np.median(np.sqrt(np.maximum(e[:, 4] + e[:, 5], 0))))
     start = prep[scenario]['event'] if scenario == 'kidnap' else 0
+    d = np.array([r[:2] for r in run.get('diagnostics') or []], dtype=float).reshape(-1, 2)
     if scenario in WITHIN_SCANS:
-        rec = scoring.recovery(np.nan_to_num(err, nan=np.inf), start)
+        first = start
+        if scenario == 'global':
+            # until the node accepts a place, its estimate is the odometry from where it was
+            # started (the reference's first pose): counted from the first scan at which its
+            # /diagnostics no longer says lost, as the library replay counts
+            ok = d[d[:, 1] < 2, 0]
+            first = len(t) if not len(ok) else int(np.searchsorted(t, ok[0] - 1e-6))
+        rec = scoring.recovery(np.nan_to_num(err, nan=np.inf), first) \
+            if first < len(t) else None
+        rec = None if rec is None else rec + first - start
         s['back_within_0_2_m_after_scans'] = rec
         s['back_within_limit'] = rec is not None and rec <= WITHIN_SCANS[scenario]
         s['limit_scans'] = WITHIN_SCANS[scenario]
+        # what the node's /diagnostics said from the start or the kidnap until it was back
+        t1 = t[min(start + rec, len(t) - 1)] if rec is not None else t[-1]
+        during = d[(d[:, 0] >= t[start] - 1e-6) & (d[:, 0] <= t1 + 1e-6), 1]
+        s['lost_reported_before_back'] = bool(np.any(during >= 2)) if len(d) else None
+    skipped = [r[2] for r in run.get('diagnostics') or [] if r[2] is not None]
+    s['skipped_scans'] = skipped[-1] if skipped else None
     return s, est
 
 

@@ -940,13 +940,27 @@ def render_localisation_real(d):
                      r.get('median_m'), r.get('p95_m'), r.get('max_m'), r.get('yaw_p95_deg'),
                      _pct(r.get('lost_time_share')), recover, back,
                      _f(r.get('cpu_ms_per_scan'), '%.1f'), _f(r.get('peak_rss_mb'), '%.0f'),
-                     r.get('sigma_xy_median_m'), 'yes' if r.get('diagnostics_published') else 'no'))
+                     r.get('sigma_xy_median_m'), _diagnostics_said(r)))
     out += [''] + _table(('log', 'scenario', 'localiser', 'scans with an estimate', 'RMS [m]',
                           'median [m]', 'p95 [m]', 'max [m]', 'yaw p95 [deg]', 'time lost',
                           'time to recover [s]', 'back within 0.2 m after [scans]',
                           'CPU per scan [ms]', 'peak RSS [MB]', 'σ claimed, median [m]',
-                          '/diagnostics'), rows)
+                          '/diagnostics (lost said before back; scans skipped)'), rows)
     return out
+
+
+def _diagnostics_said(run):
+    """The /diagnostics cell of a localisation_real run: published or not, whether an ERROR
+    status came between the start (or the kidnap) and the estimate back within 0.2 m, and the
+    scans the node said it skipped."""
+    if not run.get('diagnostics_published'):
+        return 'no'
+    parts = []
+    if run.get('lost_reported_before_back') is not None:
+        parts.append('lost said: %s' % ('yes' if run['lost_reported_before_back'] else 'no'))
+    if run.get('skipped_scans') is not None:
+        parts.append('skipped %d' % run['skipped_scans'])
+    return 'yes' + ('; ' + ', '.join(parts) if parts else '')
 
 
 def render_localisation_recovery(d):

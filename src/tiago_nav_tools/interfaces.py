@@ -291,8 +291,9 @@ NODES = (
              'the estimated pose of `~base_frame` in `~map_frame`; its covariance widened '
              'while the fit is degraded, the searched region\'s while lost'),
             ('/diagnostics', 'diagnostic_msgs/DiagnosticArray',
-             'at every scan: OK (tracking) / WARN (degraded) / ERROR (lost) with the reason '
-             'and key values'),
+             'every `~diagnostic_period` and at once when the level changes: OK (tracking) / '
+             'WARN (degraded) / ERROR (lost) with the reason and key values (the scans skipped '
+             'so far among them)'),
             ('{state_topic}', 'std_msgs/String',
              'latched: `ok`, `degraded` or `lost`, when it changes'),
             _ACK,

@@ -82,3 +82,35 @@ def test_degenerate_geometry_is_logged_once_and_its_recovery_after_three_registr
                                '0 deg is unobservable')
     assert lines[1] == 'scan geometry constrains every direction again at (%.2f, 0.00)' % (
         0.1 * (25 + RECOVERED_AFTER - 1))
+
+
+def test_diagnostics_at_the_period_and_at_once_when_the_state_changes():
+    import collections
+    import threading
+    import types
+    from tiago_nav.localisation.health import ERROR, OK, WARN, Health
+    from tiago_nav.nodes.localisation import LocalisationNode
+
+    sent, states = [], []
+    node = types.SimpleNamespace(
+        p=types.SimpleNamespace(diagnostic_period=1.0, map_frame='map'), diag=None,
+        diag_lock=threading.Lock(), skipped=collections.Counter({'queue full': 2}), state=None,
+        pub_state=types.SimpleNamespace(publish=lambda m: states.append(m.data)))
+    node._send_diagnostics = lambda stamp, st: sent.append((stamp.to_sec(), st.level, st))
+    levels = [OK] * 9 + [WARN] + [ERROR] * 3 + [OK] * 6    # a scan every 0.25 s
+    for k, level in enumerate(levels):
+        LocalisationNode.publish_health(node, rospy.Time(100.0 + 0.25 * k),
+                                        Health(level, 'x', 0.9, 0, 3), (1.0, 2.0, 0.0),
+                                        np.eye(3) * 0.01, False)
+    # the first, one a second, and each change at its scan
+    assert [(t, lv) for t, lv, _ in sent] == [
+        (100.0, OK), (101.0, OK), (102.0, OK), (102.25, WARN), (102.5, ERROR), (103.25, OK),
+        (104.25, OK)]
+    assert states == ['ok', 'degraded', 'lost', 'ok']
+    values = {kv.key: kv.value for kv in sent[-1][2].values}
+    assert values['skipped scans'] == '2' and values['skipped scans (queue full)'] == '2'
+    # the laser silent: the last status again once a period has gone by, not before
+    LocalisationNode.diagnostics_heartbeat(node, rospy.Time(104.9))
+    assert len(sent) == 7
+    LocalisationNode.diagnostics_heartbeat(node, rospy.Time(105.25))
+    assert len(sent) == 8 and sent[-1][:2] == (105.25, OK)

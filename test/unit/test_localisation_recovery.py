@@ -191,3 +191,32 @@ def test_symmetric_corridor_never_accepts_a_look_alike():
 def test_monitor_rejects_bad_settings(bad):
     with pytest.raises(ValueError):
         FitMonitor(**bad)
+
+
+def test_a_degraded_estimate_is_judged_over_scans_of_time_not_of_motion():
+    from tiago_nav.localisation.health import DEGRADED_LIMIT
+    grid = room_map()
+    # the room as the laser sees it: things the map does not have hide most of the walls in
+    # front of the robot, so about 60 % of the points are off the map
+    world = GridMap(grid.data.copy(), RES, (0.0, 0.0))
+
+    def box(x0, y0, x1, y1):
+        world.data[int(y0 / RES):int(math.ceil(y1 / RES)),
+                   int(x0 / RES):int(math.ceil(x1 / RES))] = 100
+    box(9.8, 5.0, 10.0, 9.0)
+    box(7.0, 5.8, 9.5, 6.0)
+    box(8.2, 9.0, 10.0, 9.2)
+    box(8.2, 6.4, 9.8, 6.6)
+    # creeping: 1 cm a scan, far below the distance between registrations
+    truth = path((8.0, 7.5, 0.0), DEGRADED_LIMIT + 4, step=0.01, turn=0.0)
+    loc = RecoveringLocaliser(grid, truth[0], odom=(0.0, 0.0, 0.0))
+    levels = []
+    for p in truth:
+        odom = compose(inverse(truth[0]), p)
+        if loc.due(odom):
+            loc.update(odom, loc.scan_points(*_as_scan(scan(world, p))), SENSOR)
+        else:
+            loc.follow(odom)
+        levels.append(loc.health.level)
+    assert levels[0] == WARN
+    assert ERROR in levels[:DEGRADED_LIMIT + 1], levels

@@ -101,9 +101,13 @@ class RecoveringLocaliser:
         return self.tracker.scan_points(*args, **kwargs)
 
     def due(self, odom_pose):
-        """As the tracker's; every scan while relocalising (each verifies the hypotheses)."""
+        """As the tracker's while the status is OK; every scan while degraded or relocalising
+        (each verifies the hypotheses). A degraded estimate is judged over scans of time, not
+        of motion: a person walking past degrades a few seconds of scans, a wrong pose stays
+        degraded however long the robot stands, and waiting for motion to count the scans
+        that tell them apart left a robot started off its pose at rest on it, unreported."""
         d = self.tracker.due(odom_pose)
-        return True if self._reloc is not None else d
+        return True if self._reloc is not None or self.health.level != OK else d
 
     def follow(self, odom_pose):
         pose, cov = self.tracker.follow(odom_pose)

@@ -10,7 +10,9 @@ publishes tf ``map → odom`` (on ``tf_topic``, ``/tf`` by default) and ``/amcl_
 Scans: any beam count and angular range (REP 117 values). Outside lockstep they wait in a
 queue of ``scan_queue_size`` and are processed in order by one thread, so none is lost while a
 search runs; when the queue is full the oldest is skipped. Every skipped scan (queue full, no
-map yet, no odometry tf at its stamp) is counted and logged with the counts so far. The map may
+map yet, no odometry tf at its stamp) is counted and logged with the counts so far, and the
+counts go on ``/diagnostics`` (sent every ``diagnostic_period`` and at once when the state
+changes, as diagnostic_updater does). The map may
 come after the scans (those before it are skipped) and be replaced; its origin may be rotated
 (MapMetaData's origin with a yaw): the localiser then works in the grid's own frame and the
 node turns what it takes in and gives out between that frame and ``map``.
@@ -100,6 +102,9 @@ class Params:
             'taken in): a search after a (re)set takes longer than a scan period, and the scans '
             'meanwhile wait; when the queue is full the oldest is skipped, counted and logged',
         ge=1)
+    diagnostic_period: float = param(
+        1.0, '[s] /diagnostics is sent this often (as diagnostic_updater does), and at once when '
+             'the state (ok / degraded / lost) changes', gt=0)
     state_topic: str = param('~state', 'latched std_msgs/String: "ok", "degraded" or "lost", '
                              'sent when it changes (what /diagnostics says, for nodes that '
                              'must not drive on a lost pose)', nonempty=True)
@@ -159,10 +164,11 @@ class ScanQueue:
 
 
 def diagnostic_status(health, pose, covariance, name='localisation', hardware_id='',
-                      relocalising=False):
+                      relocalising=False, skipped=None):
     """A diagnostic_msgs/DiagnosticStatus of a :class:`tiago_nav.localisation.health.Health`:
     level OK / WARN (degraded) / ERROR (lost), the reason as message, and key values (state,
-    the fit, rejected corrections, the pose and its standard deviations)."""
+    the fit, rejected corrections, the pose and its standard deviations, and the scans skipped
+    so far by reason, ``skipped``: a mapping reason -> count)."""
     st = DiagnosticStatus()
     st.level = health.level
     st.name, st.hardware_id, st.message = name, hardware_id, health.message
@@ -175,6 +181,9 @@ def diagnostic_status(health, pose, covariance, name='localisation', hardware_id
               ('yaw [deg]', '%.1f' % math.degrees(pose[2])),
               ('std x [m]', '%.3f' % sd[0]), ('std y [m]', '%.3f' % sd[1]),
               ('std yaw [deg]', '%.1f' % math.degrees(sd[2]))]
+    skipped = skipped or {}
+    values.append(('skipped scans', '%d' % sum(skipped.values())))
+    values += [('skipped scans (%s)' % r, '%d' % n) for r, n in sorted(skipped.items())]
     st.values = [KeyValue(k, v) for k, v in values]
     return st
 
@@ -204,6 +213,8 @@ class LocalisationNode:
         self.pub_diag = rospy.Publisher('/diagnostics', DiagnosticArray, queue_size=5)
         self.pub_state = rospy.Publisher(params.state_topic, String, queue_size=1, latch=True)
         self.state = None           # the last state sent on state_topic
+        self.diag = None            # the last /diagnostics sent: (stamp, level, status)
+        self.diag_lock = threading.Lock()   # the decision to send and the send, in order
         self.srv_global = rospy.Service('/global_localization', Empty, self.on_global_localization)
         Subscription(params.map_topic, OccupancyGrid, self.on_map, queue_size=1)
         rospy.Subscriber(params.initialpose_topic, PoseWithCovarianceStamped, self.on_initialpose,
@@ -395,17 +406,37 @@ class LocalisationNode:
                 % (update.pose[0], update.pose[1]))
 
     def publish_health(self, stamp, health, pose, covariance, relocalising):
-        """``/diagnostics`` at every scan, and ``state_topic`` when the state changes."""
-        out = DiagnosticArray()
-        out.header.stamp = stamp
-        out.status = [diagnostic_status(health, pose, covariance,
-                                        '%s: pose' % rospy.get_name().lstrip('/'),
-                                        self.p.map_frame, relocalising)]
-        self.pub_diag.publish(out)
+        """``/diagnostics`` every ``diagnostic_period`` of the scans' time and at once when the
+        level changes, and ``state_topic`` when the state changes."""
+        st = diagnostic_status(health, pose, covariance, '%s: pose' % rospy.get_name().lstrip('/'),
+                               self.p.map_frame, relocalising, dict(self.skipped))
+        with self.diag_lock:
+            last = self.diag
+            if last is None or health.level != last[1] or stamp < last[0] or \
+                    (stamp - last[0]).to_sec() >= self.p.diagnostic_period:
+                self.diag = (stamp, health.level, st)
+                self._send_diagnostics(stamp, st)
         name = LEVEL_NAMES[health.level]
         if name != self.state:
             self.state = name
             self.pub_state.publish(String(name))
+
+    def diagnostics_heartbeat(self, now):
+        """Re-send the last status stamped ``now`` when none has gone for ``diagnostic_period``
+        (the laser silent): a monitor sees the node alive and what it last knew."""
+        with self.diag_lock:
+            last = self.diag
+            if last is None or (now >= last[0] and (now - last[0]).to_sec()
+                                < self.p.diagnostic_period):
+                return
+            self.diag = (now, last[1], last[2])
+            self._send_diagnostics(now, last[2])
+
+    def _send_diagnostics(self, stamp, status):
+        out = DiagnosticArray()
+        out.header.stamp = stamp
+        out.status = [status]
+        self.pub_diag.publish(out)
 
     def publish_pose(self, stamp, pose, covariance):
         out = PoseWithCovarianceStamped()
@@ -453,7 +484,9 @@ def run(current, lockstep, republish_rate):
             # estimate
             node = current()
             if node is not None:
-                node.send_transform(rospy.Time.now() + REPUBLISH_OFFSET)
+                now = rospy.Time.now()
+                node.send_transform(now + REPUBLISH_OFFSET)
+                node.diagnostics_heartbeat(now)
 
 
 def main():

@@ -113,20 +113,44 @@ def run(cfg):
 
 class Recorder:
     """This process's subscriptions of a run (it must be a node already): every
-    ``/amcl_pose`` as ``(stamp [s], x, y, yaw, var x, var y, var yaw, wall time received)``, and
-    the node's readiness, seen on ``/rosout`` (the message of ``READY[kind]``)."""
+    ``/amcl_pose`` as ``(stamp [s], x, y, yaw, var x, var y, var yaw, wall time received)``,
+    every ``/diagnostics`` of the node as ``(stamp [s], highest level, scans it says it skipped
+    or None)``, and the node's readiness, seen on ``/rosout`` (the message of
+    ``READY[kind]``)."""
 
     def __init__(self, kind):
         import rospy
+        from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import PoseWithCovarianceStamped
         from rosgraph_msgs.msg import Log
         self.ready_node, self.ready_text = READY[kind]
         self.ready = threading.Event()
         self.lock = threading.Lock()
         self._estimates = []
+        self._diagnostics = []
         self.subs = [rospy.Subscriber('/rosout', Log, self._on_log, queue_size=50),
                      rospy.Subscriber('/amcl_pose', PoseWithCovarianceStamped, self._on_pose,
+                                      queue_size=100),
+                     rospy.Subscriber('/diagnostics', DiagnosticArray, self._on_diagnostics,
                                       queue_size=100)]
+
+    def _on_diagnostics(self, msg):
+        if msg._connection_header.get('callerid') != self.ready_node or not msg.status:
+            return
+        skipped = None
+        for st in msg.status:
+            for kv in st.values:
+                if kv.key == 'skipped scans':
+                    skipped = int(kv.value)
+        with self.lock:
+            self._diagnostics.append((msg.header.stamp.to_sec(),
+                                      max(ord(st.level) if isinstance(st.level, bytes) else
+                                          int(st.level) for st in msg.status), skipped))
+
+    def diagnostics(self):
+        """``[(stamp, level, skipped)]`` so far."""
+        with self.lock:
+            return list(self._diagnostics)
 
     def _on_pose(self, msg):
         from tiago_nav.geometry import quaternion_to_yaw
@@ -275,7 +299,8 @@ def _run(cfg, env, log, log_path, procs):
     wall = time.monotonic() - w0
     cpu1 = cpu_seconds(pid)
     rss = peak_rss_mb(pid)
-    return {'localiser': kind, 'estimates': rec.estimates(), 'cpu_s': cpu1 - cpu0,
+    return {'localiser': kind, 'estimates': rec.estimates(), 'diagnostics': rec.diagnostics(),
+            'cpu_s': cpu1 - cpu0,
             'cpu_map_s': cpu_map, 'ready_s': ready_s, 'wall_s': wall, 'peak_rss_mb': rss,
             'node_alive_at_end': node.poll() is None, 'global_localization_offered': offered,
             'diagnostics_published': diagnostics, 'log': log_path}
