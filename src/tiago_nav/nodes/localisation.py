@@ -408,12 +408,13 @@ class LocalisationNode:
     def publish_health(self, stamp, health, pose, covariance, relocalising):
         """``/diagnostics`` every ``diagnostic_period`` of the scans' time and at once when the
         level changes, and ``state_topic`` when the state changes."""
-        st = diagnostic_status(health, pose, covariance, '%s: pose' % rospy.get_name().lstrip('/'),
-                               self.p.map_frame, relocalising, dict(self.skipped))
         with self.diag_lock:
             last = self.diag
             if last is None or health.level != last[1] or stamp < last[0] or \
                     (stamp - last[0]).to_sec() >= self.p.diagnostic_period:
+                st = diagnostic_status(health, pose, covariance,
+                                       '%s: pose' % rospy.get_name().lstrip('/'),
+                                       self.p.map_frame, relocalising, dict(self.skipped))
                 self.diag = (stamp, health.level, st)
                 self._send_diagnostics(stamp, st)
         name = LEVEL_NAMES[health.level]
