@@ -42,6 +42,15 @@ YAW_STEP = math.radians(1.0)
 # the bound is kept for at most this many blocks per level (the best by bound): bounds memory
 # and time when a map is full of look-alike places
 MAX_BLOCKS = 100000
+# the top level's blocks are descended this many at a time, the best bounds first
+BATCH = 4096
+# a greedy descent (into the best child at each level) from this many of a level's best
+# blocks gives a score reached at the finest level: the bound's first reference
+GREEDY_TRIES = 8
+# candidates scored at once
+CHUNK = 4096
+# scored heading by heading from this many candidates per heading on average
+PER_HEADING = 64
 
 
 class LikelihoodPyramid:
@@ -178,22 +187,24 @@ def search(pyr, points, centre=None, radius=None, yaw=None, yaw_window=None, rat
     cand = np.column_stack((np.repeat(rr, len(yaws)), np.repeat(cc, len(yaws)),
                             np.tile(np.arange(len(yaws)), len(rr))))
     bound = _score_all(pyr, top, cand, offsets)
-    best = _greedy(pyr, cand, bound, offsets, top, finest, tries=8)
-    level = top
-    while level > finest:
-        keep_mask = bound >= ratio * best - 1e-12
-        cand, bound = cand[keep_mask], bound[keep_mask]
-        if len(cand) > MAX_BLOCKS:
-            k = np.argsort(-bound)[:MAX_BLOCKS]
-            cand, bound = cand[k], bound[k]
-        level -= 1
-        h = 2 ** level
-        cand = np.concatenate([cand + np.array([dr, dc, 0]) for dr in (0, h) for dc in (0, h)])
-        cand = cand[(cand[:, 0] < pyr.rows) & (cand[:, 1] < pyr.cols)]
-        cand = cand[pyr.is_free(level, cand[:, 0], cand[:, 1])]
-        bound = _score_all(pyr, level, cand, offsets)
-        if level == finest and len(bound):
-            best = max(best, float(bound.max()))
+    # best first: the top level's blocks in batches of decreasing bound, each descended to
+    # the finest level; once a batch's best bound is below ratio · (the best score reached),
+    # no later block can hold a pose worth returning
+    order = np.argsort(-bound, kind='stable')
+    best = 0.0
+    finest_c, finest_b = [], []
+    for start in range(0, len(order), BATCH):
+        idx = order[start:start + BATCH]
+        if bound[idx[0]] < ratio * best - 1e-12:
+            break
+        c, s = _descend(pyr, cand[idx], bound[idx], offsets, top, finest, ratio, best)
+        if len(s):
+            best = max(best, float(s.max()))
+            finest_c.append(c)
+            finest_b.append(s)
+    if not finest_c:
+        return np.zeros((0, 3)), np.zeros(0)
+    cand, bound = np.concatenate(finest_c), np.concatenate(finest_b)
     # the finest level: a robot stands on a free cell (its block's own, not the pooled one)
     on_free = pyr.is_free(0, cand[:, 0], cand[:, 1])
     cand, bound = cand[on_free], bound[on_free]
@@ -219,19 +230,57 @@ def _same(a, b, separation):
 
 
 def _score_all(pyr, level, cand, offsets):
-    """Scores of candidates ``(M, 3)`` (row, col, heading index) on ``level``, heading by
-    heading (memory: one heading's candidates × points at a time)."""
+    """Scores of candidates ``(M, 3)`` (row, col, heading index) on ``level``: heading by
+    heading when there are many per heading (one offset table each), else a chunk of
+    :data:`CHUNK` candidates at a time, each with its heading's offsets (memory: a chunk's
+    candidates × points)."""
     out = np.zeros(len(cand))
     if not len(cand):
         return out
-    order = np.argsort(cand[:, 2], kind='stable')
-    yi = cand[order, 2]
-    starts = np.flatnonzero(np.r_[True, yi[1:] != yi[:-1]])
-    ends = np.r_[starts[1:], len(yi)]
-    for s, e in zip(starts, ends):
-        idx = order[s:e]
-        out[idx] = pyr.scores(level, cand[idx, 0], cand[idx, 1], offsets[yi[s]])
+    if len(cand) >= PER_HEADING * len(offsets):
+        order = np.argsort(cand[:, 2], kind='stable')
+        yi = cand[order, 2]
+        starts = np.flatnonzero(np.r_[True, yi[1:] != yi[:-1]])
+        ends = np.r_[starts[1:], len(yi)]
+        for s, e in zip(starts, ends):
+            idx = order[s:e]
+            out[idx] = pyr.scores(level, cand[idx, 0], cand[idx, 1], offsets[yi[s]])
+        return out
+    g = pyr.pyramid[level]
+    p, n = pyr.pad, max(offsets.shape[1], 1)
+    for s in range(0, len(cand), CHUNK):
+        c = cand[s:s + CHUNK]
+        off = offsets[c[:, 2]]
+        r = c[:, 0, None] + off[:, :, 0]
+        q = c[:, 1, None] + off[:, :, 1]
+        # beyond the padding: the far zero row / column
+        r = np.where((r < -p) | (r >= pyr.rows), pyr.rows, r) + p
+        q = np.where((q < -p) | (q >= pyr.cols), pyr.cols, q) + p
+        out[s:s + CHUNK] = g[r, q].sum(axis=1, dtype=np.int64) / (255.0 * n)
     return out
+
+
+def _descend(pyr, cand, bound, offsets, level, finest, ratio, best):
+    """Branch and bound from blocks ``cand`` (``(M, 3)`` row, col, heading index) of ``level``
+    with their ``bound``\ s down to the ``finest`` level: at each level the blocks below
+    ``ratio`` times the best score known (``best``, raised by a greedy descent from the level's
+    best blocks) are pruned and the others split in four. Returns the finest level's
+    candidates and scores that were not pruned."""
+    while level > finest:
+        if len(bound):
+            best = max(best, _greedy(pyr, cand, bound, offsets, level, finest, GREEDY_TRIES))
+        keep_mask = bound >= ratio * best - 1e-12
+        cand, bound = cand[keep_mask], bound[keep_mask]
+        if len(cand) > MAX_BLOCKS:
+            k = np.argsort(-bound)[:MAX_BLOCKS]
+            cand, bound = cand[k], bound[k]
+        level -= 1
+        h = 2 ** level
+        cand = np.concatenate([cand + np.array([dr, dc, 0]) for dr in (0, h) for dc in (0, h)])
+        cand = cand[(cand[:, 0] < pyr.rows) & (cand[:, 1] < pyr.cols)]
+        cand = cand[pyr.is_free(level, cand[:, 0], cand[:, 1])]
+        bound = _score_all(pyr, level, cand, offsets)
+    return cand, bound
 
 
 def _greedy(pyr, cand, bound, offsets, top, finest, tries):
