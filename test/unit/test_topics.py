@@ -102,3 +102,35 @@ def test_connected_peers_count_only_handshaken_connections():
     # publisher side: endpoint_id is the subscriber's callerid
     pub = NS(impl=NS(connections=[NS(endpoint_id='/tiago_controller'), NS(endpoint_id='/simulator')]))
     assert connected_subscribers(pub) == {'/tiago_controller', '/simulator'}
+
+
+def _tf_bytes(child, callerid):
+    """A /tf message from ``callerid`` as rospy.AnyMsg hands it over: undecoded."""
+    import io
+
+    from geometry_msgs.msg import TransformStamped
+    from tf2_msgs.msg import TFMessage
+    t = TransformStamped()
+    t.header.frame_id, t.header.stamp, t.child_frame_id = 'odom', rospy.Time(5), child
+    t.transform.rotation.w = 1.0
+    buf = io.BytesIO()
+    TFMessage([t]).serialize(buf)
+    raw = rospy.AnyMsg()
+    raw.deserialize(buf.getvalue())
+    raw._connection_header = {'callerid': callerid}
+    return raw
+
+
+def test_others_transform_listener_stores_others_transforms_but_not_its_own(fake_rospy,
+                                                                             monkeypatch):
+    import tf2_ros
+    monkeypatch.setattr(rospy.Time, 'now', staticmethod(lambda: rospy.Time(5)))
+    buf = tf2_ros.Buffer(debug=False)
+    listener = topics.OthersTransformListener(buf)
+    assert sorted(s.name for s in fake_rospy.made) == ['/tf', '/tf_static']
+    tf_sub = next(s for s in fake_rospy.made if s.name == '/tf')
+    tf_sub.callback(_tf_bytes('base_footprint', '/odometry'))
+    tf_sub.callback(_tf_bytes('mine', '/localisation'))
+    assert buf.can_transform('odom', 'base_footprint', rospy.Time(5))
+    assert not buf.can_transform('odom', 'mine', rospy.Time(5))
+    assert listener.own == '/localisation'

@@ -57,7 +57,7 @@ from tiago_nav.ros.reset import NodeReset, track
 from tiago_nav.ros.conversions import (COV_INDEX, covariance_6x6, gridmap_in_grid_frame, pose_from_msg, pose_from_transform,
                                        pose_msg, transform_stamped)
 from tiago_nav.ros.tcpros import concurrent_handshakes
-from tiago_nav.ros.topics import Subscription
+from tiago_nav.ros.topics import OthersTransformListener, Subscription
 from tiago_nav.scan import FrozenScanCheck
 from tiago_nav.sim.world import WorldError
 
@@ -204,7 +204,8 @@ class LocalisationNode:
         self.sent_ns = set()        # the same, in nanoseconds (a repeat found without comparing
                                     # rospy.Time objects one by one at each send)
         self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(30))
-        self.listener = tf2_ros.TransformListener(self.tf)
+        # its own map -> odom is never looked up: not decoded again
+        self.listener = OthersTransformListener(self.tf)
         # latched: a node that starts while simulated time stands still (the simulator waits
         # for work or for everyone to join) still gets map -> odom
         self.pub_tf = rospy.Publisher(params.tf_topic, TFMessage, queue_size=10, latch=True)

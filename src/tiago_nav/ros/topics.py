@@ -16,6 +16,8 @@ import time
 
 import rosgraph
 import rospy
+import tf2_ros
+from tf2_msgs.msg import TFMessage
 
 from tiago_nav.ros.reset import track
 
@@ -122,3 +124,31 @@ def wait_for_message(name, data_class, timeout):
         return got[0]
     finally:
         sub.unregister()
+
+
+class OthersTransformListener(tf2_ros.TransformListener):
+    """A ``tf2_ros.TransformListener`` that leaves out what this node itself sends on ``/tf``.
+
+    A node that broadcasts a transform it never looks up (localisation's ``map → odom``) would
+    otherwise decode each of its own messages again through its loopback connection and store
+    it: with a bag played faster than real time that is tens of messages a second of CPU for
+    nothing. ``/tf`` is taken in undecoded (``rospy.AnyMsg``); a message whose publisher is this
+    node is dropped before decoding, the others are decoded and stored as the base class does.
+    ``/tf_static`` is taken in as usual."""
+
+    def __init__(self, buffer):
+        # the base class subscribes on construction: do its work here with /tf undecoded
+        self.buffer = buffer
+        self.last_update = rospy.Time.now()
+        self.last_update_lock = threading.Lock()
+        self.own = rospy.get_name()
+        self.tf_sub = rospy.Subscriber('/tf', rospy.AnyMsg, self.raw_callback)
+        self.tf_static_sub = rospy.Subscriber('/tf_static', TFMessage, self.static_callback)
+
+    def raw_callback(self, raw):
+        who = raw._connection_header.get('callerid', 'default_authority')
+        if who == self.own:
+            return
+        msg = TFMessage().deserialize(raw._buff)
+        msg._connection_header = raw._connection_header
+        self.callback(msg)
