@@ -2,6 +2,7 @@
 occupancy grid; the localiser must say when it is lost, find itself from anywhere on the map,
 and never accept one of two look-alike places (a symmetric corridor)."""
 import math
+import re
 
 import numpy as np
 import pytest
@@ -112,6 +113,25 @@ def test_monitor_levels():
     m.clear()
     levels = [m.add(0.4, False).level for _ in range(8)]
     assert levels[0] == WARN and levels[-1] == ERROR    # degraded for long: lost
+
+
+def test_monitor_a_fit_that_falls_well_below_its_usual_is_degraded_then_lost():
+    # a pose carried along a corridor: the walls still fit, the doors and the ends do not
+    m = FitMonitor()
+    for _ in range(30):
+        assert m.add(0.97, False).level == OK
+    healths = [m.add(0.6, False) for _ in range(10)]
+    levels = [h.level for h in healths]
+    assert OK in levels[:2] and WARN in levels and levels[-1] == ERROR
+    assert any(re.search(r'usually 9\d %', h.message) for h in healths if h.level == WARN)
+    # a person passing a few metres away takes a few points off: still OK
+    m.clear()
+    for _ in range(30):
+        m.add(0.97, False)
+    assert all(m.add(f, False).level == OK for f in (0.85, 0.8, 0.78, 0.85, 0.95))
+    # a building whose usual share is lower (furniture) is judged by its own usual
+    m.clear()
+    assert all(m.add(f, False).level == OK for f in [0.62] * 30 + [0.55] * 5)
 
 
 def test_global_search_finds_the_pose_anywhere():

@@ -7,13 +7,20 @@ furniture and people take the rest); at a pose off by more than a wall's thickne
 One scan says little (a person in front of the laser, a glass wall), so the status is decided
 over a window of the last :data:`WINDOW` registered scans:
 
-- **OK**: the window's mean share is at least :data:`GOOD_FIT`;
-- **WARN** (degraded): below :data:`GOOD_FIT`, or a correction was rejected in the window;
+- **OK**: the window's mean share is at least :data:`GOOD_FIT` and no more than :data:`DROP`
+  below the usual share (its exponential average over the scans found OK, weight
+  :data:`NORM_WEIGHT` per scan: about the last 20);
+- **WARN** (degraded): below either, or a correction was rejected in the window;
 - **ERROR** (lost): the window's mean share below :data:`LOST_FIT`, every correction of the
   window rejected, or degraded for :data:`DEGRADED_LIMIT` registered scans in a row (a person
   walking past the laser degrades a few scans; a pose that stays half off the map is wrong).
 
-:data:`GOOD_FIT` is one half: then most points sit on the map. :data:`LOST_FIT` is the
+:data:`GOOD_FIT` is one half: then most points sit on the map. The usual share is the
+building's own (97-100 % in an empty corridor, less among furniture): a pose carried a few
+metres along a corridor fits its walls but not its doors and ends, and the share falls from
+its usual 97 % to 55-65 %, above one half; a quarter of the points leaving the map at once
+is more than a passing person does at a few metres, and is what AMCL's recovery compares
+too (its short-term likelihood against its long-term one). :data:`LOST_FIT` is the
 registration gate's own ``min_inlier_fraction`` default (0.3): below it the localiser
 itself refuses a single correction, and a whole window of such scans is no passing person.
 """
@@ -27,6 +34,8 @@ WINDOW = 3
 GOOD_FIT = 0.5
 LOST_FIT = 0.3
 DEGRADED_LIMIT = 2 * WINDOW
+DROP = 0.25
+NORM_WEIGHT = 0.05
 
 
 @dataclass(frozen=True)
@@ -64,6 +73,7 @@ class FitMonitor:
         """Forget the window (after a relocalisation or a reset)."""
         self._fits, self._rejected = [], []
         self._degraded = 0          # registered scans in a row found degraded
+        self._norm = None           # the usual share: averaged over the scans found OK
 
     def add(self, fit, rejected):
         """One registered scan: ``fit`` (its share of points within ``inlier_distance`` of the
@@ -72,6 +82,9 @@ class FitMonitor:
         self._fits = (self._fits + [float(fit)])[-self.window:]
         self._rejected = (self._rejected + [bool(rejected)])[-self.window:]
         h = self.health()
+        if h.level == OK:
+            self._norm = fit if self._norm is None else \
+                (1.0 - NORM_WEIGHT) * self._norm + NORM_WEIGHT * fit
         self._degraded = self._degraded + 1 if h.level == WARN else 0
         if self._degraded >= DEGRADED_LIMIT:
             h = Health(ERROR, 'lost: %s for %d scans' % (h.message, self._degraded), h.fit,
@@ -91,10 +104,14 @@ class FitMonitor:
                    % (100 * fit, n)) if fit < self.lost_fit else \
                 'every correction of the last %d scans rejected' % n
             return Health(ERROR, 'lost: %s' % why, fit, rej, n)
-        if fit < self.good_fit or rej:
+        dropped = self._norm is not None and full and fit < self._norm - DROP
+        if fit < self.good_fit or rej or dropped:
             parts = []
             if fit < self.good_fit:
                 parts.append('%.0f %% of the scan points on the map' % (100 * fit))
+            elif dropped:
+                parts.append('%.0f %% of the scan points on the map (usually %.0f %%)'
+                             % (100 * fit, 100 * self._norm))
             if rej:
                 parts.append('%d of the last %d corrections rejected' % (rej, n))
             return Health(WARN, 'degraded: %s' % ', '.join(parts), fit, rej, n)
