@@ -18,9 +18,10 @@ come after the scans (those before it are skipped) and be replaced; its origin m
 node turns what it takes in and gives out between that frame and ``map``.
 
 ``map → odom`` is sent at every scan stamped with the scan's time plus ``transform_tolerance``
-and re-sent at ``republish_rate`` stamped now plus ``transform_tolerance`` (as AMCL does): tf
-consumers asking for "now" then never extrapolate past the last transform, at the price of
-using an estimate up to ``transform_tolerance`` old. In lockstep the re-sends happen at the
+(as AMCL does) and, unlike AMCL, also re-sent at ``republish_rate`` stamped now plus
+``transform_tolerance``: tf consumers asking for "now" then never extrapolate past the last
+transform, even while the laser is slow or silent, at the price of using an estimate up to
+``transform_tolerance`` old and of one message per re-send (about 0.2 ms of CPU each). In lockstep the re-sends happen at the
 ticks, and only when no scan's send reaches past the tick (the laser is silent).
 """
 import collections
