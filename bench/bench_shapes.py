@@ -10,11 +10,13 @@ pose (no pose correction: the figures are the shape fits', not the localisation'
 
 Per object in view (tiago_nav_tools.evaluate.inview), by shape: found once (a detection of the matching
 shape, box -> rectangle, table/chair -> legs, cylinder -> circle, within the object's radius +
-0.1 m), found as something else, missed; centre error; orientation error (of a box's edges:
-modulo 90 deg; of a table's length modulo 180 deg, 90 deg for a square); whether its 95 %
-ellipse holds the error. The targets (centre <= 3 cm, orientation <= 5 deg) apply where two
-faces of a box are seen whole (the noise-free cast's hits span 90 % of each) or three legs of a
-table or chair (2 hits each). Detections matching no object are false positives. Writes bench/results/shapes.json and
+0.1 m), found as something else, missed; centre error; orientation error; whether its 95 %
+ellipse holds the error. The rules (labels, orientation periods, where the targets apply) are
+the evaluator's, tiago_nav_tools.evaluate.shapes: orientation of the length modulo 180 deg, 90
+deg for a square and for a box whose length the detection does not claim (one face, or a face
+that may go on); the targets (centre <= 3 cm, orientation <= 5 deg) apply where two faces of a
+box are seen whole (the noise-free cast's hits span 90 % of each) or three legs of a table or
+chair (2 hits each). Detections matching no object are false positives. Writes bench/results/shapes.json and
 shapes.png.
 
 Usage: bench/bench_shapes.py [--poses 30] [--seed 7]
@@ -39,6 +41,8 @@ from tiago_nav.detection import DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.geometry import compose, inverse  # noqa: E402
 from tiago_nav.scan import median_ranges  # noqa: E402
 from tiago_nav_tools.evaluate import inview  # noqa: E402
+from tiago_nav_tools.evaluate.shapes import (EXPECT, TARGET_CENTRE, TARGET_ORIENTATION,  # noqa: E402
+                                             length_claimed, orientation_error, seen_parts)
 from tiago_nav.sim.laser import LaserModel  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.scene import LaserConfig, Scene  # noqa: E402
@@ -48,9 +52,6 @@ WORLDS = ('room_furniture', 'lab_mixed')
 NOISE = 0.01
 REST = 5
 GATE = 0.1                    # [m] a detection matches an object within its radius + this
-TARGET_CENTRE = 0.03          # [m]
-TARGET_ORIENTATION = 5.0      # [deg]
-EXPECT = {'box': 'rectangle', 'table': 'legs', 'chair': 'legs', 'cylinder': 'circle'}
 CHI2_2_95 = 5.991
 
 
@@ -59,46 +60,6 @@ def load(name):
         data = yaml.safe_load(f)
     data.pop('walkers', None)
     return World.from_dict(data, source=name)
-
-
-def seen_parts(obj, hit_points):
-    """What the noise-free cast saw of ``obj``: faces of a box with >= 4 hits spanning >= 8 cm,
-    legs of a table or chair with >= 2 hits."""
-    p = np.asarray(hit_points, dtype=float).reshape(-1, 2)
-    if obj.shape == 'box':
-        c, s = math.cos(obj.yaw), math.sin(obj.yaw)
-        u = (p - (obj.x, obj.y)) @ np.array([[c, -s], [s, c]])
-        dx = np.abs(np.abs(u[:, 0]) - obj.length / 2)
-        dy = np.abs(np.abs(u[:, 1]) - obj.width / 2)
-        faces = np.where(dx < dy, 2 * (u[:, 0] > 0), 1 + 2 * (u[:, 1] > 0))
-        n = 0
-        for f in range(4):
-            q = u[faces == f]
-            along = q[:, 1] if f in (0, 2) else q[:, 0]
-            full = obj.width if f in (0, 2) else obj.length
-            # the face seen whole: its hits span 90 % of it (a face cut by something nearer,
-            # or by the end of the fan, leaves the centre unfixed along it)
-            if len(q) >= 4 and float(along.max() - along.min()) >= 0.9 * full - 0.05:
-                n += 1
-        return n
-    if obj.shape in ('table', 'chair'):
-        legs = obj.legs()
-        if not len(p):
-            return 0
-        near = np.argmin(np.hypot(p[:, None, 0] - legs[None, :, 0], p[:, None, 1] - legs[None, :, 1]),
-                         axis=1)
-        return int(sum(np.count_nonzero(near == k) >= 2 for k in range(len(legs))))
-    return 0
-
-
-def orientation_error(found, obj):
-    if not math.isfinite(found) or obj.shape == 'cylinder':
-        return None
-    # a box's edges (which face is its length needs both seen whole), a square's too: 90 deg
-    period = math.pi / 2 if (obj.shape == 'box' or abs(obj.length - obj.width) < 0.05) \
-        else math.pi
-    d = (found - obj.yaw) % period
-    return math.degrees(min(d, period - d))
 
 
 def run(poses_n, seed):
@@ -147,7 +108,9 @@ def run(poses_n, seed):
                             nees = float(err @ np.linalg.solve(cov, err)) \
                                 if np.all(np.isfinite(cov)) and np.linalg.det(cov) > 0 else None
                             row.update(found='once', centre_error_m=round(float(e), 4),
-                                       orientation_error_deg=orientation_error(d.orientation, obj),
+                                       orientation_error_deg=orientation_error(
+                                           d.orientation, obj,
+                                           length_claimed(d.extent, d.center_fixed)),
                                        center_fixed=bool(d.center_fixed),
                                        inside_95=None if nees is None else nees <= CHI2_2_95,
                                        duplicates=len(same) - 1)

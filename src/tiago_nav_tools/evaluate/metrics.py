@@ -2,7 +2,8 @@
 
 Per run: :func:`success`, :func:`path_length`, :func:`spl`, :func:`barn_score`,
 :func:`min_clearance`, :func:`detection` (recall, false positives, centre RMS through
-:func:`tiago_nav_tools.evaluate.matching.score`), :func:`percentile` (localisation error),
+:func:`tiago_nav_tools.evaluate.matching.score`; the shapes' scores in
+:mod:`tiago_nav_tools.evaluate.shapes`), :func:`percentile` (localisation error),
 :func:`ratio` (simulated/wall), :func:`shortest_path_length` (the SPL's and BARN's reference).
 Over runs: :func:`wilson` (a rate's 95 % interval), :func:`mcnemar_exact` (paired successes),
 :func:`paired_difference` (a paired metric's mean difference and its 95 % interval),
@@ -117,7 +118,8 @@ def detection_score(truth_xy, found_xy, glimpsed_xy=()):
     like any other. ``true``, ``matched``, ``recall``, ``missed``: over the ones in view;
     ``glimpsed``, ``matched_glimpsed``: the glimpsed ones and how many were found;
     ``rms_error``, ``max_error`` [m] and ``errors``: over every matched obstacle, rows
-    ``{'index', 'in_view', 'error'}`` (``index`` into ``truth_xy`` + ``glimpsed_xy``)."""
+    ``{'index', 'in_view', 'found', 'error'}`` (``index`` into ``truth_xy`` + ``glimpsed_xy``,
+    ``found`` into ``found_xy``)."""
     from tiago_nav_tools.evaluate.matching import match_obstacles
     t = [tuple(p[:2]) for p in truth_xy]
     g = [tuple(p[:2]) for p in glimpsed_xy]
@@ -129,7 +131,8 @@ def detection_score(truth_xy, found_xy, glimpsed_xy=()):
             'recall': len(pairs) / len(t) if t else 1.0, 'false_positives': len(fps),
             'missed': [i for i in missed if i < len(t)], 'false_positive_indices': fps,
             'glimpsed': len(g), 'matched_glimpsed': len(every) - len(pairs),
-            'errors': [{'index': i, 'in_view': i < len(t), 'error': e} for i, _, e in every],
+            'errors': [{'index': i, 'in_view': i < len(t), 'found': j, 'error': e}
+                       for i, j, e in every],
             'rms_error': math.sqrt(sum(e * e for e in errs) / len(errs)) if errs else None,
             'max_error': max(errs) if errs else None, 'pairs': pairs}
 

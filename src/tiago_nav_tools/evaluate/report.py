@@ -143,6 +143,7 @@ def markdown(summary, comparison, results, meta):
     lines[3:3] = divergence_lines(results)       # (after the headline)
     lines += isolation_lines(meta)
     lines += detection_lines(valid)
+    lines += shape_lines(valid)
     bad = [r for r in valid if r['outcome'] != 'succeeded']
     if bad:
         lines += ['', '## Runs that did not succeed', '']
@@ -208,9 +209,61 @@ def detection_lines(results):
     return lines
 
 
+def shape_lines(results):
+    """summary.md's shapes section: :func:`tiago_nav_tools.evaluate.shapes.summarise` per
+    profile, candidate and true shape, the issue's targets beside the figures."""
+    from tiago_nav_tools.evaluate import shapes as S
+    groups = S.summarise(results)
+    if not groups:
+        return []
+    lines = ['', '## Shapes (runs that reached pose B)', '',
+             'By true shape, each movable obstacle in view or matched at pose B (docs/evaluation.md#'
+             'shapes): found = in view and matched; label agrees: cylinder - circle, box - '
+             'rectangle, table and chair - legs; errors over the matched ones, median / p95 '
+             '(nearest rank), n the obstacles whose value is observed. The targets (centre <= '
+             '%.0f cm, orientation <= %.0f deg) apply to boxes seen on two faces whole and to '
+             'tables and chairs seen on three legs or more.' % (100 * S.TARGET_CENTRE,
+                                                                 S.TARGET_ORIENTATION), '',
+             '| profile | candidate | shape | in view | found | label agrees | '
+             'centre median / p95 [cm] | extent median / p95 [cm] (n) | '
+             'orientation median / p95 [deg] (n) | target applies | centre p95 there [cm] '
+             '(target) | orientation p95 there [deg] (target) |',
+             '|---|---|---|---|---|---|---|---|---|---|---|---|']
+
+    def cm(v):
+        return _f(None if v is None else 100.0 * v, '%.1f')
+
+    def pct(v):
+        return _f(None if v is None else 100.0 * v, '%.0f %%')
+
+    for g in groups:
+        target = g['shape'] in S.TARGET_SHAPES
+        lines.append('| %s | %s | %s | %d | %d (%s) | %d/%d (%s) | %s / %s | %s / %s (%d) | '
+                     '%s / %s (%d) | %s | %s | %s |' % (
+                         g['profile'], g['candidate'], g['shape'], g['in_view'], g['found'],
+                         pct(g['found_share']), g['label_agrees'], g['matched'],
+                         pct(g['label_share']),
+                         cm(g['centre_median']), cm(g['centre_p95']),
+                         cm(g['extent_median']), cm(g['extent_p95']), g['extent_n'],
+                         _f(g['orientation_median'], '%.1f'), _f(g['orientation_p95'], '%.1f'),
+                         g['orientation_n'],
+                         g['target_n'] if target else '-',
+                         '%s (<= %.0f)' % (cm(g['target_centre_p95_m']), 100 * S.TARGET_CENTRE)
+                         if target else '-',
+                         '%s (<= %.0f)' % (_f(g['target_orientation_p95_deg'], '%.1f'),
+                                           S.TARGET_ORIENTATION) if target else '-'))
+    return lines
+
+
 def _min_beams():
     from tiago_nav_tools.evaluate.inview import MIN_BEAMS
     return MIN_BEAMS
+
+
+def shape_summary(results):
+    """summary.json's ``shapes``: :func:`tiago_nav_tools.evaluate.shapes.summarise`."""
+    from tiago_nav_tools.evaluate import shapes as S
+    return S.summarise(results)
 
 
 def isolations(results):
@@ -436,6 +489,8 @@ def write_all(out, runs, results, wall_s, workers=None, scheduler=None):
     write_json(os.path.join(out, 'summary.json'), {'schema': 1, 'meta': meta, 'groups': summary,
                                                    'comparison': comparison,
                                                    'detection': detection_totals(
+                                                       [r for r in results if not is_infra(r)]),
+                                                   'shapes': shape_summary(
                                                        [r for r in results if not is_infra(r)])})
     text = markdown(summary, comparison, results, meta)
     with open(os.path.join(out, 'summary.md.tmp'), 'w') as f:

@@ -302,9 +302,15 @@ def judge(spec, raw, min_beams=None):
     det_ok, det = True, {}
     if raw.get('state') == 3 and final:         # SUCCEEDED: judge what it reported
         from tiago_nav_tools.evaluate import inview
-        v = inview.view(world, tuple(final), spec['profile'],
-                        inview.MIN_BEAMS if min_beams is None else min_beams)
+        from tiago_nav_tools.evaluate import shapes as S
+        from tiago_nav.sim.scene import Scene
         obs = world.movable_obstacles
+        with Scene(world) as scene:
+            v = inview.view_from(scene, tuple(final), spec['profile'],
+                                 inview.MIN_BEAMS if min_beams is None else min_beams)
+            # what the cast saw of each shape but a cylinder (faces, legs: where targets apply)
+            parts = S.parts_in_view(scene, final, spec['profile'],
+                                    [i for i in v.in_view + v.glimpsed if obs[i].shape != 'cylinder'])
         found = [(o[0], o[1]) for o in raw.get('obstacles', [])]
         det_ok, det = M.detection([(obs[i].x, obs[i].y) for i in v.in_view], found,
                                   spec['limits']['detection_tolerance'],
@@ -313,11 +319,19 @@ def judge(spec, raw, min_beams=None):
         # every obstacle a beam reached: its beams and usable beams (a rescoring's input),
         # whether it is in view, and its centre error when matched (None: not found)
         seen = v.in_view + v.glimpsed
-        err = {seen[e['index']]: e['error'] for e in det.pop('errors')}
+        errors = det.pop('errors')
+        err = {seen[e['index']]: e['error'] for e in errors}
         det['view'] = [{'index': i, 'x': obs[i].x, 'y': obs[i].y, 'radius': obs[i].radius,
                         'beams': v.beams[i], 'usable_beams': v.usable_beams[i],
                         'in_view': i in v.in_view, 'error': err.get(i)} for i in sorted(seen)]
-    m.update({'detection_' + k if k in ('problem', 'truth', 'view') else k: v
+        # each obstacle in view or matched: its shape, the label reported, the centre, extent
+        # and orientation errors (tiago_nav_tools.evaluate.shapes)
+        pair = {seen[e['index']]: e['found'] for e in errors}
+        det['shapes'] = S.score(obs, [{'index': i, 'in_view': i in v.in_view, 'found': pair.get(i),
+                                       'error': err.get(i)}
+                                      for i in sorted(seen) if i in v.in_view or i in pair],
+                                raw.get('obstacles_detail') or [], parts)
+    m.update({'detection_' + k if k in ('problem', 'truth', 'view', 'shapes') else k: v
               for k, v in det.items()})
     m['found'] = raw.get('obstacles', [])
     # every field of each reported obstacle as the message had it (its uncertainty and its
