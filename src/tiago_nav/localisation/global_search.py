@@ -15,10 +15,13 @@ Level ``k`` of the pyramid holds, at each cell, the maximum of the finest grid o
 Cartographer's fast correlative scan matcher): a candidate translation on level ``k``'s lattice
 (every ``2^k`` cells) scored on it bounds the score of every translation of its block at the
 same heading. The search scores every block of the region at every heading step on the top
-level, then descends: a greedy descent from the best blocks gives a score ``B`` reached at the
-finest level, every block whose bound is below ``ratio · B`` is pruned (none of its poses can
-reach it), the others are split in four, and so on to the finest level, where the poses within
-``ratio`` of the best are returned, one per ``separation`` (non-maximum suppression). Memory:
+level, then descends best first: the top level's blocks in batches of decreasing bound
+(:data:`BATCH`), each batch level by level, where a greedy descent from the level's best blocks
+raises ``B``, the best score reached at the finest level so far, every block whose bound is
+below ``ratio · B`` is pruned (none of its poses can reach it) and the others are split in
+four. Once a batch's best bound is below ``ratio · B`` the search ends. At the finest level the
+poses within ``ratio`` of the best are returned, one per ``separation`` (non-maximum
+suppression). Memory:
 ``levels + 1`` ``uint8`` grids of the map's size; time: the top level's blocks × headings ×
 points, plus what survives the bound.
 """
@@ -99,17 +102,18 @@ class LikelihoodPyramid:
                                 g.origin[1] + (rc[:, 0] + 0.5) * g.resolution))
 
     def scores(self, level, rows, cols, offsets):
-        """Mean likelihood (0..1) of the points at ``offsets`` (``(P, 2)`` int cells relative to
-        the robot's cell, one heading) for robots at cells ``rows``, ``cols`` (``(M,)``), on
-        ``level``: ``(M,)``."""
+        """Mean likelihood (0..1) of the points at ``offsets`` (int cells relative to the
+        robot's cell: ``(P, 2)``, one heading for every robot, or ``(M, P, 2)``, each robot's
+        own) for robots at cells ``rows``, ``cols`` (``(M,)``), on ``level``: ``(M,)``."""
         g = self.pyramid[level]
         p = self.pad
-        r = rows[:, None] + offsets[None, :, 0]
-        c = cols[:, None] + offsets[None, :, 1]
+        off = offsets if offsets.ndim == 3 else offsets[None]
+        r = rows[:, None] + off[:, :, 0]
+        c = cols[:, None] + off[:, :, 1]
         # beyond the padding: the far zero row / column
         r = np.where((r < -p) | (r >= self.rows), self.rows, r) + p
         c = np.where((c < -p) | (c >= self.cols), self.cols, c) + p
-        return g[r, c].sum(axis=1) / (255.0 * max(len(offsets), 1))
+        return g[r, c].sum(axis=1, dtype=np.int64) / (255.0 * max(off.shape[1], 1))
 
     def is_free(self, level, rows, cols):
         """Whether the block of ``level`` at cells ``rows``, ``cols`` (in the map) holds a
@@ -246,23 +250,15 @@ def _score_all(pyr, level, cand, offsets):
             idx = order[s:e]
             out[idx] = pyr.scores(level, cand[idx, 0], cand[idx, 1], offsets[yi[s]])
         return out
-    g = pyr.pyramid[level]
-    p, n = pyr.pad, max(offsets.shape[1], 1)
     for s in range(0, len(cand), CHUNK):
         c = cand[s:s + CHUNK]
-        off = offsets[c[:, 2]]
-        r = c[:, 0, None] + off[:, :, 0]
-        q = c[:, 1, None] + off[:, :, 1]
-        # beyond the padding: the far zero row / column
-        r = np.where((r < -p) | (r >= pyr.rows), pyr.rows, r) + p
-        q = np.where((q < -p) | (q >= pyr.cols), pyr.cols, q) + p
-        out[s:s + CHUNK] = g[r, q].sum(axis=1, dtype=np.int64) / (255.0 * n)
+        out[s:s + CHUNK] = pyr.scores(level, c[:, 0], c[:, 1], offsets[c[:, 2]])
     return out
 
 
 def _descend(pyr, cand, bound, offsets, level, finest, ratio, best):
     """Branch and bound from blocks ``cand`` (``(M, 3)`` row, col, heading index) of ``level``
-    with their ``bound``\ s down to the ``finest`` level: at each level the blocks below
+    with their bounds ``bound`` down to the ``finest`` level: at each level the blocks below
     ``ratio`` times the best score known (``best``, raised by a greedy descent from the level's
     best blocks) are pruned and the others split in four. Returns the finest level's
     candidates and scores that were not pruned."""
@@ -285,7 +281,7 @@ def _descend(pyr, cand, bound, offsets, level, finest, ratio, best):
 
 def _greedy(pyr, cand, bound, offsets, top, finest, tries):
     """A score reached at the finest level (a lower bound on the best): from each of the
-    ``tries`` best top-level blocks, descend into the best child at each level."""
+    ``tries`` best blocks ``cand`` of level ``top``, descend into the best child at each level."""
     best = 0.0
     for k in np.argsort(-bound)[:tries]:
         c = cand[k:k + 1]
