@@ -18,9 +18,10 @@ over a window of the last :data:`WINDOW` registered scans:
 :data:`GOOD_FIT` is one half: then most points sit on the map. The usual share is the
 building's own (97-100 % in an empty corridor, less among furniture): a pose carried a few
 metres along a corridor fits its walls but not its doors and ends, and the share falls from
-its usual 97 % to 55-65 %, above one half; a quarter of the points leaving the map at once
-is more than a passing person does at a few metres, and is what AMCL's recovery compares
-too (its short-term likelihood against its long-term one). :data:`LOST_FIT` is the
+its usual 97 % to 55-67 %, above one half. A quarter of the points leaving the map at once
+is more than a person hides: two 0.1 m legs half a metre from the laser cover about a tenth of
+a 220° scan. AMCL's recovery compares the same way (its short-term likelihood against its
+long-term one). :data:`LOST_FIT` is the
 registration gate's own ``min_inlier_fraction`` default (0.3): below it the localiser
 itself refuses a single correction, and a whole window of such scans is no passing person.
 """
