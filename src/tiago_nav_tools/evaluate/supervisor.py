@@ -94,6 +94,7 @@ class Supervisor:
         self.loc_due = []           # [(stamp, true pose)] of the 0.1 s grid, to compare with tf
         self.loc_bucket = None      # the 0.1 s bucket of the last sample (None: not sampling)
         self.loc_from = None        # samples after this stamp (the goal's)
+        self.loc_until = None       # ... up to this one (None: the mission has not ended)
         self.loc_missing = 0
         self.loc_cov = []           # pose_covariance of each estimate after the goal (None: off)
         self.loc_cov_on = False
@@ -236,7 +237,8 @@ class Supervisor:
             self.truth, self.truth_msg = (m.header.stamp, pose), m
             if not self.path or abs(pose[0] - self.path[-1][0]) + abs(pose[1] - self.path[-1][1]) > 0.01:
                 self.path.append(pose)
-            if self.loc_bucket is not None and m.header.stamp > self.loc_from:
+            if self.loc_bucket is not None and m.header.stamp > self.loc_from and \
+                    (self.loc_until is None or m.header.stamp <= self.loc_until):
                 # the first true pose of each 0.1 s of simulated time after the goal
                 bucket = math.floor(m.header.stamp.to_sec() * LOC_SAMPLES_PER_S + 1e-6)
                 if bucket != self.loc_bucket:
@@ -365,12 +367,14 @@ class Supervisor:
         latest = client.gh.comm_state_machine.latest_result if client.gh else None
         ended = latest.header.stamp if latest is not None and not timed_out else rospy.Time.from_sec(rospy.get_time())
         goal_id = client.gh.comm_state_machine.action_goal.goal_id.id if client.gh else None
+        until = ended - rospy.Duration(LOC_TAIL)
         with self.lock:
-            self.loc_bucket = None
+            # sampling ends by stamp, not by when this loop noticed the end: true poses up to
+            # ``until`` may still be queued (the wait for the base at rest below receives them)
+            self.loc_until = until
         # the mission's last messages: the feedback the result names, the base at rest, and
         # tf up to the result (each bounded: a run that ends badly may never give them)
         wanted = getattr(result, 'state', None)
-        until = ended - rospy.Duration(LOC_TAIL)
         deadline = time.monotonic() + END_WAIT
         while time.monotonic() < deadline:
             fed = wanted is None or any(g == goal_id and st == wanted for g, _, st, _ in list(published))
@@ -385,6 +389,7 @@ class Supervisor:
         loc_cov = self.loc_cov_until(until)
         with self.lock:
             self.loc_cov_on = False
+            self.loc_bucket, self.loc_until = None, None
         sub.unregister()
         feedback = []
         for g, stamp, st, status in published:

@@ -55,7 +55,7 @@ class WarmSupervisor(Supervisor):
         self.dir = run_dir
         with self.lock:
             self.path, self.loc_err, self.loc_due = [], [], []
-            self.loc_bucket, self.loc_from, self.loc_missing = None, None, 0
+            self.loc_bucket, self.loc_from, self.loc_until, self.loc_missing = None, None, None, 0
 
     def start(self, name, cmd):
         # the stack's processes log into the stack's folder, not the first run's
