@@ -88,11 +88,12 @@ class LocaliserConfig:
                                        'the scan does not constrain)', gt=0)
     prior_sigma_yaw_deg: float = param(5.0, '[deg] std of the prediction yaw as a prior', gt=0)
     min_update_distance: float = param(
-        0.1, '[m] a scan is registered once the odometry has moved this far, or turned '
-             'min_update_yaw_deg, since the last registered one (AMCL\'s update_min_d); the '
-             'scans between follow odometry (0 with min_update_yaw_deg 0: every scan)', ge=0)
+        0.2, '[m] a scan is registered once the odometry has moved this far, or turned '
+             'min_update_yaw_deg, since the last registered one (AMCL\'s update_min_d, its '
+             'default); the scans between follow odometry (0 with min_update_yaw_deg 0: every '
+             'scan)', ge=0)
     min_update_yaw_deg: float = param(
-        5.0, '[deg] see min_update_distance (AMCL\'s update_min_a)', ge=0)
+        11.5, '[deg] see min_update_distance (AMCL\'s update_min_a at 0.2 rad)', ge=0)
     raster_band: bool = param(
         True, 'after each registration, move the pose to the middle of what the map\'s cells '
               'allow: an axis-aligned wall lies somewhere within its raster cell, unknown, and '
