@@ -31,9 +31,14 @@ import os
 import sys
 import time
 
-import numpy as np
-
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if os.path.join(ROOT, 'src') not in sys.path:
+    sys.path.insert(0, os.path.join(ROOT, 'src'))
+# before numpy: one BLAS thread, as the nodes run. OpenBLAS's workers spin after every tiny
+# inverse, and their CPU would count in the figures (2.5 times the node's own on Freiburg)
+import tiago_nav.nodes  # noqa: E402,F401
+
+import numpy as np  # noqa: E402
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 DATA = os.path.normpath(os.path.join(ROOT, '..', 'shared', 'data', 'real'))
 LOGS = ('intel', 'freiburg-079', 'aces')
@@ -125,8 +130,6 @@ def main():
                                                    'realdata'))
     ap.add_argument('--out', default=os.path.join(RESULTS, 'localisation_recovery.json'))
     args = ap.parse_args()
-    if os.path.join(ROOT, 'src') not in sys.path:
-        sys.path.insert(0, os.path.join(ROOT, 'src'))
     from tiago_nav_tools.benchmarks import meta
     from tiago_nav.localisation.global_search import LikelihoodPyramid
     from tiago_nav.gridmap import DistanceField
