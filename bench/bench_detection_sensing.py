@@ -9,8 +9,9 @@ scans at rest before it by their per-beam median, tiago_nav.scan.median_ranges).
 The localisation's error is emulated with the localisation library, as the live chain makes
 it at a stop: the odometry's drift leaves a predicted pose off by a random error (std
 ``DRIFT``), then the localisation registers ``REST_SCANS`` scans taken at rest
-(tiago_nav.localisation.localiser.register, LocaliserConfig defaults, each scan subsampled by
-Localiser.scan_points), and the detection's scan is the next one, placed with that estimate.
+(tiago_nav.localisation.localiser.register, configured as sim.launch configures the node, each
+scan subsampled by Localiser.scan_points), and the detection's scan is the next one, placed with
+that estimate.
 This stands in for a live mission (its p95 localisation error along the mission is 2.4 cm); the
 figures give the emulated error too.
 
@@ -52,10 +53,11 @@ import bench_detection  # noqa: E402
 import bench_soak  # noqa: E402
 from tiago_nav.detection import DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.geometry import compose, inverse  # noqa: E402
-from tiago_nav.localisation.localiser import Localiser, LocaliserConfig, register  # noqa: E402
+from tiago_nav.localisation.localiser import Localiser, register  # noqa: E402
 from tiago_nav.nodes.obstacle_detection import Params  # noqa: E402
 from tiago_nav.scan import median_ranges  # noqa: E402
 from tiago_nav_tools.evaluate.inview import MIN_BEAMS, judge_view  # noqa: E402
+from tiago_nav_tools.testing.localisation import SIM_CONFIG  # noqa: E402
 from tiago_nav.sim.laser import LaserModel  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.scene import LaserConfig, Scene  # noqa: E402
@@ -86,7 +88,7 @@ class Sensing:
         # the pipeline as it was before the pose correction and the shared radius
         self.before = ObstacleDetector(self.grid, DetectionParams(correct_pose=False,
                                                                   shared_radius=False))
-        self.loc = Localiser(self.grid, (0.0, 0.0, 0.0))
+        self.loc = Localiser(self.grid, (0.0, 0.0, 0.0), SIM_CONFIG)
         self.scene = Scene(self.world)
         # the scans at rest before the detection's (``rest``): their own noise draws, so that
         # every other variant sees the scans it saw without them
@@ -106,7 +108,7 @@ class Sensing:
         view = judge_view(clean, ids, cfg.angles(), self.scene.movable_ids)
         beams = view.usable_beams
         est = compose(pose, tuple(rng.normal(0.0, DRIFT)))
-        lc = LocaliserConfig()
+        lc = SIM_CONFIG
         if injected is not None:
             est = compose(pose, tuple(rng.normal(0.0, injected)))
         for _ in range(0 if injected is not None else REST_SCANS):

@@ -16,7 +16,7 @@ Both parts also score the published covariance (/amcl_pose's) against the truth:
 the position, ``eᵀ Σ⁻¹ e`` with ``Σ`` its x-y block (2 degrees of freedom: mean 2 and 95 % of
 the scans within 5.99 when the covariance covers the error as it claims), and of the heading
 (``e² / σ²``, mean 1, 95 % within 3.84). The simulator's map is its world's own raster, so the
-localiser runs with ``map_sigma`` 0 (as sim.launch sets it).
+localiser runs with ``map_sigma`` 0 and ``map_surface_depth`` 0.25 (as sim.launch sets them).
 
 Writes bench/results/localisation.json.
 
@@ -54,8 +54,9 @@ def nees_figures(runs):
 
 def sim_config():
     """The localiser's configuration in the simulator: its map is the world's own raster."""
+    from tiago_nav.gridmap import RASTER_MAP_DEPTH
     from tiago_nav.localisation.localiser import LocaliserConfig
-    return LocaliserConfig(map_sigma=0.0)
+    return LocaliserConfig(map_sigma=0.0, map_surface_depth=RASTER_MAP_DEPTH)
 
 
 def summary(runs):

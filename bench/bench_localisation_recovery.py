@@ -132,7 +132,7 @@ def main():
     args = ap.parse_args()
     from tiago_nav_tools.benchmarks import meta
     from tiago_nav.localisation.global_search import LikelihoodPyramid
-    from tiago_nav.gridmap import DistanceField
+    from tiago_nav.gridmap import SCAN_MAP_DEPTH, DistanceField
     from tiago_nav_tools.testing.realdata.carmen import read_log
     from tiago_nav_tools.testing.realdata.convert import prepare, scenario
     from tiago_nav_tools.testing.realdata.mapping import load_map
@@ -159,7 +159,8 @@ def main():
         prep = prepare(paths[name], os.path.join(args.work, name), ['tracking'], args.seed,
                        bags=False)
         grid = load_map(prep['map'])
-        field, pyr = DistanceField(grid), LikelihoodPyramid(grid)
+        # the log's map is built from its scans (the node's default map_surface_depth)
+        field, pyr = DistanceField(grid, SCAN_MAP_DEPTH), LikelihoodPyramid(grid)
         log = read_log(paths[name])
         for sn in scenarios:
             sc = scenario(log, sn, args.seed)

@@ -106,6 +106,10 @@ class GridMap:
         return np.meshgrid(xs, ys)
 
 
+SCAN_MAP_DEPTH = 0.5     # [cells] a surface's mean depth inside its occupied cells: map from scans
+RASTER_MAP_DEPTH = 0.25  # ... and in a map rasterised from geometry (the simulator's)
+
+
 class DistanceField:
     """The signed distance [m] from points in the map frame to the boundary between a grid's
     occupied and free cells, and its gradient, for registering scans to the map: positive in
@@ -116,18 +120,31 @@ class DistanceField:
     the nearest centre of the other kind less half a cell: each side of a boundary reads half a
     cell at the cells next to it, so the field crosses 0 on the boundary with slope 1 (exactly
     so for axis-aligned walls; within a few millimetres along other surfaces at 0.05 m cells).
-    The rasterisation of a map marks a cell occupied when an obstacle covers its central half,
-    so a straight surface lies from a quarter cell outside that boundary to three quarters
-    inside, ``resolution / 4`` inside on average: the field is shifted by it (a surface point
-    reads 0 on average).
+    The field is then shifted by where a surface lies on average inside that boundary,
+    ``surface_depth`` cells, so that a surface point reads 0 on average; it depends on how the
+    map was made:
+
+    - ``0.5`` (:data:`SCAN_MAP_DEPTH`), a map built from laser scans (gmapping, cartographer,
+      slam_toolbox, a map built from a log's scans at their poses): a cell is occupied when a
+      hit falls in it, so a surface lies anywhere within its occupied cells, half a cell inside
+      the boundary on average;
+    - ``0.25`` (:data:`RASTER_MAP_DEPTH`), a map rasterised from geometry (the simulator's
+      ``map.pgm``, :func:`tiago_nav.sim.raster.rasterise_world`): a cell is occupied when an obstacle
+      covers its central half, so a straight surface lies from a quarter cell outside the
+      boundary to three quarters inside, a quarter cell inside on average.
+
+    Registering a scan on a field shifted by the wrong depth moves the pose by the difference
+    (a quarter cell, 1.25 cm at 0.05 m) away from the surfaces in view: with a laser that faces
+    forward, backwards along the direction of travel.
 
     Memory: 12 bytes per cell (value and gradient as float32), whatever the map's size, plus
     the transient work of building it (the distance transforms, one at a time): a 100 m ×
     100 m map at 0.05 m keeps 48 MB.
     """
 
-    def __init__(self, grid):
+    def __init__(self, grid, surface_depth=RASTER_MAP_DEPTH):
         self.grid = grid
+        self.surface_depth = float(surface_depth)
         res = grid.resolution
         occ = grid.occupied()
         d = distance_to_mask(occ, res, np.float32)
@@ -138,7 +155,7 @@ class DistanceField:
             np.negative(inside, out=inside)
             d[occ] = inside[occ]
             del inside
-        d += np.float32(res / 4.0)
+        d += np.float32(res * self.surface_depth)
         d[~np.isfinite(d)] = 0.0
         rows, cols = d.shape
         # value and gradient side by side, so that one gather reads all three at a corner

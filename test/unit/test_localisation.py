@@ -10,13 +10,14 @@ import pytest
 
 from conftest import ROOT
 from tiago_nav.geometry import compose, wrap_angle
-from tiago_nav.localisation.localiser import Localiser, LocaliserConfig
+from tiago_nav.localisation.localiser import Localiser
 from tiago_nav.params import ParamError
 from tiago_nav.robot import ROBOT_RADIUS
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.world import Cylinder, load_world
 from tiago_nav_tools.testing.localisation import run_route
+from tiago_nav_tools.testing.localisation import raster_config
 
 # the quality bar (docs/design-decisions.md): localisation error at the 95th percentile
 BAR_XY, BAR_YAW = 0.05, math.radians(2.0)
@@ -41,7 +42,7 @@ def err(a, b):
     return math.hypot(a[0] - b[0], a[1] - b[1]), abs(wrap_angle(a[2] - b[2]))
 
 
-def one_scan(world, pose, config=LocaliserConfig(), seed=0):
+def one_scan(world, pose, config=raster_config(), seed=0):
     """``(points in base_footprint, laser config)`` of one scan taken at ``pose``."""
     sim = Simulator(world, SimConfig(seed=seed), start_pose=pose)
     try:
@@ -105,7 +106,7 @@ def test_converges_from_a_wrong_initial_pose(world, offset):
 def test_reset_in_the_big_room_converges(world, grid):
     truth = (8.4, -0.6, 2.2)
     pts = one_scan(world, truth)
-    loc = Localiser(grid, (0.0, 0.0, 0.0))
+    loc = Localiser(grid, (0.0, 0.0, 0.0), config=raster_config())
     loc.update((0.0, 0.0, 0.0), pts)          # a scan from elsewhere: the search fails or not
     loc.reset((truth[0] - 0.25, truth[1] + 0.2, truth[2] + math.radians(10)))
     up = loc.update((5.0, 1.0, 0.3), pts)
@@ -129,7 +130,7 @@ def cluttered_world(world, pose):
 @pytest.mark.parametrize('truth', [(11.0, 0.0, math.radians(-45)), (12.0, -2.0, 2.5)])
 def test_unmapped_obstacles_do_not_drag_it(world, grid, truth):
     pts = one_scan(cluttered_world(world, truth), truth)
-    loc = Localiser(grid, truth)
+    loc = Localiser(grid, truth, config=raster_config())
     r = loc.field(np.array([compose(truth, (p[0], p[1], 0.0))[:2] for p in pts]))[0]
     assert np.mean(np.abs(r) > 0.1) > 0.4       # a good part of the scan is unmapped
     guess = (0.06, -0.04, math.radians(2.0))     # the odometry's prediction is a little off
@@ -139,7 +140,7 @@ def test_unmapped_obstacles_do_not_drag_it(world, grid, truth):
     e = err(up.pose, truth)
     assert e[0] < 0.02 and e[1] < math.radians(0.5), e
     # a plain least-squares fit (no robust loss, no prior, no gate) is dragged by the same scan
-    plain = Localiser(grid, truth, LocaliserConfig(
+    plain = Localiser(grid, truth, raster_config(
         initial_scale=100.0, robust_scale=100.0, prior_sigma_xy=100.0, prior_sigma_yaw_deg=1e4,
         search_radius=0.0, search_yaw_deg=0.0, min_inliers=3, min_inlier_fraction=0.0,
         max_correction=100.0, max_correction_yaw_deg=180.0))
@@ -157,7 +158,7 @@ def test_tracking_around_pose_b_finds_no_false_minimum(world, grid):
     from tiago_nav.sim.laser import LaserModel
     sim = Simulator(world, SimConfig(laser_model=LaserModel(laser_model='tiago'), seed=1))
     las = sim.config.laser
-    loc = Localiser(grid, (0.0, 0.0, 0.0))
+    loc = Localiser(grid, (0.0, 0.0, 0.0), config=raster_config())
     rng = np.random.default_rng(2)
     errors = []
     try:
@@ -188,14 +189,14 @@ def test_motion_before_the_first_scan_is_predicted_from_odometry(world, grid):
     odom = (1.5, 0.0, 0.0)
     truth = compose(start, odom)
     pts = one_scan(world, truth)
-    up = Localiser(grid, start, odom=(0.0, 0.0, 0.0)).update(odom, pts)
+    up = Localiser(grid, start, odom=(0.0, 0.0, 0.0), config=raster_config()).update(odom, pts)
     assert up.corrected, up.reason
     assert err(up.pose, truth)[0] < 0.05
-    assert err(Localiser(grid, start).update(odom, pts).pose, truth)[0] > 0.1
+    assert err(Localiser(grid, start, config=raster_config()).update(odom, pts).pose, truth)[0] > 0.1
 
 
 def test_an_all_invalid_scan_keeps_the_prediction(world, grid):
-    loc = Localiser(grid, (1.0, 0.0, 0.0))
+    loc = Localiser(grid, (1.0, 0.0, 0.0), config=raster_config())
     n = 666
     las = SimConfig().laser
     for ranges in (np.full(n, np.nan), np.full(n, np.inf), np.full(n, -np.inf),
@@ -218,7 +219,7 @@ def test_scans_from_about_the_same_pose_follow_odometry(world, grid, route):
     and the first 5 scans once the robot has come to rest; the route above registers a share of
     its scans and still meets the bar."""
     start = world.start_pose
-    loc = Localiser(grid, start, odom=(0.0, 0.0, 0.0))
+    loc = Localiser(grid, start, odom=(0.0, 0.0, 0.0), config=raster_config())
     assert loc.due((0.0, 0.0, 0.0))                     # the first scan (after the set)
     assert loc.update((0.0, 0.0, 0.0), one_scan(world, start)).corrected
     assert not loc.due((0.12, 0.10, 0.0))               # 15.6 cm
@@ -233,7 +234,7 @@ def test_scans_from_about_the_same_pose_follow_odometry(world, grid, route):
     assert [loc.due((0.06, 0.0, 0.0)) for _ in range(6)] == [True] * 5 + [False]
     loc.reset(start)
     assert loc.due((0.0, 0.0, 0.0))                     # after a reset, always
-    every = Localiser(grid, start, LocaliserConfig(min_update_distance=0.0,
+    every = Localiser(grid, start, raster_config(min_update_distance=0.0,
                                                    min_update_yaw_deg=0.0), odom=(0.0, 0.0, 0.0))
     every.update((0.0, 0.0, 0.0), one_scan(world, start))
     assert every.due((0.0, 0.0, 0.0))
@@ -245,7 +246,7 @@ def test_scans_from_about_the_same_pose_follow_odometry(world, grid, route):
 def test_self_hits_are_filtered_by_geometry():
     las = SimConfig().laser
     loc = Localiser.__new__(Localiser)
-    loc.config = LocaliserConfig()
+    loc.config = raster_config()
     ranges = np.full(las.num_beams, 3.0)
     ranges[:20] = ranges[-20:] = 0.12      # TIAGo's laser sees its own base at the fan's ends
     pts = loc.scan_points(ranges, las.angle_min, las.angle_increment, las.range_min, las.range_max,
@@ -258,7 +259,7 @@ def test_gate_rejects_an_implausible_jump(world, grid):
     truth = (3.0, 0.0, 0.0)
     pts = one_scan(world, truth)
     for max_correction, accepted in ((0.1, False), (0.5, True)):
-        loc = Localiser(grid, truth, LocaliserConfig(max_correction=max_correction))
+        loc = Localiser(grid, truth, raster_config(max_correction=max_correction))
         assert loc.update((0.0, 0.0, 0.0), pts).corrected
         # odometry claims a 0.3 m slide sideways that did not happen
         up = loc.update((0.0, 0.3, 0.0), pts)
@@ -270,7 +271,7 @@ def test_gate_rejects_an_implausible_jump(world, grid):
 
 
 def test_a_scan_of_unmapped_things_only_keeps_the_prediction(grid):
-    loc = Localiser(grid, (8.0, -2.0, 0.0), LocaliserConfig(search_radius=0.0, search_yaw_deg=0.0))
+    loc = Localiser(grid, (8.0, -2.0, 0.0), raster_config(search_radius=0.0, search_yaw_deg=0.0))
     a = np.linspace(-1.5, 1.5, 100)
     ring = np.column_stack((0.6 * np.cos(a), 0.6 * np.sin(a)))   # nothing mapped within 1.5 m
     up = loc.update((0.0, 0.0, 0.0), ring)
@@ -282,7 +283,7 @@ def test_inlier_gate(world, grid):
     truth = (11.0, 0.0, math.radians(-45))
     pts = one_scan(cluttered_world(world, truth), truth)      # about half the points unmapped
     for fraction, accepted in ((0.3, True), (0.6, False)):
-        loc = Localiser(grid, truth, LocaliserConfig(min_inlier_fraction=fraction))
+        loc = Localiser(grid, truth, raster_config(min_inlier_fraction=fraction))
         up = loc.update((0.0, 0.0, 0.0), pts)
         assert up.corrected is accepted, up.reason
         assert accepted or 'match the map' in up.reason
@@ -290,7 +291,7 @@ def test_inlier_gate(world, grid):
 
 def test_covariance_is_small_and_positive_after_a_good_scan(world, grid):
     truth = (7.8, -0.4, 0.5)
-    loc = Localiser(grid, truth)
+    loc = Localiser(grid, truth, config=raster_config())
     up = loc.update((0.0, 0.0, 0.0), one_scan(world, truth))
     assert np.all(np.linalg.eigvalsh(up.covariance) > 0)
     assert math.sqrt(up.covariance[0, 0]) < 0.05 and math.sqrt(up.covariance[2, 2]) < 0.05
@@ -298,10 +299,10 @@ def test_covariance_is_small_and_positive_after_a_good_scan(world, grid):
 
 def test_bad_config_names_the_parameter():
     with pytest.raises(ParamError) as e:
-        LocaliserConfig(robust_scale=0.5, initial_scale=0.1)
+        raster_config(robust_scale=0.5, initial_scale=0.1)
     assert e.value.name == 'robust_scale'
     with pytest.raises(ParamError) as e:
-        LocaliserConfig(min_inlier_fraction=2.0)
+        raster_config(min_inlier_fraction=2.0)
     assert e.value.name == 'min_inlier_fraction'
 
 
@@ -356,7 +357,7 @@ def band_and_plain_errors(inner, n=30, seed=11):
         truth = (3.0, 2.5, 0.0)
         local = pts - truth[:2]                      # the points in base_footprint (yaw 0)
         start = (truth[0] + rng.normal(0, 0.01), truth[1] + rng.normal(0, 0.01), 0.0)
-        ls, _, _ = register(field, local, start, LocaliserConfig(raster_band=False))
+        ls, _, _ = register(field, local, start, raster_config(raster_band=False))
         refined, counts = refine_on_raster(field, local, ls, noise=0.0)
         assert counts == (2 + inner, 2 + inner)    # every wall bounds its axis
         plain.append(math.hypot(ls[0] - truth[0], ls[1] - truth[1]))
@@ -386,7 +387,7 @@ def test_register_applies_the_band_unless_told_not_to():
     world, pts = room_of_walls(np.random.default_rng(2))
     field = DistanceField(rasterise_world(world))
     local = pts - (3.0, 2.5)
-    on = register(field, local, (3.0, 2.5, 0.0), LocaliserConfig())[0]
-    off = register(field, local, (3.0, 2.5, 0.0), LocaliserConfig(raster_band=False))[0]
+    on = register(field, local, (3.0, 2.5, 0.0), raster_config())[0]
+    off = register(field, local, (3.0, 2.5, 0.0), raster_config(raster_band=False))[0]
     assert on != off
     assert on[2] == off[2]                       # the heading is the registration's

@@ -9,9 +9,10 @@ import math
 import numpy as np
 
 from tiago_nav.gridmap import DistanceField
-from tiago_nav.localisation.localiser import LocaliserConfig, register_with_information
+from tiago_nav.localisation.localiser import register_with_information
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.world import World
+from tiago_nav_tools.testing.localisation import raster_config
 
 SENSOR = (0.2, 0.0)
 RANGE_NOISE = 0.01          # [m] std of each beam's range, independent
@@ -78,7 +79,7 @@ def scan(walls, pose, rng):
 def draws(n=30, seed=7):
     """``(errors (n, 3), published covariances (n, 3, 3), independent-beam covariances)``."""
     rng = np.random.default_rng(seed)
-    config = LocaliserConfig(map_sigma=0.0)     # the map is the world's own raster
+    config = raster_config(map_sigma=0.0)     # the map is the world's own raster
     errs, covs, fits = [], [], []
     truth = (-1.2, -0.6, math.radians(25.0))
     for _ in range(n):

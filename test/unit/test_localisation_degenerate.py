@@ -8,17 +8,18 @@ import numpy as np
 import pytest
 
 from tiago_nav.geometry import compose, inverse, wrap_angle
-from tiago_nav.localisation.localiser import (Localiser, LocaliserConfig, register_with_information,
-                                    search, weak_description)
+from tiago_nav.localisation.localiser import (Localiser, register_with_information, search,
+                                               weak_description)
 from tiago_nav.params import ParamError
 from tiago_nav.robot import LASER_OFFSET
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.world import World
 from tiago_nav.sim.worlds import corridor_world
+from tiago_nav_tools.testing.localisation import raster_config
 
 WIDTH = 1.1
 # the maps here are rasterised from the world itself: no map error beyond the raster
-EXACT_MAP = LocaliserConfig(map_sigma=0.0)
+EXACT_MAP = raster_config(map_sigma=0.0)
 SENSOR = (LASER_OFFSET, 0.0)
 FAN = math.radians(110.0)
 
@@ -91,7 +92,7 @@ def test_corridor_keeps_the_prediction_along_and_corrects_across(angle_deg):
     guess = (truth[0] + off_along * math.cos(a) - off_across * math.sin(a),
              truth[1] + off_along * math.sin(a) + off_across * math.cos(a),
              truth[2] - math.radians(3.0))
-    pose, cov, _, info = register_with_information(field, pts, guess, LocaliserConfig(), SENSOR)
+    pose, cov, _, info = register_with_information(field, pts, guess, raster_config(), SENSOR)
     assert info.degenerate and info.weak.shape[1] == 1
     assert weak_description(info.weak, pose, info.length) == 'position along %.0f deg' % angle_deg
     moved_along, _ = along((pose[0] - guess[0], pose[1] - guess[1]), angle_deg)
@@ -111,11 +112,11 @@ def test_the_corridor_axis_has_no_information_and_ratio_0_turns_the_split_off():
     truth = (8.0, 0.06, math.radians(2.0))
     pts = corridor_scan(truth)
     guess = (8.25, 0.01, truth[2] - math.radians(3.0))
-    _, _, _, info = register_with_information(field, pts, guess, LocaliserConfig(), SENSOR)
+    _, _, _, info = register_with_information(field, pts, guess, raster_config(), SENSOR)
     # the scan's information along the axis is nothing next to the lateral one
     assert info.eigenvalues[0] < 1e-4 * info.eigenvalues[-1]
     pose, _, _, info0 = register_with_information(field, pts, guess,
-                                                  LocaliserConfig(degenerate_ratio=0.0), SENSOR)
+                                                  raster_config(degenerate_ratio=0.0), SENSOR)
     assert not info0.degenerate
 
 
@@ -132,11 +133,11 @@ def test_first_search_after_a_reset_does_not_move_along_the_corridor():
         assert abs(up.pose[1] - truth[1]) < 0.01 and abs(up.pose[2]) < math.radians(0.3)
         # /amcl_pose's covariance: the search window's spread along the axis, centimetres across
         # (the two walls' places within their 5 cm cells: about 1 cm)
-        assert math.sqrt(up.covariance[0, 0]) >= LocaliserConfig().search_radius - 1e-9
+        assert math.sqrt(up.covariance[0, 0]) >= raster_config().search_radius - 1e-9
         assert 0.005 < math.sqrt(up.covariance[1, 1]) < 0.02
     # the plain search alone, from the given pose: the same
     from tiago_nav.localisation.localiser import DistanceField
-    res = search(DistanceField(grid), pts, (8.3, 0.0, 0.0), LocaliserConfig(), SENSOR)
+    res = search(DistanceField(grid), pts, (8.3, 0.0, 0.0), raster_config(), SENSOR)
     assert abs(res[0][0] - 8.3) < 1e-3
 
 
@@ -164,7 +165,7 @@ def test_odometry_error_along_the_corridor_is_followed_not_amplified():
     """The odometry over-reads by 3 %: the estimate's along-axis error is the odometry's,
     with no jump; across it stays corrected."""
     grid = corridor()
-    loc = Localiser(grid, (1.5, 0.0, 0.0), odom=(0.0, 0.0, 0.0))
+    loc = Localiser(grid, (1.5, 0.0, 0.0), odom=(0.0, 0.0, 0.0), config=raster_config())
     errors = []
     for k in range(0, 81):                          # 8 m
         truth = (1.5 + 0.1 * k, 0.02 * math.sin(k / 7.0), 0.0)
@@ -205,13 +206,13 @@ def test_a_room_scan_still_corrects_every_direction():
 @pytest.mark.parametrize('bad', [-0.1, 1.0, 2.0])
 def test_degenerate_ratio_is_validated(bad):
     with pytest.raises(ParamError, match='degenerate_ratio'):
-        LocaliserConfig(degenerate_ratio=bad)
+        raster_config(degenerate_ratio=bad)
 
 
 @pytest.mark.parametrize('name', ['odometry_sigma_distance', 'odometry_sigma_yaw'])
 def test_odometry_sigmas_are_validated(name):
     with pytest.raises(ParamError, match=name):
-        LocaliserConfig(**{name: -0.01})
+        raster_config(**{name: -0.01})
 
 
 def corridor_with_end(end):
@@ -241,7 +242,7 @@ def test_the_axis_is_corrected_once_the_corridor_end_comes_into_view():
     the Cauchy scale (the search along the unobservable axis finds it), and it never grows by a
     step."""
     grid, scan = corridor_with_end(16.0)
-    loc = Localiser(grid, (1.5, 0.0, 0.0), odom=(0.0, 0.0, 0.0))
+    loc = Localiser(grid, (1.5, 0.0, 0.0), odom=(0.0, 0.0, 0.0), config=raster_config())
     errors, published, weak = [], [], []
     for k in range(0, 86):                          # 8.5 m, to x = 10
         truth = (1.5 + 0.1 * k, 0.0, 0.0)
@@ -262,7 +263,7 @@ def test_the_axis_is_corrected_once_the_corridor_end_comes_into_view():
     assert np.max(np.diff(errors)) <= 0.006                 # it never grows by a step
     # the published estimate follows in steps of at most max_correction_step, and converges
     steps = np.abs(np.diff(published))
-    assert np.max(steps) <= LocaliserConfig().max_correction_step + 0.006, steps
+    assert np.max(steps) <= raster_config().max_correction_step + 0.006, steps
     assert abs(published[-1]) < 0.02
 
 
@@ -273,9 +274,9 @@ def test_a_27_cm_re_acquisition_reaches_the_published_estimate_in_bounded_steps(
     map -> odom) moves towards it by at most max_correction_step per estimate, registered or
     not, and converges; a reset still sets the pose at once."""
     grid, scan = corridor_with_end(22.0)
-    limit = LocaliserConfig().max_correction_step
+    limit = raster_config().max_correction_step
     assert 0 < limit <= 0.02
-    loc = Localiser(grid, (1.5, 0.0, 0.0), odom=(0.0, 0.0, 0.0))
+    loc = Localiser(grid, (1.5, 0.0, 0.0), odom=(0.0, 0.0, 0.0), config=raster_config())
     truth_x, odom_x = 1.5, 0.0
     published, registered, pending = [], [], []
     for k in range(180):
@@ -317,7 +318,7 @@ def test_a_27_cm_re_acquisition_reaches_the_published_estimate_in_bounded_steps(
     assert all(p == 0.0 for p in pending[done:]) and np.all(np.abs(published[done:]) < 0.03)
     assert np.allclose(published[done:], registered[done:], atol=1e-9)
     # 0: at once (the published estimate is the registered one)
-    at_once = Localiser(grid, (1.5, 0.0, 0.0), LocaliserConfig(max_correction_step=0.0),
+    at_once = Localiser(grid, (1.5, 0.0, 0.0), raster_config(max_correction_step=0.0),
                         odom=(0.0, 0.0, 0.0))
     for k in range(141):
         up = at_once.update((0.1022 * k, 0.0, 0.0), scan((1.5 + 0.1 * k, 0.0, 0.0)), SENSOR)
@@ -327,7 +328,7 @@ def test_a_27_cm_re_acquisition_reaches_the_published_estimate_in_bounded_steps(
 
 def test_a_reset_sets_the_pose_at_once_even_while_a_correction_is_pending():
     grid, scan = corridor_with_end(22.0)
-    loc = Localiser(grid, (1.5, 0.0, 0.0), odom=(0.0, 0.0, 0.0))
+    loc = Localiser(grid, (1.5, 0.0, 0.0), odom=(0.0, 0.0, 0.0), config=raster_config())
     for k in range(150):
         truth = (1.5 + 0.1 * k, 0.0, 0.0)
         up = loc.update((0.1022 * k, 0.0, 0.0), scan(truth), SENSOR)
@@ -357,7 +358,7 @@ def test_ordinary_corrections_in_a_room_are_not_smoothed():
         ranges = sim.scan()
     finally:
         sim.close()
-    loc = Localiser(rasterise_world(world), truth, odom=(0.0, 0.0, 0.0))
+    loc = Localiser(rasterise_world(world), truth, odom=(0.0, 0.0, 0.0), config=raster_config())
     pts = loc.scan_points(ranges, las.angle_min, las.angle_increment, las.range_min,
                           las.range_max, (las.offset, 0.0, 0.0))
     loc.update((0.0, 0.0, 0.0), pts, (las.offset, 0.0))        # the search: at once
@@ -369,4 +370,4 @@ def test_ordinary_corrections_in_a_room_are_not_smoothed():
 
 def test_max_correction_step_is_validated():
     with pytest.raises(ParamError, match='max_correction_step'):
-        LocaliserConfig(max_correction_step=-0.01)
+        raster_config(max_correction_step=-0.01)

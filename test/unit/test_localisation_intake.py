@@ -20,6 +20,7 @@ from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.scene import LaserConfig
 from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.world import load_world
+from tiago_nav_tools.testing.localisation import raster_config
 
 # needs ROS's messages and rospy (the node's module)
 pytestmark = pytest.mark.ros
@@ -43,7 +44,7 @@ def scan_of(world, pose, laser):
 
 def track_one(grid, laser, ranges, start):
     """The pose the localiser registers from ``start`` (a search: a fresh start) with one scan."""
-    loc = Localiser(grid, start, odom=(0.0, 0.0, 0.0))
+    loc = Localiser(grid, start, odom=(0.0, 0.0, 0.0), config=raster_config())
     pts = loc.scan_points(ranges, laser.angle_min, laser.angle_increment, laser.range_min,
                           laser.range_max, (laser.offset, 0.0, 0.0))
     up = loc.update((0.0, 0.0, 0.0), pts, (laser.offset, 0.0))

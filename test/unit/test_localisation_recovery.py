@@ -12,6 +12,7 @@ from tiago_nav.gridmap import GridMap
 from tiago_nav.localisation import global_search
 from tiago_nav.localisation.health import ERROR, OK, WARN, FitMonitor
 from tiago_nav.localisation.recovery import RecoveringLocaliser
+from tiago_nav_tools.testing.localisation import raster_config
 
 RES = 0.05
 SENSOR = (0.0, 0.0)
@@ -147,7 +148,7 @@ def test_global_search_finds_the_pose_anywhere():
 def test_global_localization_converges_and_reports_lost_meanwhile():
     grid = room_map()
     truth = path((2.0, 5.0, 0.0), 12)
-    loc = RecoveringLocaliser(grid, (12.0, 8.0, 2.0), odom=(0.0, 0.0, 0.0))
+    loc = RecoveringLocaliser(grid, (12.0, 8.0, 2.0), odom=(0.0, 0.0, 0.0), config=raster_config())
     loc.global_localization()
     assert loc.health.level == ERROR
     est, levels = drive(loc, grid, truth)
@@ -166,7 +167,7 @@ def test_kidnap_is_detected_and_recovered():
     # the odometry says nothing about the jump
     odom = [compose(inverse(before[0]), p) for p in before]
     odom += [compose(odom[-1], compose(inverse(after[0]), p)) for p in after]
-    loc = RecoveringLocaliser(grid, before[0], odom=odom[0])
+    loc = RecoveringLocaliser(grid, before[0], odom=odom[0], config=raster_config())
     est, levels = drive(loc, grid, truth, true_odom=odom)
     assert all(err(est[k], truth[k]) < 0.1 for k in range(len(before)))
     assert all(v == OK for v in levels[2:len(before)])
@@ -181,7 +182,7 @@ def test_wide_initialpose_is_searched_around():
     grid = room_map()
     truth = path((9.0, 7.5, -2.0), 10)
     given = (truth[0][0] + 1.5, truth[0][1] - 1.0, truth[0][2] + math.radians(60))
-    loc = RecoveringLocaliser(grid, given, odom=(0.0, 0.0, 0.0))
+    loc = RecoveringLocaliser(grid, given, odom=(0.0, 0.0, 0.0), config=raster_config())
     loc.reset(given, np.diag([1.0, 1.0, math.radians(40) ** 2]))
     assert loc.relocalising
     est, _ = drive(loc, grid, truth)
@@ -190,7 +191,7 @@ def test_wide_initialpose_is_searched_around():
 
 def test_narrow_initialpose_keeps_the_tracker_search():
     grid = room_map()
-    loc = RecoveringLocaliser(grid, (2.0, 5.0, 0.0), odom=(0.0, 0.0, 0.0))
+    loc = RecoveringLocaliser(grid, (2.0, 5.0, 0.0), odom=(0.0, 0.0, 0.0), config=raster_config())
     loc.reset((2.1, 5.0, 0.0), np.diag([0.1 ** 2, 0.1 ** 2, math.radians(5) ** 2]))
     assert not loc.relocalising
 
@@ -199,7 +200,7 @@ def test_symmetric_corridor_never_accepts_a_look_alike():
     grid = corridor_map()
     # in the middle, both ends out of range: every place along it fits alike
     truth = path((20.0, 0.8, 0.0), 8, step=0.2, turn=0.0)
-    loc = RecoveringLocaliser(grid, (12.0, 0.8, 0.0), odom=(0.0, 0.0, 0.0))
+    loc = RecoveringLocaliser(grid, (12.0, 0.8, 0.0), odom=(0.0, 0.0, 0.0), config=raster_config())
     loc.global_localization()
     est, levels = drive(loc, grid, truth)
     assert loc.relocalising and all(v == ERROR for v in levels)
@@ -229,7 +230,7 @@ def test_a_degraded_estimate_is_judged_over_scans_of_time_not_of_motion():
     box(8.2, 6.4, 9.8, 6.6)
     # creeping: 1 cm a scan, far below the distance between registrations
     truth = path((8.0, 7.5, 0.0), DEGRADED_LIMIT + 4, step=0.01, turn=0.0)
-    loc = RecoveringLocaliser(grid, truth[0], odom=(0.0, 0.0, 0.0))
+    loc = RecoveringLocaliser(grid, truth[0], odom=(0.0, 0.0, 0.0), config=raster_config())
     levels = []
     for p in truth:
         odom = compose(inverse(truth[0]), p)

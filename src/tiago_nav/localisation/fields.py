@@ -12,13 +12,13 @@ from tiago_nav.localisation.global_search import LikelihoodPyramid
 _FIELD = []     # [(map key, DistanceField)]: the last map's field
 
 
-def distance_field(grid):
-    """``grid``'s :class:`tiago_nav.gridmap.DistanceField`, built once per map: a reset builds
-    the node's state again for the same map, and the field (read only, 12 bytes per cell) is
-    the same."""
-    key = (grid.data.tobytes(), grid.resolution, tuple(grid.origin))
+def distance_field(grid, surface_depth):
+    """``grid``'s :class:`tiago_nav.gridmap.DistanceField` (``surface_depth`` [cells]), built
+    once per map: a reset builds the node's state again for the same map, and the field (read
+    only, 12 bytes per cell) is the same."""
+    key = (grid.data.tobytes(), grid.resolution, tuple(grid.origin), surface_depth)
     if not _FIELD or _FIELD[0][0] != key:
-        _FIELD[:] = [(key, DistanceField(grid))]
+        _FIELD[:] = [(key, DistanceField(grid, surface_depth))]
     return _FIELD[0][1]
 
 

@@ -42,7 +42,7 @@ from functools import cached_property
 import numpy as np
 
 from tiago_nav.geometry import compose, inverse, transform_points, wrap_angle
-from tiago_nav.gridmap import DistanceField  # noqa: F401 (the field registrations use)
+from tiago_nav.gridmap import SCAN_MAP_DEPTH, DistanceField
 from tiago_nav.params import ParamError, param, validate
 from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
 from tiago_nav.scan import scan_to_points, usable_ranges
@@ -108,6 +108,14 @@ class LocaliserConfig:
               'along unobservable directions grows by it', ge=0)
     odometry_sigma_yaw: float = param(
         0.03, '[rad/rad] std of the odometry\'s heading error per radian turned', ge=0)
+    map_surface_depth: float = param(
+        SCAN_MAP_DEPTH, '[cells] how deep inside the boundary of its occupied cells a surface '
+                        'lies on average, which depends on how the map was made: 0.5 for a map '
+                        'built from laser scans (a cell is occupied when a hit falls in it: '
+                        'gmapping, cartographer, slam_toolbox), 0.25 for a map rasterised from '
+                        'geometry with a cell occupied when an obstacle covers its central half '
+                        '(the simulator\'s); the wrong one moves the pose a quarter cell away '
+                        'from the surfaces in view (tiago_nav.gridmap.DistanceField)', ge=0, le=1)
     map_sigma: float = param(
         0.025, '[m] std of where the map puts the building\'s surfaces, beyond its raster, '
                'shared by everything a scan sees (the map\'s local error: a map built by SLAM '
@@ -886,7 +894,7 @@ class Localiser:
 
     def __init__(self, grid, pose, config=LocaliserConfig(), odom=None, field=None):
         self.config = config
-        self.field = DistanceField(grid) if field is None else field
+        self.field = DistanceField(grid, config.map_surface_depth) if field is None else field
         self.reset(pose)
         self._odom = None if odom is None else tuple(odom)
 

@@ -252,7 +252,7 @@ class LocalisationNode:
         except ValueError as e:
             rospy.logerr('localisation: unusable %s: %s', self.p.map_topic, e)
             return
-        field = distance_field(grid)
+        field = distance_field(grid, self.p.localiser.map_surface_depth)
         with self.lock:
             # the start pose is where odom begins (REP 105: odom's origin is the robot's start),
             # so motion before the first scan taken in is predicted, not assumed zero

@@ -11,10 +11,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from tiago_nav.geometry import compose, inverse, wrap_angle
+from tiago_nav.gridmap import RASTER_MAP_DEPTH
 from tiago_nav.localisation.localiser import Localiser, LocaliserConfig
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
 
+def raster_config(**kw):
+    """A :class:`LocaliserConfig` (``kw`` as its fields) for a map rasterised from a world, the
+    simulator's: its surfaces lie a quarter cell inside their occupied cells
+    (``map_surface_depth``, as sim.launch sets it)."""
+    return LocaliserConfig(map_surface_depth=RASTER_MAP_DEPTH, **kw)
+
+
+SIM_CONFIG = raster_config()
 # Through the course world's corridor into the big room, a loop there, and back into the corridor
 # (map frame [m]; the movable cylinders stay in the scene, unmapped).
 COURSE_ROUTE = ((2.0, 0.0), (5.5, 0.0), (7.2, -0.3), (8.6, -0.9), (8.6, 0.4), (7.0, 0.2),
@@ -86,7 +95,7 @@ class RouteResult:
         return float(np.percentile(getattr(self, what), 95))
 
 
-def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=LocaliserConfig(),
+def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=SIM_CONFIG,
               seed=0, drift=(0.02, 0.03, 0.01), scan_hook=None, max_time=120.0, laser=None):
     """Drive the simulator along ``route`` and localise at every scan (registering the ones
     the localiser finds :meth:`~tiago_nav.localisation.localiser.Localiser.due`, as the node does).
@@ -96,7 +105,7 @@ def run_route(world, route=COURSE_ROUTE, initial_error=(0.0, 0.0, 0.0), config=L
         route: waypoints ``(x, y)`` [m] in map.
         initial_error: ``(dx, dy, dyaw)`` [m, m, rad] added to the true start pose given to the
             localiser.
-        config: :class:`LocaliserConfig`.
+        config: :class:`LocaliserConfig` (default :data:`SIM_CONFIG`).
         seed: seeds the laser noise and the odometry noise.
         drift: ``(distance_error, rotation_error, noise)`` of :class:`DriftingOdometry`.
         scan_hook: optional ``f(ranges) -> ranges`` applied to each scan (to damage it).
