@@ -10,14 +10,14 @@ import pytest
 
 from conftest import ROOT
 from tiago_nav.geometry import compose, wrap_angle
-from tiago_nav.localisation.localiser import Localiser
+from tiago_nav.localisation.localiser import (INNOVATION_LIMIT, Localiser, fuse_with_prediction,
+                                               register_with_information)
 from tiago_nav.params import ParamError
-from tiago_nav.robot import ROBOT_RADIUS
+from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.world import Cylinder, load_world
-from tiago_nav_tools.testing.localisation import run_route
-from tiago_nav_tools.testing.localisation import raster_config
+from tiago_nav_tools.testing.localisation import raster_config, run_route
 
 # the quality bar (docs/design-decisions.md): localisation error at the 95th percentile
 BAR_XY, BAR_YAW = 0.05, math.radians(2.0)
@@ -253,6 +253,62 @@ def test_self_hits_are_filtered_by_geometry():
                           (las.offset, 0.0, 0.0))
     assert np.all(np.hypot(pts[:, 0], pts[:, 1]) > ROBOT_RADIUS)
     assert len(pts) == loc.config.max_points       # every far hit survives (then subsampled)
+
+
+def registered_in_room(world, grid):
+    """A scan at pose B's room registered from a guess a little off: ``(truth, pose, info)``
+    with every direction observed."""
+    truth = (8.6, -0.9, 0.3)
+    loc = Localiser(grid, truth, raster_config())
+    pts = one_scan(world, truth)
+    pose, _, _, info = register_with_information(loc.field, pts, (8.62, -0.91, 0.31),
+                                                 loc.config, (LASER_OFFSET, 0.0))
+    assert not info.degenerate and err(pose, truth)[0] < 0.03
+    return truth, pose, info
+
+
+def test_fusion_weighs_the_registration_against_the_prediction(world, grid):
+    truth, pose, info = registered_in_room(world, grid)
+    r = info.covariance
+    predicted = (pose[0] + 0.02, pose[1] - 0.01, pose[2] + math.radians(0.3))
+    # as certain as the registration: the middle, and no more certain than either
+    fused, cov = fuse_with_prediction(predicted, r, pose, info)
+    middle = [(a + b) / 2 for a, b in zip(pose, predicted)]
+    assert np.allclose(fused, middle, atol=1e-9), (fused, middle)
+    assert np.allclose(cov, r, rtol=1e-6, atol=1e-12)
+    # a vague prediction: nearly the registration; a sharp one: nearly the prediction
+    fused, cov = fuse_with_prediction(predicted, 100.0 * r, pose, info)
+    assert err(fused, pose)[0] < 0.001 and err(fused, pose)[1] < math.radians(0.01)
+    fused, cov = fuse_with_prediction(predicted, 0.01 * r, pose, info)
+    assert err(fused, predicted)[0] < 0.003
+    assert np.all(np.linalg.eigvalsh(cov) >= np.linalg.eigvalsh(0.01 * r) - 1e-12)
+
+
+def test_fusion_keeps_a_registration_the_odometry_cannot_explain(world, grid):
+    truth, pose, info = registered_in_room(world, grid)
+    r = info.covariance
+    predicted = (pose[0] + 0.3, pose[1], pose[2])     # the odometry slid 0.3 m
+    d = np.array(predicted) - np.array(pose)
+    assert d @ np.linalg.pinv(2.0 * r) @ d > INNOVATION_LIMIT[3]
+    fused, cov = fuse_with_prediction(predicted, r, pose, info)
+    assert fused == pose and np.array_equal(cov, r)
+
+
+def test_rest_updates_are_not_fused(world, grid):
+    # at rest each scan sees what the last one saw, with the same map errors: the covariance
+    # stays the registration's instead of shrinking with every scan
+    truth = (8.6, -0.9, 0.3)
+    loc = Localiser(grid, truth, raster_config(), odom=(0.0, 0.0, 0.0))
+    for seed in range(4):
+        assert loc.due((0.0, 0.0, 0.0)) or seed == 0
+        up = loc.update((0.0, 0.0, 0.0), one_scan(world, truth, seed=seed),
+                        (LASER_OFFSET, 0.0))
+        assert up.corrected, up.reason
+        assert np.allclose(loc.covariance, loc.information.covariance)
+    moved = compose(truth, (0.25, 0.0, 0.0))
+    up = loc.update((0.25, 0.0, 0.0), one_scan(world, moved, seed=9), (LASER_OFFSET, 0.0))
+    assert up.corrected and err(up.pose, moved)[0] < 0.02
+    assert not np.allclose(loc.covariance, loc.information.covariance)
 
 
 def test_gate_rejects_an_implausible_jump(world, grid):

@@ -25,7 +25,11 @@ Each scan is one :meth:`Localiser.update`:
    map and it moves the pose no more than ``max_correction`` / ``max_correction_yaw_deg`` (each
    widened by 3 standard deviations of the prediction) from the prediction; otherwise the
    prediction is kept (and the update says why);
-4. **publish**: after a registration that left a position unobservable (a corridor's axis),
+4. **fuse** (``fuse_prediction``): a registration taken an update's distance or turn from the
+   last one is weighed against the prediction in the directions it observes
+   (:func:`fuse_with_prediction`, a Kalman update whose covariance counts the two's shared
+   errors), so that the scans' own noise averages out over registrations;
+5. **publish**: after a registration that left a position unobservable (a corridor's axis),
    a position correction (the axis seen again) reaches the published estimate
    (:attr:`Localiser.estimate`, ``map_to_odom``) by at most ``max_correction_step`` per
    estimate (every scan, :meth:`Localiser.follow` between registrations), while the
@@ -129,6 +133,11 @@ class LocaliserConfig:
               'the published estimate (pose, map -> odom) towards the registered pose by at '
               'most this per estimate (scan), until it has converged; the registration itself '
               'works on the registered pose (0: at once)', ge=0)
+    fuse_prediction: bool = param(
+        True, 'a registration taken an update\'s distance or turn from the last one is weighed '
+              'against the odometry\'s prediction (a Kalman update in the directions the scan '
+              'observes, its covariance kept as if the two shared their errors: '
+              'fuse_with_prediction); off: the registered pose replaces the prediction')
     rest_updates: int = param(
         5, 'scans registered anyway once the robot has come to rest (odometry unchanged since '
            'the scan before), until it moves again: at rest they refine the estimate that places '
@@ -620,6 +629,66 @@ def scan_covariance(points, normals, has_normal, residuals, weights, yaw, basis,
     return basis @ (hinv @ (basis.T @ m @ basis) @ hinv) @ basis.T
 
 
+# the 99.9 % quantiles of chi-square with 1, 2 and 3 degrees of freedom: a registration's
+# correction beyond them (its Mahalanobis distance under the prediction's and the registration's
+# covariances) is not fused
+INNOVATION_LIMIT = {1: 10.83, 2: 13.82, 3: 16.27}
+
+
+def fuse_with_prediction(predicted, predicted_cov, registered, info):
+    """The prediction updated by a registration, in the directions the scan observes.
+
+    The registration is a measurement of the pose's observable part with covariance ``R``
+    (:attr:`Information.covariance`: the scan's errors, its surfaces' shared ones counted); the
+    prediction has ``P`` (:meth:`Localiser.predicted_covariance`). In the coordinates ``a`` of
+    the observable subspace (``Information.strong``: scaled ``(x, y, length · yaw)``), the pose
+    is the Kalman update's, ``a = K a_z`` with ``K = P (P + R)⁻¹`` (the registration's
+    correction ``a_z`` weighed against the odometry's): the scan's own noise averages out over
+    registrations. Its covariance is not the Kalman ``(I - K) P``, which holds for independent
+    errors only: consecutive scans see the same surfaces with the same map errors, and the
+    prediction carries the last registration's. With the errors taken as fully correlated the
+    standard deviations add, ``P⁺ = (A + B)(A + B)ᵀ`` with ``A = (I - K) √P`` and ``B = K √R``
+    (symmetric square roots): never less than the smaller of ``P`` and ``R`` holds, so fusing
+    claims no more than either. A correction the two make improbable (``a_zᵀ (P + R)⁻¹ a_z``
+    beyond :data:`INNOVATION_LIMIT`: the odometry slipped beyond its model) is not fused: the
+    registration is kept as it is. Along the unobservable directions the registered pose (the
+    prediction there, or where the search along them put it) is kept.
+
+    Args:
+        predicted: ``(x, y, yaw)`` [m, m, rad] of base_footprint in map, the prediction.
+        predicted_cov: its 3 × 3 covariance [m², m·rad, rad²].
+        registered: ``(x, y, yaw)`` the registered pose.
+        info: the registration's :class:`Information`.
+
+    Returns:
+        ``(pose, covariance)``: the fused pose and its 3 × 3 covariance in the observable
+        directions (zero along the others, as :attr:`Information.covariance`).
+    """
+    r_cov = info.covariance
+    if not info.strong.shape[1]:
+        return tuple(registered), r_cov
+    scale = np.array([1.0, 1.0, info.length])
+    to_a = info.strong.T * scale[None, :]       # (k, 3): (dx, dy, dyaw) → a
+    from_a = info.strong / scale[:, None]       # (3, k): a → (dx, dy, dyaw)
+    d = np.array(registered, dtype=float) - np.array(predicted, dtype=float)
+    d[2] = wrap_angle(d[2])
+    a_z = to_a @ d
+    p, r = to_a @ predicted_cov @ to_a.T, to_a @ r_cov @ to_a.T
+    try:
+        gain = np.linalg.solve(p + r, p).T      # P (P + R)⁻¹, both symmetric
+        innovation = float(a_z @ np.linalg.solve(p + r, a_z))
+    except np.linalg.LinAlgError:
+        return tuple(registered), r_cov
+    if innovation > INNOVATION_LIMIT[len(p)]:
+        # a correction the two covariances make improbable: the odometry went wrong beyond
+        # its model (a wheel slipped, the robot was pushed), and the scan is right
+        return tuple(registered), r_cov
+    root = (np.eye(len(p)) - gain) @ _sqrtm(p) + gain @ _sqrtm(r)
+    out = np.array(registered, dtype=float) + from_a @ (gain @ a_z - a_z)
+    out[2] = wrap_angle(out[2])
+    return (float(out[0]), float(out[1]), float(out[2])), from_a @ (root @ root.T) @ from_a.T
+
+
 def _inverse_small(a):
     """The inverse of a 1 × 1, 2 × 2 or 3 × 3 matrix by its adjugate (a LAPACK call costs
     more than the arithmetic at this size), or None when it is singular."""
@@ -1041,6 +1110,15 @@ class Localiser:
             pts = pts[np.linspace(0, len(pts) - 1, c.max_points).round().astype(int)]
         return pts
 
+    def _moved(self, odom_pose):
+        """Whether the odometry has moved ``min_update_distance`` or turned
+        ``min_update_yaw_deg`` since the last registered scan (False before the first)."""
+        if self._odom is None:
+            return False
+        dx, dy, dyaw = compose(inverse(self._odom), tuple(odom_pose))
+        return math.hypot(dx, dy) >= self.config.min_update_distance \
+            or abs(dyaw) >= math.radians(self.config.min_update_yaw_deg)
+
     def due(self, odom_pose):
         """Whether the scan at ``odom_pose`` (base_footprint in odom) is to be registered (call
         once per scan, in order): always after a (re)set and at the first scan; else once the
@@ -1055,14 +1133,9 @@ class Localiser:
         still, self._seen = odom_pose == self._seen, odom_pose
         if not still:
             self._rest = 0
-        if self._searching or self._odom is None:
+        if self._searching or self._odom is None or self._moved(odom_pose):
             return True
-        dx, dy, dyaw = compose(inverse(self._odom), odom_pose)
-        c = self.config
-        if math.hypot(dx, dy) >= c.min_update_distance \
-                or abs(dyaw) >= math.radians(c.min_update_yaw_deg):
-            return True
-        if still and self._rest < c.rest_updates:
+        if still and self._rest < self.config.rest_updates:
             self._rest += 1
             return True
         return False
@@ -1119,6 +1192,7 @@ class Localiser:
         c = self.config
         predicted = self.predict(odom_pose)
         predicted_cov = self.predicted_covariance(odom_pose)
+        moved = self._moved(odom_pose)
         self._odom = tuple(odom_pose)
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
         reason = ''
@@ -1171,8 +1245,17 @@ class Localiser:
             if self._axes.size:
                 self._offset = self._offset - np.array([pose[0] - predicted[0],
                                                         pose[1] - predicted[1]])
+            # the registration fused with the prediction (fuse_with_prediction) once the robot
+            # has moved an update's distance since the last one, so that the two see the
+            # building from different places; not after a (re)set, whose prediction is the
+            # search window, nor while a re-acquisition converges (the offset already smooths
+            # that correction, and fusing would spread it over registrations that each add to
+            # the offset), nor at rest, where a scan sees what the last one saw
+            observed = info.covariance
+            if c.fuse_prediction and moved and not self._searching and not self._axes.size:
+                pose, observed = fuse_with_prediction(predicted, predicted_cov, pose, info)
             self.pose = pose
-            self.covariance = info.covariance + weak @ predicted_cov @ weak.T
+            self.covariance = observed + weak @ predicted_cov @ weak.T
             self._searching = False
             if info.degenerate:
                 self._axes = weak_axes(info)
