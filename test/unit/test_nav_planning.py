@@ -239,6 +239,43 @@ def test_controller_stops_before_an_obstacle():
     assert abs(base.v) < 0.05                         # and has stopped
 
 
+def test_a_remembered_cell_counts_as_near_as_any_part_of_it():
+    # a map cell remembered for a direction the laser cannot see (the base hides the fan's
+    # ends) may hold its surface half a diagonal nearer than its centre: with that margin a
+    # creep towards it is unsafe, as it is for a hit seen that near
+    ctl = Controller(ControllerConfig())
+    c = ctl.c
+    pose = (0.0, 0.0, 0.0)
+    centre = np.array([[c.robot_radius + c.safety_margin + 0.1, 0.0]])
+    creep = 0.05
+    reach = creep * (0.1 + 0.1 + creep / c.decel_x)        # how far the creep's check looks
+    assert ctl.safe(pose, creep, 0.0, centre, 0.1)
+    half_diagonal = 0.05 / math.sqrt(2.0)
+    seen = centre - [[0.1 - reach + 0.001, 0.0]]
+    assert not ctl.safe(pose, creep, 0.0, seen, 0.1)
+    near = centre - [[half_diagonal, 0.0]]
+    margin = np.array([0.1 - reach + 0.001 - half_diagonal])
+    assert not ctl.safe(pose, creep, 0.0, near, 0.1, margins=margin)
+    assert ctl.safe(pose, creep, 0.0, near, 0.1, margins=np.zeros(1))
+
+
+def test_navigator_remembers_hidden_cells_with_half_their_diagonal():
+    from tiago_nav.nav.navigator import Navigator
+    nav = Navigator(empty(120, 120))
+    nav.costmap.obstacles[60, 70] = True                 # a mark 0.5 m to the right of the laser
+    x0, y0 = nav.costmap.grid.cell_to_world([(60, 60)])[0]
+    n = 181
+    ranges = np.full(n, 3.0)
+    ranges[:20] = 0.01                                    # the fan's right end: the base
+    nav.add_scan(MapScan((x0, y0, math.pi / 2), ranges, -math.pi / 2, math.pi / (n - 1), 0.05,
+                         25.0))
+    mark = nav.costmap.grid.cell_to_world([(60, 70)])[0]
+    hit = np.hypot(*(nav.points - mark).T) < 1e-9
+    assert hit.sum() == 1
+    assert nav.margins[hit][0] == pytest.approx(nav.costmap.grid.resolution / math.sqrt(2.0))
+    assert np.all(nav.margins[~hit] == 0.0)
+
+
 def test_a_scan_clears_marked_cells_before_its_hits_and_keeps_those_behind():
     """A 666-beam fan facing a wall 2 m away (every beam hits it): marks left in front of the
     wall (an obstacle that moved away) are cleared, except within one cell of the wall; marks

@@ -335,7 +335,7 @@ def test_oscillating_robot_aborts_with_no_progress():
     cfg = NavConfig(no_progress_timeout=8.0, goal_timeout=0.0)
     rig = Rig(config=cfg)
 
-    def swing(pose, goal, points, dt, blind=False):
+    def swing(pose, goal, points, dt, blind=False, margins=None):
         return (0.6 if int(rig.clock.now() / 1.5) % 2 == 0 else -0.6), 0.0, 'follow'
     rig.nav.controller.command = swing
     rig.run(7.0, 2.0)

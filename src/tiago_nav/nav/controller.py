@@ -72,11 +72,14 @@ def arc_poses(pose, v, w, horizon, dt):
                             y - v / w * (np.cos(ths) - math.cos(th)), ths))
 
 
-def min_gap(positions, points, radius):
-    """Smallest gap [m] between circles of ``radius`` at ``positions (K, 2)`` and ``points (M, 2)``."""
+def min_gap(positions, points, radius, margins=None):
+    """Smallest gap [m] between circles of ``radius`` at ``positions (K, 2)`` and ``points (M, 2)``,
+    each point's distance less its own ``margins`` ``(M,)`` [m] (None: 0)."""
     if len(points) == 0 or len(positions) == 0:
         return math.inf
     d = np.hypot(positions[:, None, 0] - points[None, :, 0], positions[:, None, 1] - points[None, :, 1])
+    if margins is not None:
+        d = d - margins[None, :]
     return float(d.min() - radius)
 
 
@@ -117,25 +120,30 @@ class Controller:
         beyond = np.nonzero(d >= dist)[0]
         return p[beyond[0]] if len(beyond) else p[-1]
 
-    def safe(self, pose, v, w, points, dt, blind=False):
+    def safe(self, pose, v, w, points, dt, blind=False, margins=None):
         """True when ``(v, w)`` held for ``dt`` and then braked at ``decel_x`` keeps the footprint
-        (plus ``safety_margin``) clear of ``points``. ``blind`` (the laser saw nothing it could
-        vouch for): no forward motion is safe."""
+        (plus ``safety_margin``, plus each point's own ``margins``) clear of ``points``.
+        ``blind`` (the laser saw nothing it could vouch for): no forward motion is safe."""
         if v <= 1e-3:
             return True   # a round base turning on the spot or stopping cannot hit anything new
         if blind:
             return False
         horizon = dt + v / self.c.decel_x + 0.1
         poses = arc_poses(pose, v, w, horizon, 0.05)
-        near = points[np.hypot(points[:, 0] - pose[0], points[:, 1] - pose[1])
-                      < v * horizon + self.c.robot_radius + 0.3] if len(points) else points
-        return min_gap(poses[:, :2], near, self.c.robot_radius + self.c.safety_margin) > 0.0
+        if not len(points):
+            return True
+        keep = np.hypot(points[:, 0] - pose[0], points[:, 1] - pose[1]) \
+            < v * horizon + self.c.robot_radius + 0.3
+        return min_gap(poses[:, :2], points[keep], self.c.robot_radius + self.c.safety_margin,
+                       None if margins is None else margins[keep]) > 0.0
 
-    def command(self, pose, goal, points, dt, blind=False):
+    def command(self, pose, goal, points, dt, blind=False, margins=None):
         """One control step. ``points``: obstacle points ``(M, 2)`` in map (laser hits and
-        what the collision check must assume); ``blind``: the newest scan had no informative
-        beam, so only turning on the spot is allowed. Returns ``(v, w, phase)`` with phase
-        ``'follow'``, ``'rotate'``, ``'arrived'`` or ``'blocked'``."""
+        what the collision check must assume), each nearer than it is by its ``margins``
+        ``(M,)`` [m] at most (None: 0; a remembered map cell's centre, by half its diagonal);
+        ``blind``: the newest scan had no informative beam, so only turning on the spot is
+        allowed. Returns ``(v, w, phase)`` with phase ``'follow'``, ``'rotate'``, ``'arrived'``
+        or ``'blocked'``."""
         c = self.c
         x, y, yaw = pose
         dg = math.hypot(goal[0] - x, goal[1] - y)
@@ -153,8 +161,9 @@ class Controller:
         self._progress((x, y))
         gap = math.inf
         if len(points):
-            near = points[np.hypot(points[:, 0] - x, points[:, 1] - y) < c.robot_radius + 0.8]
-            gap = min_gap(np.array([[x, y]]), near, c.robot_radius)
+            keep = np.hypot(points[:, 0] - x, points[:, 1] - y) < c.robot_radius + 0.8
+            gap = min_gap(np.array([[x, y]]), points[keep], c.robot_radius,
+                          None if margins is None else margins[keep])
         tight = gap < c.tight_clearance
         L = min(c.lookahead_max, max(c.lookahead_min, c.lookahead_min + c.lookahead_time * self.v))
         if tight:
@@ -178,11 +187,11 @@ class Controller:
         v = _ramp(v_t, self.v, c.acc_lim_x, dt)
         w_t = max(-c.max_vel_theta, min(c.max_vel_theta, k * max(v, c.min_vel_x)))
         w = _ramp(w_t, self.w, c.acc_lim_theta, dt)
-        if not self.safe(pose, v, w, points, dt, blind):
+        if not self.safe(pose, v, w, points, dt, blind, margins):
             # slower, then on the spot towards the plan (a round base cannot hit anything turning)
             for vs in (0.5 * v, 0.25 * v, 0.1, 0.05):
                 vs = min(vs, v)
-                if vs > 0.02 and self.safe(pose, vs, w, points, dt, blind):
+                if vs > 0.02 and self.safe(pose, vs, w, points, dt, blind, margins):
                     self.v, self.w = vs, w
                     return vs, w, 'follow'
             return self._turn(alpha, dt, 'blocked')

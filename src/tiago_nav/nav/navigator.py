@@ -125,6 +125,7 @@ class Navigator:
         self.controller = Controller(config.controller)
         self.window = ProgressWindow(config.no_progress_timeout, config.no_progress_distance)
         self.points = np.zeros((0, 2))
+        self.margins = np.zeros(0)  # [m] per point: how much nearer its obstacle may be
         self.blind = False          # the newest scan had no informative beam
         self.scan_stamp = None      # stamp [s] of the newest scan
         self.goal = None
@@ -143,10 +144,17 @@ class Navigator:
         self.costmap.add_scan(scan)
         self.costmap.update()
         points = scan.obstacles[0]
+        margins = np.zeros(len(points))
         if len(scan.ranges) and (scan.kinds == INVALID).any():
             near = self.costmap.occupied_near(scan.laser_pose[:2], self.MEMORY_RADIUS)
-            points = np.vstack((points, near[scan.invalid_beam_at(near)]))
+            near = near[scan.invalid_beam_at(near)]
+            points = np.vstack((points, near))
+            # a remembered cell stands for a surface anywhere in it: up to half its diagonal
+            # nearer than its centre
+            margins = np.concatenate((margins, np.full(len(near), self.costmap.grid.resolution
+                                                       / math.sqrt(2.0))))
         self.points = points
+        self.margins = margins
         self.blind = not scan.informative()
         self.scan_stamp = scan.stamp
 
@@ -337,7 +345,8 @@ class Navigator:
                 self.controller.v = self.controller.w = 0.0
                 self.progress_time = t
                 return 0.0, 0.0, ACTIVE, 'planning'
-        v, w, phase = self.controller.command(pose, self.goal, self.points, dt, self.blind)
+        v, w, phase = self.controller.command(pose, self.goal, self.points, dt, self.blind,
+                                              self.margins)
         if phase == 'arrived':
             return self._finish(SUCCEEDED, 'goal reached')
         if t - self.progress_time > cfg.controller_patience:
