@@ -129,9 +129,9 @@ class DistanceField:
       hit falls in it, so a surface lies anywhere within its occupied cells, half a cell inside
       the boundary on average;
     - ``0.25`` (:data:`RASTER_MAP_DEPTH`), a map rasterised from geometry (the simulator's
-      ``map.pgm``, :func:`tiago_nav.sim.raster.rasterise_world`): a cell is occupied when an obstacle
-      covers its central half, so a straight surface lies from a quarter cell outside the
-      boundary to three quarters inside, a quarter cell inside on average.
+      ``map.pgm``, :func:`tiago_nav.sim.raster.rasterise_world`): a cell is occupied when an
+      obstacle covers its central half, so a straight surface lies from a quarter cell outside
+      the boundary to three quarters inside, a quarter cell inside on average.
 
     Registering a scan on a field shifted by the wrong depth moves the pose by the difference
     (a quarter cell, 1.25 cm at 0.05 m) away from the surfaces in view: with a laser that faces
