@@ -648,8 +648,8 @@ def fuse_with_prediction(predicted, predicted_cov, registered, info):
     errors only: consecutive scans see the same surfaces with the same map errors, and the
     prediction carries the last registration's. With the errors taken as fully correlated the
     standard deviations add, ``P⁺ = (A + B)(A + B)ᵀ`` with ``A = (I - K) √P`` and ``B = K √R``
-    (symmetric square roots): never less than the smaller of ``P`` and ``R`` holds, so fusing
-    claims no more than either. A correction the two make improbable (``a_zᵀ (P + R)⁻¹ a_z``
+    (symmetric square roots): along every direction it lies between ``P``'s and ``R``'s, so
+    fusing claims no more certainty than the surer of the two. A correction the two make improbable (``a_zᵀ (P + R)⁻¹ a_z``
     beyond :data:`INNOVATION_LIMIT`: the odometry slipped beyond its model) is not fused: the
     registration is kept as it is. Along the unobservable directions the registered pose (the
     prediction there, or where the search along them put it) is kept.
