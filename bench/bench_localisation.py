@@ -54,9 +54,8 @@ def nees_figures(runs):
 
 def sim_config():
     """The localiser's configuration in the simulator: its map is the world's own raster."""
-    from tiago_nav.gridmap import RASTER_MAP_DEPTH
-    from tiago_nav.localisation.localiser import LocaliserConfig
-    return LocaliserConfig(map_sigma=0.0, map_surface_depth=RASTER_MAP_DEPTH)
+    from tiago_nav_tools.testing.localisation import raster_config
+    return raster_config(map_sigma=0.0)
 
 
 def summary(runs):
