@@ -97,3 +97,45 @@ def test_wait_until_still_waits_for_a_slow_clock_and_gives_up_on_a_dead_one():
                                  period=0.04, stall=2.0)
         assert still is expect
         assert (clock.wall() >= 50.0) if not dead else (clock.wall() < 2.2)
+
+
+def test_ticker_sleeps_for_the_time_left_at_the_rate_ros_time_keeps():
+    """With ``longest``, a tick of 0.1 s wakes a few times instead of 50 (nap 2 ms), lands
+    within about ``nap`` of its time while the rate holds (bags played at 1, 4 and 0.5 times
+    real time), and follows a change of rate within a tick."""
+    for rate in (1.0, 4.0, 0.5):
+        clock = FakeClock()
+        clock.rate = rate
+        sleeps = []
+        sleep = clock.sleep
+        clock.sleep = lambda dt: (sleeps.append(dt), sleep(dt))
+        ticker = Ticker(clock, 0.1, nap=0.005, longest=0.1)
+        late = []
+        for i in range(1, 21):
+            del sleeps[:]
+            assert ticker.tick()
+            late.append(clock.now() - ticker.next)
+            if i > 1:       # the first tick has no rate yet: it polls every nap
+                assert len(sleeps) <= 3, (rate, i, sleeps)
+        assert 0.0 <= max(late) <= 0.005 * rate + 1e-9, (rate, late)
+    clock = FakeClock()
+    ticker = Ticker(clock, 0.1, nap=0.005, longest=0.1)
+    for _ in range(5):
+        ticker.tick()
+    clock.rate = 10.0       # played ten times faster: at most ``longest`` late, once
+    ticker.tick()
+    assert clock.now() - ticker.next <= 0.1 * 10.0 + 1e-9
+    ticker.tick()           # (falls behind by more than a period: runs at once)
+    ticker.tick()
+    assert clock.now() - ticker.next <= 0.005 * 10.0 + 1e-9
+
+
+def test_ticker_without_longest_polls_every_nap():
+    clock = FakeClock()
+    sleeps = []
+    sleep = clock.sleep
+    clock.sleep = lambda dt: (sleeps.append(dt), sleep(dt))
+    ticker = Ticker(clock, 0.1, nap=0.002)
+    ticker.tick()
+    ticker.tick()
+    assert set(round(s, 9) for s in sleeps) == {0.002}

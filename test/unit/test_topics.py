@@ -14,6 +14,27 @@ from tiago_nav.ros.topics import Subscription, orphaned
 pytestmark = pytest.mark.ros
 
 
+class FakeConnection:
+    """A rospy subscriber connection: ``endpoint_id`` is its publisher's URI."""
+
+    def __init__(self, endpoint_id):
+        self.endpoint_id, self.closed = endpoint_id, False
+
+    def close(self):
+        self.closed = True
+
+
+class FakeSubscriberImpl:
+    """rospy's ``_SubscriberImpl``: its connections, and ``remove_connection`` closing one."""
+
+    def __init__(self):
+        self.connections = []
+
+    def remove_connection(self, c):
+        c.close()
+        self.connections = [x for x in self.connections if x is not c]
+
+
 class FakeSubscriber:
     made = []
 
@@ -21,6 +42,7 @@ class FakeSubscriber:
         self.name, self.callback, self.kwargs = name, callback, kwargs
         self.connections = 0
         self.unregistered = False
+        self.impl = FakeSubscriberImpl()
         FakeSubscriber.made.append(self)
 
     def get_num_connections(self):
@@ -35,6 +57,7 @@ def fake_rospy(monkeypatch):
     FakeSubscriber.made = []
     monkeypatch.setattr(rospy, 'Subscriber', FakeSubscriber)
     monkeypatch.setattr(rospy, 'get_name', lambda: '/localisation')
+    monkeypatch.setattr(rospy, 'get_node_uri', lambda: 'http://host:1001/')
     monkeypatch.setattr(topics, 'listed_publishers', lambda name: [])
     return FakeSubscriber
 
@@ -129,8 +152,15 @@ def test_others_transform_listener_stores_others_transforms_but_not_its_own(fake
     listener = topics.OthersTransformListener(buf)
     assert sorted(s.name for s in fake_rospy.made) == ['/tf', '/tf_static']
     tf_sub = next(s for s in fake_rospy.made if s.name == '/tf')
+    others, own = FakeConnection('http://host:1002/'), FakeConnection('http://host:1001/')
+    tf_sub.impl.connections = [others, own]
     tf_sub.callback(_tf_bytes('base_footprint', '/odometry'))
+    assert tf_sub.impl.connections == [others, own]
     tf_sub.callback(_tf_bytes('mine', '/localisation'))
     assert buf.can_transform('odom', 'base_footprint', rospy.Time(5))
     assert not buf.can_transform('odom', 'mine', rospy.Time(5))
     assert listener.own == '/localisation'
+    # the connection from its own publisher is closed at its first message; the others stay
+    assert own.closed and not others.closed and tf_sub.impl.connections == [others]
+    tf_sub.callback(_tf_bytes('base_footprint', '/odometry'))
+    assert tf_sub.impl.connections == [others]

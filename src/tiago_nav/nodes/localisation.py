@@ -52,7 +52,8 @@ from tiago_nav.localisation.recovery import RecoveringLocaliser
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as rosparams
 from tiago_nav.ros.clock import RosClock, reaches_past
-from tiago_nav.ros.lockstep import CYCLE_WAIT, STARTUP_WAIT, LockstepParticipant, lookup_at
+from tiago_nav.ros.lockstep import (CYCLE_WAIT, STARTUP_WAIT, LockstepParticipant, direct_publisher,
+                                    lookup_at)
 from tiago_nav.ros.params import start_pose
 from tiago_nav.ros.reset import NodeReset, track
 from tiago_nav.ros.conversions import (COV_INDEX, covariance_6x6, gridmap_in_grid_frame, pose_from_msg, pose_from_transform,
@@ -64,7 +65,8 @@ from tiago_nav.sim.world import WorldError
 
 
 REPUBLISH_OFFSET = rospy.Duration(0, 100000)   # 0.1 ms
-REPUBLISH_NAP = 0.02    # [s wall] at most this late a re-send of map -> odom (outside lockstep)
+REPUBLISH_NAP = 0.01    # [s wall] about this late a re-send of map -> odom (outside lockstep;
+                        # rosbag play's /clock steps every 10 ms: a shorter poll finds no change)
 
 # registrations in a row observing every direction before the node logs that the geometry
 # recovered from a degenerate one
@@ -209,9 +211,11 @@ class LocalisationNode:
         self.listener = OthersTransformListener(self.tf)
         # latched: a node that starts while simulated time stands still (the simulator waits
         # for work or for everyone to join) still gets map -> odom
-        self.pub_tf = rospy.Publisher(params.tf_topic, TFMessage, queue_size=10, latch=True)
+        # written in the sending thread (a queue's writer thread costs a thread switch per
+        # message and subscriber; a frozen subscriber is dropped after SEND_TIMEOUT)
+        self.pub_tf = direct_publisher(params.tf_topic, TFMessage, latch=True)
         self.map_ready = threading.Event()
-        self.pub_pose = rospy.Publisher(params.pose_topic, PoseWithCovarianceStamped, queue_size=5)
+        self.pub_pose = direct_publisher(params.pose_topic, PoseWithCovarianceStamped)
         self.pub_diag = rospy.Publisher('/diagnostics', DiagnosticArray, queue_size=5)
         self.pub_state = rospy.Publisher(params.state_topic, String, queue_size=1, latch=True)
         self.state = None           # the last state sent on state_topic
@@ -473,10 +477,11 @@ class LocalisationNode:
 def run(current, lockstep, republish_rate):
     """The node's loop until shutdown; ``current()`` gives its state now (a reset replaces it;
     None between a reset's stop and start). In lockstep the republishes happen at the ticks."""
-    # polled every REPUBLISH_NAP of wall time, not every 2 ms: a re-send a few milliseconds
-    # late is as good (it is stamped when sent), and each poll costs tens of microseconds of
-    # CPU, which add up where scans are seconds apart
-    ticker = Ticker(RosClock(), 1.0 / republish_rate, nap=min(REPUBLISH_NAP, 0.2 / republish_rate))
+    # asleep for the time left to the next re-send at the rate ROS time keeps, not polling
+    # every 2 ms: a re-send a few milliseconds late is as good (it is stamped when sent), and
+    # each wake costs about 0.1 ms of CPU
+    ticker = Ticker(RosClock(), 1.0 / republish_rate, nap=REPUBLISH_NAP,
+                    longest=1.0 / republish_rate)
     if lockstep:
         rospy.spin()
         return

@@ -133,8 +133,11 @@ class OthersTransformListener(tf2_ros.TransformListener):
     otherwise decode each of its own messages again through its loopback connection and store
     it: with a bag played faster than real time that is tens of messages a second of CPU for
     nothing. ``/tf`` is taken in undecoded (``rospy.AnyMsg``); a message whose publisher is this
-    node is dropped before decoding, the others are decoded and stored as the base class does.
-    ``/tf_static`` is taken in as usual."""
+    node is dropped before decoding, and the connection it came on closed (rospy connects a
+    node's subscriber to its own publisher like any other, and connects again only when the
+    master announces a change of /tf's publishers: the next own message closes it again); the
+    others are decoded and stored as the base class does. ``/tf_static`` is taken in as
+    usual."""
 
     def __init__(self, buffer):
         # the base class subscribes on construction: do its work here with /tf undecoded
@@ -145,9 +148,19 @@ class OthersTransformListener(tf2_ros.TransformListener):
         self.tf_sub = rospy.Subscriber('/tf', rospy.AnyMsg, self.raw_callback)
         self.tf_static_sub = rospy.Subscriber('/tf_static', TFMessage, self.static_callback)
 
+    def _drop_own_connection(self):
+        """Close the /tf connection from this node's own publisher (a subscriber connection's
+        ``endpoint_id`` is its publisher's URI)."""
+        own = rospy.get_node_uri()
+        impl = self.tf_sub.impl
+        for c in list(impl.connections):
+            if c.endpoint_id == own:
+                impl.remove_connection(c)
+
     def raw_callback(self, raw):
         who = raw._connection_header.get('callerid', 'default_authority')
         if who == self.own:
+            self._drop_own_connection()
             return
         msg = TFMessage().deserialize(raw._buff)
         msg._connection_header = raw._connection_header

@@ -10,11 +10,13 @@ class FakeClock:
     As the real clock's source fails: ``stalled`` alone is a live simulator that has fallen
     behind (ROS time stands still, ``source_dead()`` says ``''``) until the wall time
     ``resume_at`` (None: never); a dead one is ``stalled`` with ``dead`` set to the reason
-    ``source_dead()`` gives (as :func:`tiago_nav.clock.source_verdict` would)."""
+    ``source_dead()`` gives (as :func:`tiago_nav.clock.source_verdict` would). ``rate``: ROS
+    seconds per wall second (a bag played faster or slower than real time)."""
 
     def __init__(self, t=0.0, shutdown_at=None):
         self.t = float(t)
         self.w = 0.0
+        self.rate = 1.0
         self.stalled = False
         self.resume_at = None
         self.dead = ''
@@ -37,9 +39,9 @@ class FakeClock:
         if self.stalled and self.resume_at is not None and self.w >= self.resume_at:
             self.stalled, self.resume_at = False, None
         if not self.stalled:
-            self.t += dt
+            self.t += dt * self.rate
             for hook in self.hooks:
-                hook(dt)
+                hook(dt * self.rate)
 
     def shutdown(self):
         return self.shutdown_at is not None and self.t >= self.shutdown_at
