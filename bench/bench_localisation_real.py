@@ -47,6 +47,7 @@ import math
 import os
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -156,6 +157,10 @@ def main():
     ap.add_argument('--scan-period', type=float, default=0.5,
                     help='[s] wall time between scans: the bag plays at median scan interval / '
                          'this, at least at real time')
+    ap.add_argument('--one-at-a-time', dest='side_by_side', action='store_false',
+                    help='play the bag into one localiser after the other (default: into all of '
+                         'them at once, each with its own ROS master, so that they share the '
+                         'machine\'s load and their CPU per scan compares)')
     ap.add_argument('--seed', type=int, default=0, help='of the odometry noise')
     ap.add_argument('--work', default=os.path.join(os.path.expanduser('~'), '.cache', 'tiago_nav',
                                                    'realdata'),
@@ -234,21 +239,33 @@ def main():
         for scenario in scenarios:
             if scenario not in prep:
                 continue
-            for loc in names:
+            p = prep[scenario]
+
+            def play(loc):
                 kind, params = LOCALISERS[loc]
-                p = prep[scenario]
                 cfg = {'localiser': kind, 'bag': p['bag'], 'map': prep['map'],
                        'start': p['start'], 'rate': rate, 'duration': p['duration_s'],
                        'last_stamp': p['last_stamp'], 'global_localization': scenario == 'global',
                        'amcl_setup': args.amcl_setup, 'amcl_params': params,
                        'log': os.path.join(args.work, name, '%s_%s.log' % (scenario, loc))}
-                t0 = time.monotonic()
-                print('   %-8s %-13s ...' % (scenario, loc), end=' ', flush=True)
                 run = run_child(cfg, timeout=p['duration_s'] / rate * 3 + 900)
+                return run, os.getloadavg()[0], time.monotonic()
+
+            t0 = time.monotonic()
+            if args.side_by_side:
+                print('   %-8s %s at once ...' % (scenario, ', '.join(names)), flush=True)
+                with ThreadPoolExecutor(len(names)) as pool:
+                    played = list(pool.map(play, names))
+            else:
+                played = None
+            for i, loc in enumerate(names):
+                kind, params = LOCALISERS[loc]
+                print('   %-8s %-13s ...' % (scenario, loc), end=' ', flush=True)
+                run, load, t1 = played[i] if played else play(loc)
                 rec = {'log': name, 'scenario': scenario, 'localiser': loc,
                        'params': params if kind == 'amcl' else 'defaults (config/localisation.yaml)',
                        'date': time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime()),
-                       'loadavg_1min': round(os.getloadavg()[0], 2)}
+                       'loadavg_1min': round(load, 2), 'side_by_side': args.side_by_side}
                 if 'error' in run:
                     rec['error'] = run['error']
                     print('ERROR %s' % run['error'], flush=True)
@@ -266,7 +283,9 @@ def main():
                              s['cpu_ms_per_scan'], s['peak_rss_mb'] or -1, s['estimates'],
                              s['scans'], '' if scenario not in WITHIN_SCANS else
                              ', back within 0.2 m after %s scans' % s['back_within_0_2_m_after_scans'],
-                             time.monotonic() - t0), flush=True)
+                             t1 - t0), flush=True)
+                if not played:
+                    t0 = t1
                 out['runs'].append(rec)
                 done.add((name, scenario, loc))
     for r in old['runs']:       # the latest of each (log, scenario, localiser) kept

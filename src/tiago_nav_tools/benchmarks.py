@@ -272,8 +272,11 @@ ABOUT = {
         'scan weighted by the time to the next), the time to recover from a lost stretch, '
         'CPU per scan (the node\'s process, tf and ROS included, over the playback; it '
         'depends on the machine\'s load: a node woken for each of the 100 /clock messages a '
-        'second costs less per message when they queue up while it waits for the processor, '
-        'so compare rows of like load, `loadavg_1min` in the JSON) and its '
+        'second costs less per message when they queue up while it waits for the processor; '
+        'so the localisers of a log and scenario play the bag at the same time, each with its '
+        'own ROS master, and share the load: their figures compare with each other, and '
+        '`loadavg_1min` in the JSON says what the load was; `--one-at-a-time` plays them in '
+        'turn) and its '
         'peak resident memory. A synthetic building of 100 m × 100 m at 0.05 m (4 million '
         'cells, `tiago_nav_tools.testing.realdata.synthetic`: 10 m rooms joined by doors, a log '
         'ray-cast through a row of them, `tracking` only) checks what grows with the map. '
@@ -943,14 +946,17 @@ def render_localisation_real(d):
                      r.get('median_m'), r.get('p95_m'), r.get('max_m'), r.get('yaw_p95_deg'),
                      _pct(r.get('lost_time_share')), recover, back,
                      _f(r.get('cpu_ms_per_scan'), '%.1f') + (
-                         ' (load %.1f)' % r['loadavg_1min'] if r.get('cpu_ms_per_scan') is not None
+                         ' (load %.1f%s)' % (r['loadavg_1min'], ', side by side'
+                                             if r.get('side_by_side') else '')
+                         if r.get('cpu_ms_per_scan') is not None
                          and r.get('loadavg_1min') is not None else ''),
                      _f(r.get('peak_rss_mb'), '%.0f'),
                      r.get('sigma_xy_median_m'), _diagnostics_said(r)))
     out += [''] + _table(('log', 'scenario', 'localiser', 'scans with an estimate', 'RMS [m]',
                           'median [m]', 'p95 [m]', 'max [m]', 'yaw p95 [deg]', 'time lost',
                           'time to recover [s]', 'back within 0.2 m after [scans]',
-                          'CPU per scan [ms] (machine load)', 'peak RSS [MB]', 'σ claimed, median [m]',
+                          'CPU per scan [ms] (machine load; side by side: played with the '
+                          'other localisers of its log and scenario at once)', 'peak RSS [MB]', 'σ claimed, median [m]',
                           '/diagnostics (lost said before back; scans skipped)'), rows)
     return out
 
