@@ -8,7 +8,10 @@ localisation node is started (``localisation.launch``, simulated time) and given
 /map, and the bag is played with ``rosbag play --clock``. Every /amcl_pose is scored against
 the reference at each scan (the last estimate carried by the odometry since):
 error RMS, p95, max, yaw p95, the share of time lost (error > 0.3 m), the time to recover,
-CPU per scan and the node's peak resident memory.
+CPU per scan and the node's peak resident memory. The localisers of a log and scenario play
+the bag at the same time, each with its own ROS master, so that they share the machine's load
+(CPU per scan falls as it rises) and their figures compare; ``--one-at-a-time`` plays them in
+turn.
 
 ``synthetic-100m`` (:mod:`tiago_nav_tools.testing.realdata.synthetic`): a generated building of
 100 m × 100 m at 0.05 m (4 million cells) and a log through a row of its rooms, ``tracking``
@@ -39,7 +42,7 @@ carries its date and load; ``--scenarios ''`` runs nothing and only merges).
 
 Usage: bench/bench_localisation_real.py [--logs intel,freiburg-079,aces,synthetic-100m]
     [--scenarios tracking,offset,kidnap,global] [--amcl-setup PATH] [--localisers ...]
-    [--scan-period 0.1] [--merge [JSON ...]] [--data DIR] [--work DIR]
+    [--scan-period 0.1] [--one-at-a-time] [--merge [JSON ...]] [--data DIR] [--work DIR]
 """
 import argparse
 import json
@@ -252,7 +255,8 @@ def main():
                 return run, os.getloadavg()[0], time.monotonic()
 
             t0 = time.monotonic()
-            if args.side_by_side:
+            side = args.side_by_side and len(names) > 1
+            if side:
                 print('   %-8s %s at once ...' % (scenario, ', '.join(names)), flush=True)
                 with ThreadPoolExecutor(len(names)) as pool:
                     played = list(pool.map(play, names))
@@ -265,7 +269,7 @@ def main():
                 rec = {'log': name, 'scenario': scenario, 'localiser': loc,
                        'params': params if kind == 'amcl' else 'defaults (config/localisation.yaml)',
                        'date': time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime()),
-                       'loadavg_1min': round(load, 2), 'side_by_side': args.side_by_side}
+                       'loadavg_1min': round(load, 2), 'side_by_side': side}
                 if 'error' in run:
                     rec['error'] = run['error']
                     print('ERROR %s' % run['error'], flush=True)
