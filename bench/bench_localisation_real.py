@@ -251,10 +251,10 @@ def main():
                        'last_stamp': p['last_stamp'], 'global_localization': scenario == 'global',
                        'amcl_setup': args.amcl_setup, 'amcl_params': params,
                        'log': os.path.join(args.work, name, '%s_%s.log' % (scenario, loc))}
+                t0 = time.monotonic()
                 run = run_child(cfg, timeout=p['duration_s'] / rate * 3 + 900)
-                return run, os.getloadavg()[0], time.monotonic()
+                return run, os.getloadavg()[0], time.monotonic() - t0
 
-            t0 = time.monotonic()
             side = args.side_by_side and len(names) > 1
             if side:
                 print('   %-8s %s at once ...' % (scenario, ', '.join(names)), flush=True)
@@ -265,7 +265,7 @@ def main():
             for i, loc in enumerate(names):
                 kind, params = LOCALISERS[loc]
                 print('   %-8s %-13s ...' % (scenario, loc), end=' ', flush=True)
-                run, load, t1 = played[i] if played else play(loc)
+                run, load, wall = played[i] if played else play(loc)
                 rec = {'log': name, 'scenario': scenario, 'localiser': loc,
                        'params': params if kind == 'amcl' else 'defaults (config/localisation.yaml)',
                        'date': time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime()),
@@ -287,9 +287,7 @@ def main():
                              s['cpu_ms_per_scan'], s['peak_rss_mb'] or -1, s['estimates'],
                              s['scans'], '' if scenario not in WITHIN_SCANS else
                              ', back within 0.2 m after %s scans' % s['back_within_0_2_m_after_scans'],
-                             t1 - t0), flush=True)
-                if not played:
-                    t0 = t1
+                             wall), flush=True)
                 out['runs'].append(rec)
                 done.add((name, scenario, loc))
     for r in old['runs']:       # the latest of each (log, scenario, localiser) kept
