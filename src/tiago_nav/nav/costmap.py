@@ -46,6 +46,8 @@ class MapScan:
     stamp: float = 0.0
     laser_in_base: tuple = None
 
+    DIP = 0.05      # [m] see _reach
+
     def __post_init__(self):
         """Keep only the beams the costmap may use (:func:`tiago_nav.scan.usable_ranges`): the
         robot's own body (when ``laser_in_base``, the laser's pose in the base frame from tf, is
@@ -99,6 +101,70 @@ class MapScan:
         out[inside] = self.kinds[i[inside]] == INVALID
         return out
 
+    @cached_property
+    def _reach(self):
+        """Per beam, how far [m] it saw free space: its hit's range, ``range_max`` for no
+        return, -inf for a too-close beam or a hit that dips below both neighbours (below),
+        +inf for an invalid one (it says nothing, so it vetoes nothing)."""
+        reach = np.full(len(self.ranges), np.inf)
+        hit = self.kinds == HIT
+        reach[hit] = np.asarray(self.ranges, dtype=float)[hit]
+        reach[self.kinds == NO_RETURN] = self.range_max
+        reach[self.kinds == TOO_CLOSE] = -np.inf
+        # a hit shorter than both its neighbours by more than DIP grazed something thin: a
+        # mixed pixel's range lies anywhere between the thin thing and what is behind it, so
+        # the beam vouches for nothing beyond the laser
+        if len(reach) >= 3:
+            side = np.minimum(reach[:-2], reach[2:])
+            dip = np.zeros(len(reach), dtype=bool)
+            with np.errstate(invalid='ignore'):        # inf - inf beside invalid beams
+                dip[1:-1] = hit[1:-1] & (side - reach[1:-1] > self.DIP)
+            reach[dip] = -np.inf
+        return reach
+
+    def seen_beyond(self, xy, margin, max_gap=None):
+        """Boolean per ``(N, 2)`` map point: did this scan see free space there, i.e. did every
+        valid beam passing within ``margin`` [m] of the point reach more than ``margin`` beyond
+        it, were at least half of those beams valid, and all of those within half the margin
+        of its bearing (three at least)? (A beam grazing an edge, or one that misses a point by less than the pose's and
+        the ranges' errors, proves nothing; an invalid beam, e.g. a mixed pixel at a leg's
+        edge, says nothing either way, and a thin object whose only beam was invalid was not
+        seen through.) With ``max_gap`` [m], also only where neighbouring beams lie at most
+        that far apart at the point (anything narrower may have hidden between them). Points
+        whose beams leave the fan: False."""
+        n = len(self.ranges)
+        if n == 0 or len(xy) == 0:
+            return np.zeros(len(xy), dtype=bool)
+        x, y, yaw = self.laser_pose
+        inc = abs(self.angle_increment) or 1.0
+        dx, dy = xy[:, 0] - x, xy[:, 1] - y
+        d = np.hypot(dx, dy)
+        rel = np.mod((np.arctan2(dy, dx) - yaw - self.angle_min) * np.sign(self.angle_increment
+                                                                           or 1.0), 2 * np.pi)
+        half = np.arctan2(margin, np.maximum(d, 1e-9))
+        lo = np.floor((rel - half) / inc).astype(int)
+        hi = np.ceil((rel + half) / inc).astype(int) + 1
+        inside = (lo >= 0) & (hi <= n)
+        if max_gap is not None:
+            inside &= d * inc <= max_gap
+        out = np.zeros(len(xy), dtype=bool)
+        if inside.any():
+            reach = np.append(self._reach, -np.inf)    # a sentinel for reduceat's last bound
+            valid = np.append(self.kinds != INVALID, False).astype(int)
+            bounds = np.column_stack((lo[inside], hi[inside])).ravel()
+            least = np.minimum.reduceat(reach, bounds)[::2]
+            said = np.add.reduceat(valid, bounds)[::2]
+            # the beams within half the margin of the point's bearing (three at least) must all
+            # have said something: a thin object whose one beam came back invalid (a mixed
+            # pixel), or an edge beside beams the robot's body hid, was not seen through
+            core = np.maximum(half[inside] / 2, 1.5 * inc)
+            c_lo = np.maximum(np.floor((rel[inside] - core) / inc).astype(int), 0)
+            c_hi = np.minimum(np.ceil((rel[inside] + core) / inc).astype(int) + 1, n)
+            core_said = np.add.reduceat(valid, np.column_stack((c_lo, c_hi)).ravel())[::2]
+            out[inside] = (least > d[inside] + margin) & (2 * said >= hi[inside] - lo[inside]) \
+                & (core_said == c_hi - c_lo)
+        return out
+
 
 def inflate(occupied, resolution, robot_radius, inflation_radius, cost_scaling_factor):
     """Boolean ``(rows, cols)`` obstacles → ``(cost uint8, distance float [m])``.
@@ -143,6 +209,8 @@ class Costmap:
         self.raytrace_range = float(raytrace_range)
         self.static = grid.occupied()
         self.obstacles = np.zeros(grid.shape, dtype=bool)
+        self.people = np.zeros(grid.shape, dtype=bool)   # a person's keep-out (set_people)
+        self.people_set = False                          # ... has any cell
         self.update()
 
     @property
@@ -158,9 +226,30 @@ class Costmap:
         self.update()
 
     def clear_obstacles(self):
-        """Forget everything the laser marked (``clear_costmaps``)."""
+        """Forget everything the laser marked (``clear_costmaps``), people included."""
         self.obstacles[:] = False
+        self.people[:] = False
+        self.people_set = False
         self.update()
+
+    def set_people(self, xy, clearance):
+        """The people layer: the cells whose centres lie within ``clearance`` [m] of any of
+        the ``(N, 2)`` map points ``xy`` (a person's points, :mod:`tiago_nav.nav.people`),
+        replacing the previous ones. They count as occupied, so the robot's centre is kept
+        ``robot_radius + clearance`` from a person. Does not re-inflate: call :meth:`update`."""
+        self.people[:] = False
+        self.people_set = len(xy) > 0
+        if len(xy) == 0:
+            return
+        g = self.grid
+        k = int(math.ceil(clearance / g.resolution))
+        dr, dc = np.mgrid[-k:k + 1, -k:k + 1]
+        disk = np.hypot(dr, dc) * g.resolution <= clearance
+        off = np.column_stack((dr[disk], dc[disk]))
+        rc = np.unique(g.world_to_cell(xy), axis=0)
+        cells = (rc[:, None, :] + off[None, :, :]).reshape(-1, 2)
+        cells = cells[g.in_bounds(cells)]
+        self.people[cells[:, 0], cells[:, 1]] = True
 
     def forget_marks_beyond(self, xy, distance):
         """Forget the laser's marks whose cell centres lie farther than ``distance`` [m] from
@@ -265,7 +354,7 @@ class Costmap:
 
     def _inflation(self):
         if self._inflated is None:
-            self._inflated = inflate(self.static | self.obstacles, self.resolution,
+            self._inflated = inflate(self.static | self.obstacles | self.people, self.resolution,
                                      self.robot_radius, self.inflation_radius,
                                      self.cost_scaling_factor)
         return self._inflated
@@ -313,11 +402,13 @@ class Costmap:
         """What makes the point ``xy`` [m, map] too close for the robot: ``(centre, layer,
         distance)`` of the occupied cell nearest to the centre of ``xy``'s cell (costs are
         those of cell centres) within ``robot_radius`` [m]; ``layer`` is ``'map'`` for the
-        static map, ``'laser'`` for a cell the laser marked (the map's when both are as near).
-        None when there is none."""
+        static map, ``'laser'`` for a cell the laser marked (the map's when both are as near),
+        ``'person'`` for a cell of a person's keep-out (:meth:`set_people`). None when there
+        is none."""
         centre = self.grid.cell_to_world(self.grid.world_to_cell([xy[:2]]))[0]
         best = None
-        for layer, occupied in (('map', self.static), ('laser', self.obstacles)):
+        for layer, occupied in (('map', self.static), ('laser', self.obstacles),
+                                ('person', self.people)):
             pts = self._near(centre, self.robot_radius + 1e-9, occupied)
             if len(pts):
                 d = np.hypot(pts[:, 0] - centre[0], pts[:, 1] - centre[1])
@@ -337,6 +428,9 @@ class Costmap:
         (x, y), layer, d = b
         if layer == 'map':
             return '%s: %.2f m from the map\'s obstacle at (%.2f, %.2f)' % (what, d, x, y)
+        if layer == 'person':
+            return ('%s: %.2f m from the keep-out at (%.2f, %.2f) of a person (something the '
+                    'laser saw move)' % (what, d, x, y))
         return ('%s: %.2f m from an obstacle the laser marked at (%.2f, %.2f) (clear_costmaps '
                 'forgets the laser\'s marks)' % (what, d, x, y))
 
@@ -353,7 +447,7 @@ class Costmap:
             out[inb] = self.cost[cells[:, 0], cells[:, 1]]
             return out
         if self._marked is None:
-            marked = np.argwhere(self.obstacles)
+            marked = np.argwhere(self.obstacles | self.people)
             self._marked = cKDTree(marked) if len(marked) else False
         dist = self.grid.distance_field()[cells[:, 0], cells[:, 1]]
         if self._marked is not False and len(cells):

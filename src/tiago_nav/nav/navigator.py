@@ -8,6 +8,7 @@ base_footprint in ``map`` [m, m, rad].
 """
 import math
 from collections import deque
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,8 +17,10 @@ from tiago_nav.geometry import wrap_angle
 from tiago_nav.goal import ABORTED, ACTIVE, SUCCEEDED  # noqa: F401
 from tiago_nav.nav.controller import Controller, ControllerConfig
 from tiago_nav.nav.costmap import INSCRIBED, Costmap
+from tiago_nav.nav.people import MovedMarks
 from tiago_nav.scan import INVALID
-from tiago_nav.nav.planner import PlanError, plan
+from tiago_nav.gridmap import distance_to_mask
+from tiago_nav.nav.planner import PlanError, densify, path_to_nearest, plan
 from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.robot import ROBOT_RADIUS
 
@@ -71,6 +74,23 @@ class NavConfig:
               'relocalise; lost for longer than this, the goal aborts naming the localisation '
               '(a global relocalisation takes a few scans, a stretch where the scans cannot '
               'tell the place apart takes driving, which a lost robot must not do)', gt=0)
+    person_clearance: float = param(
+        0.0, '[m] kept between the base and a person (a laser hit on space a recent scan saw '
+             'free, tiago_nav.nav.people), beyond the footprint, e.g. 0.3; 0 (the default): '
+             'people are obstacles like any other (among walkers it costs success: '
+             'docs/navigation.md)', ge=0)
+    person_memory: float = param(10.0, '[s] a scan witnesses free space, and a person who '
+                                 'stopped stays one, for this long', gt=0)
+    person_patience: float = param(
+        12.0, '[s] with no plan but one through a person, the base waits (and gives way) this '
+              'long for the way to clear; then it takes them to be waiting for it, as people do, '
+              'and passes them at its ordinary clearance for the rest of the goal (or, with no '
+              'way past them, aborts after planner_patience)', gt=0)
+    give_way_after: float = param(
+        3.0, '[s] a person who has stood in the way this long (after planner_patience) may be '
+             'waiting for the base, as people do: the base gives way, driving to the nearest '
+             'place give_way_distance from every person, and waits there', ge=0)
+    give_way_distance: float = param(1.5, '[m] see give_way_after', gt=0)
     controller: ControllerConfig = nested(ControllerConfig)
 
     def __post_init__(self):
@@ -116,6 +136,7 @@ class Navigator:
 
     RECOVERIES = ('clear', 'rotate', 'backup')
     MEMORY_RADIUS = 2.5     # [m] occupied cells this near the laser stand in for invalid beams
+    LOOK_ANGLE = 1.2        # [rad] a person's mark farther off the heading than this is turned to
 
     def __init__(self, grid, config=NavConfig()):
         self.cfg = config
@@ -124,6 +145,10 @@ class Navigator:
                                config.raytrace_range)
         self.controller = Controller(config.controller)
         self.window = ProgressWindow(config.no_progress_timeout, config.no_progress_distance)
+        self.moved = MovedMarks(grid, config.person_memory)
+        self._person_check = None   # (t, was there a plan without the people layer)
+        self.retreat = None         # giving way: None (not yet), a plan, or False (nowhere)
+        self.waived = None          # when the people in the way were taken to wait for the base
         self.points = np.zeros((0, 2))
         self.margins = np.zeros(0)  # [m] per point: how much nearer its obstacle may be
         self.blind = False          # the newest scan had no informative beam
@@ -142,9 +167,26 @@ class Navigator:
         if self.scan_stamp is not None and scan.stamp < self.scan_stamp:
             return
         self.costmap.add_scan(scan)
-        self.costmap.update()
         points = scan.obstacles[0]
         margins = np.zeros(len(points))
+        clearance = self.cfg.person_clearance
+        if clearance > 0 and self.waived is None:
+            # a person is kept clearance farther: by the collision check (as if nearer by it)
+            # and by the plan (its keep-out counts as occupied)
+            cm = self.costmap
+            person = self.moved.update(scan)
+            margins[person] = clearance
+            # and where the laser marked a person before (out of view now, or hidden)
+            # (a person's mark stays one until the laser sees the place free)
+            if self.moved.any_held(scan.stamp):
+                marks = np.argwhere(cm.obstacles)
+                marks = marks[self.moved.held(marks, scan.stamp)]
+                self.moved.hold(marks, scan.stamp + self.moved.memory, grow=False)
+                cm.set_people(np.vstack((points[person], cm.grid.cell_to_world(marks))),
+                              clearance)
+            elif cm.people_set:
+                cm.set_people(np.zeros((0, 2)), clearance)
+        self.costmap.update()
         if len(scan.ranges) and (scan.kinds == INVALID).any():
             near = self.costmap.occupied_near(scan.laser_pose[:2], self.MEMORY_RADIUS)
             near = near[scan.invalid_beam_at(near)]
@@ -187,12 +229,14 @@ class Navigator:
         retried for ``planner_patience``. A goal covered only by the laser's marks, all
         farther than ``reset_distance`` from the robot, is not judged on them: what the laser
         saw from afar may be gone or a phantom (a mixed pixel that no later beam crossed), so
-        they are forgotten (:meth:`_reset`) and the laser judges that place again on the way."""
+        they are forgotten (:meth:`_reset`) and the laser judges that place again on the way.
+        A goal covered only by people (:mod:`tiago_nav.nav.people`) is accepted: people move,
+        and the goal waits for them as a blocked plan does (``person_patience``)."""
         g = self.costmap.grid
         self.reset_done, self.reset_forgot = False, 0
         if not g.contains([goal[:2]])[0]:
             raise PlanError('goal (%.2f, %.2f) is outside the map' % tuple(goal[:2]))
-        if self.costmap.cost_at([goal[:2]])[0] >= INSCRIBED:
+        if self.costmap.cost_at([goal[:2]])[0] >= INSCRIBED and not self._only_people(goal):
             blocker = self.costmap.blocker(goal[:2])
             if blocker is None or blocker[1] != 'laser' or not self._reset(pose) \
                     or self.costmap.cost_at([goal[:2]])[0] >= INSCRIBED:
@@ -213,6 +257,9 @@ class Navigator:
         self.window.reset()
         self.deadline, self.timeout_reason = math.inf, ''
         self._first_length = None
+        self._person_check = None
+        self.retreat = None
+        self.waived = None
         if self.cfg.goal_timeout > 0:
             self.deadline = t + self.cfg.goal_timeout
             self.timeout_reason = 'timeout: goal not reached in %.0f s' % self.cfg.goal_timeout
@@ -248,6 +295,7 @@ class Navigator:
             return False
         self.controller.set_path(self.path)
         self.last_plan_ok = t
+        self.retreat = None
         self._arc = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(self.path, axis=0).T))))
         if self.cfg.goal_timeout < 0 and math.isinf(self.deadline):
             # derived from the first plan (goal_timeout < 0)
@@ -293,6 +341,96 @@ class Navigator:
         seg = self.path[i:i + n]
         return bool((self.costmap.cost_at(seg) >= INSCRIBED).any())
 
+    def _person_in_the_way(self, pose, t):
+        """With no plan: would there be one without the people (their keep-out and the laser's
+        marks in it)? Then a person stands in the way, and the base waits for them. Asked again
+        at most once a second."""
+        cm = self.costmap
+        if not cm.people.any():
+            return False
+        last = self._person_check
+        if last is not None and t - last[0] < 1.0:
+            return last[1]
+        with self._without_people():
+            try:
+                self.make_plan(pose[:2], self.goal[:2])
+                found = True
+            except PlanError:
+                found = False
+        self._person_check = (t, found)
+        return found
+
+    def _only_people(self, goal):
+        """Is the goal blocked by people only (free without them)?"""
+        if not self.costmap.people.any():
+            return False
+        with self._without_people():
+            return self.costmap.cost_at([goal[:2]])[0] < INSCRIBED
+
+    @contextmanager
+    def _without_people(self):
+        """The costmap without people (their keep-out and the laser's marks in it) inside the
+        ``with``; as it was after."""
+        cm = self.costmap
+        people, marks = cm.people.copy(), cm.obstacles.copy()
+        cm.obstacles &= ~people
+        cm.people[:] = False
+        cm.update()
+        try:
+            yield
+        finally:
+            cm.people[:], cm.obstacles[:] = people, marks
+            cm.update()
+
+    def _give_way_path(self, pose):
+        """A plan ``(K, 2)`` to the nearest place at least ``give_way_distance`` from every
+        person (their keep-out in the costmap), or False when there is none."""
+        cm = self.costmap
+        clear = distance_to_mask(cm.people, cm.resolution) \
+            >= self.cfg.give_way_distance - self.cfg.person_clearance
+        start = cm.grid.world_to_cell([pose[:2]])[0]
+        try:
+            cells = path_to_nearest(cm.cost, start, clear, self.cfg.cost_weight)
+        except PlanError:
+            return False
+        pts = cm.grid.cell_to_world(cells)
+        pts[0] = pose[:2]
+        return densify(pts, 0.05)
+
+    def _wait_for_person(self, pose, t, dt):
+        """Stand and face the nearest person's mark: one out of the laser's view (behind the
+        base) is seen again, and cleared once the person has gone."""
+        cm = self.costmap
+        people = cm.grid.cell_to_world(np.argwhere(cm.people))
+        self.progress_time = t
+        if len(people):
+            near = people[np.argmin(np.hypot(people[:, 0] - pose[0], people[:, 1] - pose[1]))]
+            err = wrap_angle(math.atan2(near[1] - pose[1], near[0] - pose[0]) - pose[2])
+            if abs(err) > self.LOOK_ANGLE:
+                v, w, _ = self.controller._turn(err, dt, 'rotate')
+                return v, w, ACTIVE, 'waiting for a person'
+        self.controller.v = self.controller.w = 0.0
+        return 0.0, 0.0, ACTIVE, 'waiting for a person'
+
+    def _give_way(self, pose, t, dt):
+        """One control cycle along the give-way plan; standing still at its end."""
+        end = self.retreat[-1]
+        if math.hypot(end[0] - pose[0], end[1] - pose[1]) <= self.cfg.controller.xy_goal_tolerance:
+            # there: wait, unless a person came near again (they are walking this way)
+            people = self.costmap.grid.cell_to_world(np.argwhere(self.costmap.people))
+            near = len(people) and np.min(np.hypot(people[:, 0] - pose[0], people[:, 1] - pose[1])) \
+                < self.cfg.give_way_distance - self.cfg.person_clearance
+            if near:
+                self.retreat = self._give_way_path(pose)
+            if not near or self.retreat is False:
+                return self._wait_for_person(pose, t, dt)
+        self.controller.set_path(self.retreat)
+        v, w, phase = self.controller.command(pose, (end[0], end[1], pose[2]), self.points, dt,
+                                              self.blind, self.margins)
+        if phase == 'arrived':
+            v = w = 0.0
+        return v, w, ACTIVE, 'giving way to a person'
+
     def _finish(self, state, reason):
         self.state, self.reason = state, reason
         self.controller.reset()
@@ -331,16 +469,36 @@ class Navigator:
                     self.path = None
                     self.controller.set_path(None)
             if self.path is None:
-                if t - max(self.last_plan_ok, self.patience_from) > cfg.planner_patience:
-                    if self._reset(pose):
+                waited = t - max(self.last_plan_ok, self.patience_from)
+                if waited > cfg.planner_patience:
+                    if not self.reset_done and self._reset(pose):
                         # as move_base's recovery: marks seen from afar may be stale; the
                         # patience counts again from here
                         self.patience_from = t
                         self._replan(pose, t)
+                    elif self._person_in_the_way(pose, t):
+                        if waited > cfg.person_patience:
+                            # they stay after the base gave way: they are waiting for it, as
+                            # people do; it passes them at its ordinary clearance
+                            self.waived = t
+                            self.patience_from = t
+                            self.costmap.set_people(np.zeros((0, 2)), 0.0)
+                            self.margins[:] = 0.0
+                            self.costmap.update()
+                            self._replan(pose, t)
+                            return self._wait_for_person(pose, t, dt)
+                        if self.retreat is None and waited > cfg.planner_patience + cfg.give_way_after:
+                            self.retreat = self._give_way_path(pose)
+                        if self.retreat is not None and self.retreat is not False:
+                            return self._give_way(pose, t, dt)
+                        return self._wait_for_person(pose, t, dt)
                     else:
-                        return self._finish(ABORTED, 'no path: %s (for %.1f s%s)'
+                        return self._finish(ABORTED, 'no path: %s (for %.1f s%s)%s'
                                             % (getattr(self, 'plan_error', 'no plan'),
-                                               cfg.planner_patience, self._reset_note()))
+                                               cfg.planner_patience, self._reset_note(),
+                                               '' if self.waived is None else
+                                               ', after waiting %.0f s for a person in the way '
+                                               '(person_patience)' % cfg.person_patience))
             if self.path is None:
                 self.controller.v = self.controller.w = 0.0
                 self.progress_time = t

@@ -84,12 +84,34 @@ def grid_path(cost, start_rc, goal_rc, cost_weight=3.0, passable=None):
     dist, pred = dijkstra(g, directed=True, indices=s, return_predecessors=True)
     if not np.isfinite(dist[t]):
         raise PlanError('no path to the goal')
+    return _walk_back(pred, s, t, cols)
+
+
+def _walk_back(pred, s, t, cols):
+    """The cells ``(K, 2)`` from node ``s`` to node ``t`` along Dijkstra's predecessors."""
     path = [t]
     while path[-1] != s:
         path.append(int(pred[path[-1]]))
     path.reverse()
     p = np.array(path)
     return np.column_stack((p // cols, p % cols))
+
+
+def path_to_nearest(cost, start_rc, targets, cost_weight=3.0):
+    """Cheapest 8-connected cell path ``(K, 2)`` from ``start_rc`` to the cheapest to reach of
+    the cells where the boolean grid ``targets`` is True (the start may be lethal, as in
+    :func:`grid_path`), or :class:`PlanError` when none is reachable."""
+    rows, cols = cost.shape
+    passable = cost < INSCRIBED
+    passable[start_rc[0], start_rc[1]] = True
+    g = build_graph(cost, cost_weight, passable)
+    s = int(start_rc[0] * cols + start_rc[1])
+    dist = dijkstra(g, directed=True, indices=s, return_predecessors=True)
+    d = np.where(targets.ravel(), dist[0], np.inf)
+    t = int(np.argmin(d))
+    if not np.isfinite(d[t]):
+        raise PlanError('no reachable place')
+    return _walk_back(dist[1], s, t, cols)
 
 
 def line_cells(a, b):

@@ -14,13 +14,14 @@ import math
 
 import numpy as np
 
-from tiago_nav.geometry import compose, inverse, yaw_to_quaternion
+from tiago_nav.geometry import compose, inverse, wrap_angle, yaw_to_quaternion
 from tiago_nav.nav.costmap import MapScan
 from tiago_nav.nav.navigator import NavConfig, Navigator
 from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, GoalRunner,
                                   PoseUnavailable, frame_or, no_transform)
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
+from tiago_nav.sim.walkers import LEG_RADIUS
 from tiago_nav_tools.testing.fakes import FakeActionServer
 
 EPS = 1e-9     # [s] now() runs this far ahead so that a Ticker's summed periods land on steps
@@ -113,6 +114,27 @@ class SimIO:
          PREEMPTED: self.server.set_preempted}[status](None, text)
 
 
+def ghost_ages(costmap, scan, seen_free):
+    """The oldest ghost [s] after ``scan`` went into ``costmap``: a cell the laser marked
+    that a scan saw free (every beam near its centre reached beyond it,
+    :meth:`~tiago_nav.nav.costmap.MapScan.seen_beyond` with a one-cell margin) within the
+    costmap's ``raytrace_range`` (beyond it the costmap trusts no free space) is a ghost from
+    that scan's stamp on, for as long as it stays marked. ``seen_free`` (cell -> stamp) carries
+    the ghosts from scan to scan."""
+    rc = np.argwhere(costmap.obstacles)
+    marked = set(map(tuple, rc))
+    for cell in list(seen_free):
+        if cell not in marked:
+            del seen_free[cell]
+    if len(rc):
+        xy = costmap.grid.cell_to_world(rc)
+        free = scan.seen_beyond(xy, costmap.resolution) & (np.hypot(
+            xy[:, 0] - scan.laser_pose[0], xy[:, 1] - scan.laser_pose[1]) <= costmap.raytrace_range)
+        for cell in map(tuple, rc[free]):
+            seen_free.setdefault(cell, scan.stamp)
+    return max((scan.stamp - t for t in seen_free.values()), default=0.0)
+
+
 class ClosedLoop:
     """A navigator, its goal runner and the simulator in one world. ``config``: the
     :class:`NavConfig`; ``period``: control period [s]; ``laser``: the simulator's
@@ -133,6 +155,7 @@ class ClosedLoop:
         self.odom = None            # (pose in map, stamp) of the newest odometry
         self.odometry()
         self.on_control = []        # hooks called after every simulator step
+        self.last_scan = None       # the MapScan the navigator was given last
         self.scan()
 
     def scan(self):
@@ -143,10 +166,11 @@ class ClosedLoop:
         ranges = self.sim.scan()
         if self.scan_filter is not None:
             ranges = self.scan_filter(np.array(ranges, dtype=float))
-        self.nav.add_scan(MapScan(self.sim.scene.laser_pose(), ranges, laser.angle_min,
-                                  laser.angle_increment, laser.range_min, laser.range_max,
-                                  self.sim.time, compose(inverse(self.sim.pose),
-                                                         self.sim.scene.laser_pose())))
+        self.last_scan = MapScan(self.sim.scene.laser_pose(), ranges, laser.angle_min,
+                                 laser.angle_increment, laser.range_min, laser.range_max,
+                                 self.sim.time, compose(inverse(self.sim.pose),
+                                                        self.sim.scene.laser_pose()))
+        self.nav.add_scan(self.last_scan)
 
     def odometry(self):
         """The odometry the node would receive now, placed in the map as it places it."""
@@ -166,10 +190,18 @@ class ClosedLoop:
         ``state`` (``'succeeded'``, ``'aborted'``, ``'preempted'``, ``'timeout'``), ``reason``,
         ``pose`` (true, at the end), ``collisions`` (during the goal), ``time`` [s],
         ``trail`` (poses per simulator step), ``t_xy`` (time to within 0.15 m, or None),
-        ``closest`` (smallest gap [m] to a movable obstacle)."""
+        ``closest`` (smallest gap [m] to a movable obstacle), ``closest_walker`` (smallest gap
+        [m] between the base's footprint and a walker's leg), ``waiting`` (simulated time [s]
+        the base stood still, under 0.02 m/s and 0.02 rad/s, farther than 0.15 m from the
+        goal), ``ghost_age`` (the longest
+        time [s] a cell the laser marked stayed marked after a scan saw it free:
+        :meth:`tiago_nav.nav.costmap.MapScan.seen_beyond` its centre)."""
         t0, c0 = self.sim.time, self.sim.collisions
         self.io.server = FakeActionServer(self.clock, preempt_at=t0 + limit)
         trail, closest, t_xy = [self.sim.pose], [math.inf], [None]
+        people = dict(closest=math.inf, waiting=0.0, ghost_age=0.0, last=self.sim.time)
+        seen_free = {}      # marked cell -> the time a scan first saw it free
+        radius = self.sim.config.robot_radius
 
         def track():
             p = self.sim.pose
@@ -178,6 +210,21 @@ class ClosedLoop:
                 closest[0] = min(closest[0], float(c.distance(p[0], p[1])))
             if t_xy[0] is None and math.hypot(p[0] - goal[0], p[1] - goal[1]) <= 0.15:
                 t_xy[0] = self.sim.time - t0
+            walkers = self.sim.walkers
+            for i in range(len(walkers)):
+                legs = walkers.legs(i)
+                gap = np.hypot(legs[:, 0] - p[0], legs[:, 1] - p[1]) - radius - LEG_RADIUS
+                people['closest'] = min(people['closest'], float(gap.min()))
+            dt, people['last'] = self.sim.time - people['last'], self.sim.time
+            q = trail[-2]
+            if math.hypot(p[0] - q[0], p[1] - q[1]) < 0.02 * dt \
+                    and abs(wrap_angle(p[2] - q[2])) < 0.02 * dt \
+                    and math.hypot(p[0] - goal[0], p[1] - goal[1]) > 0.15:
+                people['waiting'] += dt
+            if self.last_scan is not None and self.last_scan is not people.get('scan'):
+                people['scan'] = scan = self.last_scan
+                people['ghost_age'] = max(people['ghost_age'],
+                                          ghost_ages(self.nav.costmap, scan, seen_free))
         self.on_control.append(track)
         try:
             self.runner.run(frame, (goal[0], goal[1], 0.0), yaw_to_quaternion(goal[2]))
@@ -189,7 +236,9 @@ class ClosedLoop:
             state = 'timeout'
         return dict(state=state, reason=server.text, pose=self.sim.pose,
                     collisions=self.sim.collisions - c0, time=self.sim.time - t0,
-                    trail=np.array(trail)[:, :2], t_xy=t_xy[0], closest=closest[0])
+                    trail=np.array(trail)[:, :2], t_xy=t_xy[0], closest=closest[0],
+                    closest_walker=people['closest'], waiting=people['waiting'],
+                    ghost_age=people['ghost_age'])
 
     def settle(self, steps=30):
         """Step the simulator with a zero command (let the base come to rest)."""

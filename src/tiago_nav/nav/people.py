@@ -1,0 +1,113 @@
+"""What moved: laser hits on space a recent scan saw free, which the navigation keeps a
+person's distance from.
+
+A wall, a box or a cylinder stands where it stood: no beam of an earlier scan ever passed
+through the place one of its points is seen at now. A person walks into space the laser saw
+free a moment before. So a hit counts as *moved* when, in one of the scans kept from the last
+``memory`` seconds, every beam passing within ``margin`` of its place reached more than
+``margin`` beyond it (:meth:`tiago_nav.nav.costmap.MapScan.seen_beyond`; only where its beams
+lie at most :attr:`MovedMarks.max_gap` apart), and at least :attr:`MovedMarks.min_points` such
+hits lie together (a leg is several beams wide; a lone hit in free space is a mixed pixel). A
+person who then stops keeps the label: a cell a moved hit fell in stays a person's for
+``memory`` seconds after it was last hit (:meth:`MovedMarks.hold`; the navigator holds a
+person's laser marks for as long as they stay marked), and a hit in such a cell is a person's
+too. Hits near the static map (within ``map_margin``) are the map's and never a person's.
+
+Frames and units: the ``map`` frame, metres, seconds (the scans' stamps).
+"""
+from collections import deque
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+
+class MovedMarks:
+    """Per scan (:meth:`update`), which of its obstacle points are a person's.
+
+    ``grid``: the static :class:`~tiago_nav.gridmap.GridMap`; ``memory`` [s]: how long a scan
+    stays a witness of free space, and a cell a person's after its last hit; ``keep_every``
+    [s]: one scan kept per this long (the witnesses); ``margin`` [m]: how far beyond a point a
+    witness's beams must reach; ``map_margin`` [m]: points this near the static map are the
+    map's."""
+
+    min_points = 3          # moved points that make a person's leg (a leg is 3 beams or more)
+    cluster_radius = 0.1    # [m] ... within this of each other (a calf is 0.1-0.15 m across)
+    max_gap = 0.02          # [m] a witness vouches for free space only where its beams lie at
+                            # most this far apart (a chair's leg 2.4 cm across hid between
+                            # beams 4 cm apart)
+
+    def __init__(self, grid, memory=10.0, keep_every=1.0, margin=0.1, map_margin=0.15):
+        self.grid = grid
+        self.memory = float(memory)
+        self.keep_every = float(keep_every)
+        self.margin = float(margin)
+        self.map_margin = float(map_margin)
+        self.until = np.full(grid.shape, -np.inf)     # [s] a cell is a person's until then
+        self.latest = -np.inf                         # [s] the latest of them
+        self.witnesses = deque()
+
+    def update(self, scan):
+        """``(M,)`` bool over ``scan.obstacles[0]`` (a
+        :class:`~tiago_nav.nav.costmap.MapScan`): True for a person's point. The scan then
+        becomes a witness when the newest one is ``keep_every`` older."""
+        t = scan.stamp
+        while self.witnesses and self.witnesses[0].stamp < t - self.memory:
+            self.witnesses.popleft()
+        pts = scan.obstacles[0]
+        person = np.zeros(len(pts), dtype=bool)
+        if len(pts):
+            g = self.grid
+            rc = g.world_to_cell(pts)
+            inb = g.in_bounds(rc)
+            idx = np.flatnonzero(inb)
+            idx = idx[g.distance_field()[rc[idx, 0], rc[idx, 1]] > self.map_margin]
+            if len(idx):
+                moved = np.zeros(len(idx), dtype=bool)
+                for w in self.witnesses:
+                    if w.stamp < t:
+                        moved |= w.seen_beyond(pts[idx], self.margin, self.max_gap)
+                moved[moved] = self._together(pts[idx][moved])
+                cells = rc[idx]
+                held = self.until[cells[:, 0], cells[:, 1]] >= t
+                person[idx] = moved | held
+                self.hold(cells[moved | held], t + self.memory)
+        if not self.witnesses or t - self.witnesses[-1].stamp >= self.keep_every:
+            self.witnesses.append(scan)
+        return person
+
+    def held(self, cells, t):
+        """Boolean per ``(N, 2)`` grid cell ``(row, col)``: a person's at time ``t`` [s]."""
+        cells = np.asarray(cells, dtype=int).reshape(-1, 2)
+        if self.latest < t:
+            return np.zeros(len(cells), dtype=bool)
+        return self.until[cells[:, 0], cells[:, 1]] >= t
+
+    def any_held(self, t):
+        """Is any cell a person's at time ``t`` [s]?"""
+        return self.latest >= t
+
+    def _together(self, xy):
+        """Boolean per moved point: are at least :attr:`min_points` moved points (itself
+        included) within :attr:`cluster_radius` of it? A leg is several beams wide; a lone
+        point in free space is a mixed pixel or a stray return, not a person."""
+        if len(xy) < self.min_points:
+            return np.zeros(len(xy), dtype=bool)
+        counts = cKDTree(xy).query_ball_point(xy, self.cluster_radius, return_length=True)
+        return counts >= self.min_points
+
+    def hold(self, cells, until, grow=True):
+        """The ``(N, 2)`` grid cells are a person's until ``until`` [s] at least, and with
+        ``grow`` their 8 neighbours too (a standing leg's hits wander by a cell; a refresh of
+        cells already held does not grow, or a person's label would creep along whatever
+        stands next to them)."""
+        cells = np.asarray(cells, dtype=int).reshape(-1, 2)
+        if not len(cells):
+            return
+        self.latest = max(self.latest, until)
+        h, w = self.until.shape
+        steps = (-1, 0, 1) if grow else (0,)
+        for dr in steps:
+            for dc in steps:
+                r = np.clip(cells[:, 0] + dr, 0, h - 1)
+                c = np.clip(cells[:, 1] + dc, 0, w - 1)
+                self.until[r, c] = np.maximum(self.until[r, c], until)

@@ -1,0 +1,137 @@
+"""People in the navigation: what moved (tiago_nav.nav.people) is kept person_clearance away,
+waited for, and given way to. Measured on the simulator's ground truth (walkers' legs, the
+base's pose and contacts) through the navigation closed loop without ROS."""
+import math
+import os
+
+import numpy as np
+
+from conftest import WORLDS
+from tiago_nav.gridmap import GridMap
+from tiago_nav.nav.costmap import MapScan
+from tiago_nav.nav.navigator import ABORTED, SUCCEEDED, NavConfig
+from tiago_nav.nav.people import MovedMarks
+from tiago_nav.sim.world import World, load_world
+from tiago_nav_tools.testing.navigation import ClosedLoop
+
+INC = math.radians(0.25)
+N = 721                                  # beams over +-90 deg
+
+
+def scan_of(ranges, pose=(0.0, 0.0, 0.0), stamp=0.0):
+    return MapScan(pose, np.asarray(ranges, dtype=float), -math.pi / 2, INC, 0.05, 10.0, stamp)
+
+
+def bearing_beam(x, y):
+    return int(round((math.atan2(y, x) + math.pi / 2) / INC))
+
+
+def test_free_space_is_seen_beyond_only_where_every_beam_near_the_point_passed():
+    free = scan_of(np.full(N, 5.0))
+    pts = np.array([[2.0, 0.0], [4.95, 0.0], [2.0, 2.0]])
+    assert free.seen_beyond(pts, 0.1).tolist() == [True, False, True]
+    # a post 4 cm beside the line of sight at 2 m stops the beams near it: no verdict there
+    r = np.full(N, 5.0)
+    i = bearing_beam(2.0, 0.04)
+    r[i - 1:i + 2] = 2.0
+    assert not scan_of(r).seen_beyond(pts[:1], 0.1)[0]
+    # a thin object whose one beam came back invalid (a mixed pixel) was not seen through
+    r = np.full(N, 5.0)
+    r[bearing_beam(2.0, 0.0)] = np.nan
+    assert not scan_of(r).seen_beyond(pts[:1], 0.1)[0]
+    # beams farther apart than max_gap at the point vouch for nothing
+    assert not free.seen_beyond(np.array([[4.0, 0.0]]), 0.1, max_gap=0.01)[0]
+
+
+def grid(size=10.0):
+    n = int(size / 0.05)
+    return GridMap(np.zeros((n, n), dtype=np.int8), 0.05, (-size / 2, -size / 2))
+
+
+def ranges_with_disc(cx, cy, radius, pose=(0.0, 0.0, 0.0), room=4.5):
+    """Ranges of the +-90 deg fan from ``pose`` in a square room (walls at +-``room``, not in
+    the map) with a disc at (cx, cy) (none for radius 0)."""
+    a = pose[2] - math.pi / 2 + INC * np.arange(N)
+    c, s = np.cos(a), np.sin(a)
+    with np.errstate(divide='ignore'):
+        tx = np.where(c > 0, (room - pose[0]) / c, (-room - pose[0]) / c)
+        ty = np.where(s > 0, (room - pose[1]) / s, (-room - pose[1]) / s)
+    r = np.minimum(np.abs(tx), np.abs(ty))
+    if radius > 0:
+        dx, dy = cx - pose[0], cy - pose[1]
+        along = dx * c + dy * s
+        miss2 = dx * dx + dy * dy - along ** 2
+        hit = (along > 0) & (miss2 < radius * radius)
+        r[hit] = np.minimum(r[hit], along[hit] - np.sqrt(radius * radius - miss2[hit]))
+    return r
+
+
+def test_a_leg_that_stepped_into_free_space_is_a_person_and_stays_one_while_it_stands():
+    marks = MovedMarks(grid(), memory=10.0)
+    assert not marks.update(scan_of(ranges_with_disc(0, 0, 0), stamp=0.0)).any()  # the witness
+    leg = scan_of(ranges_with_disc(2.0, 0.0, 0.06), stamp=1.0)
+    person = marks.update(leg)
+    pts = leg.obstacles[0]
+    near = np.hypot(pts[:, 0] - 2.0, pts[:, 1]) < 0.1
+    assert person[near].all() and not person[~near].any()
+    # standing still for longer than the memory: still a person (its cells stay held)
+    for t in np.arange(1.5, 25.0, 0.5):
+        person = marks.update(scan_of(ranges_with_disc(2.0, 0.0, 0.06), stamp=float(t)))
+    assert person[near].all()
+
+
+def test_what_stood_there_all_along_is_no_person_seen_from_anywhere():
+    marks = MovedMarks(grid(), memory=10.0)
+    for k, pose in enumerate([(0.0, 0.0, 0.0), (0.5, 0.8, -0.3), (1.0, -0.8, 0.4), (1.3, 0.0, 0.0)]):
+        person = marks.update(scan_of(ranges_with_disc(2.5, 0.0, 0.2, pose), pose, stamp=0.6 * k))
+        assert not person.any(), pose
+
+
+def test_a_lone_return_in_free_space_is_a_mixed_pixel_not_a_person():
+    marks = MovedMarks(grid(), memory=10.0)
+    marks.update(scan_of(ranges_with_disc(0, 0, 0), stamp=0.0))
+    r = ranges_with_disc(0, 0, 0)
+    r[bearing_beam(2.0, 0.0)] = 2.0
+    assert not marks.update(scan_of(r, stamp=1.0)).any()
+
+
+PEOPLE = NavConfig(person_clearance=0.3)
+
+
+def walker_gap_run(world, goal, config=PEOPLE, limit=120.0):
+    loop = ClosedLoop(world, config, seed=1)
+    try:
+        return loop.run_goal(goal, limit)
+    finally:
+        loop.close()
+
+
+def test_the_base_keeps_its_clearance_from_a_person_who_stopped_for_it():
+    # lab_mixed: on the way to (9, 0) the robot meets a walker crossing at x = 7 who stops to
+    # let it pass; without the person rule (the default) it drives by at 0.10 m from the legs
+    w = load_world(os.path.join(WORLDS, 'lab_mixed.yaml'))
+    r = walker_gap_run(w, (9.0, 0.0, 0.0))
+    assert r['state'] == SUCCEEDED, r['reason']
+    assert r['collisions'] == 0
+    assert r['closest_walker'] >= 0.3
+    assert walker_gap_run(w, (9.0, 0.0, 0.0), NavConfig())['closest_walker'] < 0.2
+
+
+def corridor(walkers):
+    return World.from_dict(dict(
+        name='corridor_person', resolution=0.05, bounds=[-0.5, -0.7, 11.0, 0.7],
+        robot_start=[0.5, 0.0, 0.0], static_cylinders=[], movable_obstacles=[],
+        walls=[dict(x=5.0, y=0.6, length=10.0, width=0.15, yaw_deg=0),
+               dict(x=5.0, y=-0.6, length=10.0, width=0.15, yaw_deg=0)],
+        walkers=walkers))
+
+
+def test_a_person_who_stands_in_the_only_way_is_waited_for_then_the_goal_aborts_naming_them():
+    # the walker comes towards the robot and stops for good in the corridor
+    w = corridor([dict(path=[[7.0, 0.0], [4.0, 0.0]], speed=0.6, loop=False, start_delay=0.0)])
+    r = walker_gap_run(w, (8.0, 0.0, 0.0), NavConfig(person_clearance=0.3, person_patience=8.0))
+    assert r['state'] == ABORTED
+    assert 'person' in r['reason'], r['reason']
+    assert r["time"] >= 8.0 + 3.0                  # waited the person's patience, not 3 s
+    assert r['collisions'] == 0
+    assert r['closest_walker'] >= 0.3
