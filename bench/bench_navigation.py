@@ -11,7 +11,14 @@ shortest path on that space shortened by line of sight (close to the any-angle o
 Per goal: success (SUCCEEDED within 0.15 m / 0.1 rad, checked on the true pose), collisions
 (simulator contact events), time ratio = time to goal / (L / 1.0 m/s), path length ratio =
 driven length / L, wall time. Writes bench/results/navigation.json and navigation.png.
-Usage: bench/bench_navigation.py [--quick] [--goals N] [--seed S]
+
+``--people``: the same among walkers (worlds/office_walkers.yaml, worlds/lab_mixed.yaml), with
+the ideal laser and TIAGo's (tiago_nav.sim.laser), scored also on the people: the smallest gap
+between the base's footprint and a walker's leg, the time the base stood waiting, and the
+oldest ghost (a cell the laser marked that stayed marked after a scan saw it free;
+tiago_nav_tools.testing.navigation.ghost_ages). Writes navigation_people.json and .png.
+Usage: bench/bench_navigation.py [--quick] [--goals N] [--seed S] [--people] [--set NAME=VALUE]
+[--out JSON]
 """
 import argparse
 import json
@@ -34,12 +41,14 @@ from tiago_nav.nav.navigator import SUCCEEDED, NavConfig, Navigator  # noqa: E40
 from tiago_nav.nav.planner import grid_path, path_length, shortcut  # noqa: E402
 from tiago_nav.params import build  # noqa: E402
 from tiago_nav.robot import ROBOT_RADIUS  # noqa: E402
+from tiago_nav.sim.laser import LaserModel  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.simulator import SimConfig, Simulator  # noqa: E402
 from tiago_nav.sim.world import load_world  # noqa: E402
 from tiago_nav_tools.testing.navigation import ClosedLoop  # noqa: E402
 
 WORLDS = ['ias_lab_room_full.yaml', 'open_hall.yaml']
+PEOPLE_WORLDS = ['office_walkers.yaml', 'lab_mixed.yaml']
 SPEED = 1.0
 CONTROL_DT = 0.1
 
@@ -49,7 +58,7 @@ def cspace(world, grid):
     occ = grid.occupied().copy()
     cx, cy = grid.cell_centres()
     for c in world.movable_obstacles:
-        occ |= np.hypot(cx - c.x, cy - c.y) <= c.radius
+        occ |= c.distance(cx, cy) <= 0.0
     return distance_to_mask(occ, grid.resolution)
 
 
@@ -88,7 +97,7 @@ def lower_bound_time(pose, goal, ref):
     return t0 + profile_time(path_length(ref), SPEED, 1.0) + t1
 
 
-def run_world(name, n_goals, rng, config=None):
+def run_world(name, n_goals, rng, config=None, laser=None):
     world = load_world(os.path.join(ROOT, 'worlds', name))
     grid = rasterise_world(world)
     dist = cspace(world, grid)
@@ -96,7 +105,8 @@ def run_world(name, n_goals, rng, config=None):
     labels, _ = ndimage.label(dist > ROBOT_RADIUS + 0.02)
     src = grid.world_to_cell([start[:2]])[0]
     candidates = np.argwhere((labels == labels[src[0], src[1]]) & (dist > ROBOT_RADIUS + 0.2))
-    loop = ClosedLoop(world, config, seed=int(rng.integers(1 << 30)))
+    loop = ClosedLoop(world, config, seed=int(rng.integers(1 << 30)),
+                      laser=None if laser is None else LaserModel(laser_model=laser))
     sim = loop.sim
     runs = []
     for k in range(n_goals):
@@ -121,15 +131,30 @@ def run_world(name, n_goals, rng, config=None):
                          xy_time_ratio=float(t_xy / (L / SPEED)) if t_xy else float('nan'),
                          lower_bound_ratio=float(elapsed / tmin),
                          length_ratio=float(path_length(trail) / L), wall=time.perf_counter() - w0,
+                         closest_walker=float(r['closest_walker']), waiting=float(r['waiting']),
+                         ghost_age=float(r['ghost_age']),
                          trail=trail.tolist(), reference=ref.tolist()))
-        print('  %-18s goal %2d (%5.2f, %5.2f) L=%5.2f m  %-9s t/(L/v)=%.2f  xy t/(L/v)=%.2f  t/t_ref=%.2f  len=%.2f  coll=%d  %s'
+        people = ('  walker gap %.2f m  waited %.1f s' % (r['closest_walker'], r['waiting'])
+                  if world.walkers else '')
+        print('  %-18s goal %2d (%5.2f, %5.2f) L=%5.2f m  %-9s t/(L/v)=%.2f  xy t/(L/v)=%.2f  t/t_ref=%.2f  len=%.2f  coll=%d%s  %s'
               % (name[:-5], k, goal[0], goal[1], L, state, runs[-1]['time_ratio'], runs[-1]['xy_time_ratio'], runs[-1]['lower_bound_ratio'],
-                 runs[-1]['length_ratio'], runs[-1]['collisions'], '' if ok else reason))
+                 runs[-1]['length_ratio'], runs[-1]['collisions'], people, '' if ok else reason))
     loop.close()
     return world, grid, runs
 
 
 def summary(runs):
+    out = _summary(runs)
+    if any(math.isfinite(r['closest_walker']) for r in runs):    # a world with walkers
+        out.update(closest_walker=float(min(r['closest_walker'] for r in runs)),
+                   walker_gap_under_0_3=int(sum(r['closest_walker'] < 0.3 for r in runs)),
+                   waiting_mean=float(np.mean([r['waiting'] for r in runs])),
+                   waiting_max=float(max(r['waiting'] for r in runs)),
+                   ghost_age_max=float(max(r['ghost_age'] for r in runs)))
+    return out
+
+
+def _summary(runs):
     ok = [r for r in runs if r['success']]
     tr = np.array([r['time_ratio'] for r in ok]) if ok else np.array([np.nan])
     lr = np.array([r['length_ratio'] for r in ok]) if ok else np.array([np.nan])
@@ -190,15 +215,23 @@ def plot(results, path):
         x0, y0, x1, y1 = grid.bounds
         ax.imshow(grid.occupied(), origin='lower', extent=(x0, x1, y0, y1), cmap='Greys')
         for c in world.movable_obstacles:
-            ax.add_patch(plt.Circle((c.x, c.y), c.radius, color='tab:orange'))
+            if c.shape == 'cylinder':
+                ax.add_patch(plt.Circle((c.x, c.y), c.radius, color='tab:orange'))
+            else:
+                ax.add_patch(plt.Polygon(c.outline(), closed=True, fill=False, ec='tab:orange'))
+        for wk in world.walkers:
+            wp = np.array(wk.path + ((wk.path[0],) if wk.loop else ()))
+            ax.plot(wp[:, 0], wp[:, 1], '--', color='tab:brown', lw=0.8)
         for r in runs:
             t = np.array(r['trail'])
             ax.plot(t[:, 0], t[:, 1], '-', lw=1, color='tab:blue' if r['success'] else 'tab:red')
             ax.plot(r['goal'][0], r['goal'][1], 'g.', ms=5)
         s = summary(runs)
-        ax.set_title('%s: %d goals, success %.0f %%, collisions %d, time ratio median %.2f'
-                     % (name, s['goals'], 100 * s['success_rate'], s['collisions'], s['time_ratio_median']),
-                     fontsize=9)
+        ax.set_title('%s: %d goals, success %.0f %%, collisions %d, time ratio median %.2f%s'
+                     % (name, s['goals'], 100 * s['success_rate'], s['collisions'], s['time_ratio_median'],
+                        '\nclosest to a walker %.2f m, waiting mean %.1f s, oldest ghost %.2f s'
+                        % (s['closest_walker'], s['waiting_mean'], s['ghost_age_max'])
+                        if world.walkers else ''), fontsize=9)
         ax.set_aspect('equal')
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -209,21 +242,35 @@ def main():
     ap.add_argument('--quick', action='store_true', help='5 goals per world')
     ap.add_argument('--goals', type=int, default=30)
     ap.add_argument('--seed', type=int, default=1)
+    ap.add_argument('--people', action='store_true',
+                    help='among walkers, with the ideal and the TIAGo laser (module docstring)')
     ap.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                     help='override a NavConfig / ControllerConfig field (tuning)')
+    ap.add_argument('--out', help='the JSON to write, its plot beside it with .png (default '
+                    'bench/results/navigation.json, or navigation_people.json with --people)')
     args = ap.parse_args()
     config = build(NavConfig, {k: float(v) for k, v in (kv.split('=') for kv in args.set)})
     n = 5 if args.quick else args.goals
     rng = np.random.default_rng(args.seed)
-    results, out = {}, {'command': 'bench/bench_navigation.py' + (' --quick' if args.quick else ''),
+    worlds = PEOPLE_WORLDS if args.people else WORLDS
+    lasers = ('ideal', 'tiago') if args.people else (None,)
+    out_json = args.out or os.path.join(RESULTS, 'navigation_people.json' if args.people
+                                        else 'navigation.json')
+    results, out = {}, {'command': 'bench/bench_navigation.py' + (' --quick' if args.quick else '')
+                        + (' --people' if args.people else '')
+                        + ''.join(' --set ' + kv for kv in args.set)
+                        + (' --out ' + args.out if args.out else ''),
                         'seed': args.seed, 'goals_per_world': n, 'overrides': args.set, 'worlds': {}}
-    for name in WORLDS:
-        results[name[:-5]] = run_world(name, n, rng, config)
-        out['worlds'][name[:-5]] = summary(results[name[:-5]][2])
-    out['timing'] = {name[:-5]: timing(name) for name in WORLDS}
-    for k, v in out['timing'].items():
-        print('%-18s map %s: global plan %.1f ms, costmap update with one scan %.1f ms (median)'
-              % (k, v['map_cells'], v['plan_ms'], v['costmap_update_ms']))
+    for laser in lasers:
+        for name in worlds:
+            key = name[:-5] if laser is None else '%s (%s laser)' % (name[:-5], laser)
+            results[key] = run_world(name, n, rng, config, laser)
+            out['worlds'][key] = summary(results[key][2])
+    if not args.people:
+        out['timing'] = {name[:-5]: timing(name) for name in worlds}
+        for k, v in out['timing'].items():
+            print('%-18s map %s: global plan %.1f ms, costmap update with one scan %.1f ms (median)'
+                  % (k, v['map_cells'], v['plan_ms'], v['costmap_update_ms']))
     allruns = [r for v in results.values() for r in v[2]]
     out['overall'] = summary(allruns)
     out['runs'] = {k: [{kk: vv for kk, vv in r.items() if kk not in ('trail', 'reference')} for r in v[2]]
@@ -239,13 +286,20 @@ def main():
                  s['xy_time_ratio_mean'], s['xy_time_ratio_long_paths_mean'],
                  s['lower_bound_ratio_mean'], s['lower_bound_ratio_max'],
                  s['length_ratio_mean'], s['wall_per_goal_s']))
-    os.makedirs(RESULTS, exist_ok=True)
+        if args.people:
+            print('%-18s closest to a walker %.2f m (%d goals under 0.3 m)  waiting mean %.1f s '
+                  'max %.1f s  oldest ghost %.2f s' % ('', s['closest_walker'],
+                                                       s['walker_gap_under_0_3'], s['waiting_mean'],
+                                                       s['waiting_max'], s['ghost_age_max']))
+    os.makedirs(os.path.dirname(os.path.abspath(out_json)), exist_ok=True)
     out['meta'] = meta(vars(args), quick=args.quick, real_time_factor='in process (simulated time)',
-                       laser_model='ideal', odometry_model='ideal')
-    with open(os.path.join(RESULTS, 'navigation.json'), 'w') as f:
+                       laser_model='ideal, tiago' if args.people else 'ideal',
+                       odometry_model='ideal')
+    with open(out_json, 'w') as f:
         json.dump(out, f, indent=1)
-    plot(results, os.path.join(RESULTS, 'navigation.png'))
-    print('wrote bench/results/navigation.json, navigation.png')
+    out_png = os.path.splitext(out_json)[0] + '.png'
+    plot(results, out_png)
+    print('wrote %s, %s' % (out_json, out_png))
 
 
 if __name__ == '__main__':
