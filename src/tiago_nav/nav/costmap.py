@@ -126,12 +126,12 @@ class MapScan:
         """Boolean per ``(N, 2)`` map point: did this scan see free space there, i.e. did every
         valid beam passing within ``margin`` [m] of the point reach more than ``margin`` beyond
         it, were at least half of those beams valid, and all of those within half the margin
-        of its bearing (three at least)? (A beam grazing an edge, or one that misses a point by less than the pose's and
-        the ranges' errors, proves nothing; an invalid beam, e.g. a mixed pixel at a leg's
-        edge, says nothing either way, and a thin object whose only beam was invalid was not
-        seen through.) With ``max_gap`` [m], also only where neighbouring beams lie at most
-        that far apart at the point (anything narrower may have hidden between them). Points
-        whose beams leave the fan: False."""
+        of its bearing (three at least)? (A beam grazing an edge, or one that misses a point
+        by less than the pose's and the ranges' errors, proves nothing; an invalid beam, e.g. a
+        mixed pixel at a leg's edge, says nothing either way, and a thin object whose only
+        beam was invalid was not seen through.) With ``max_gap`` [m], also only where
+        neighbouring beams lie at most that far apart at the point (anything narrower may have
+        hidden between them). Points whose beams leave the fan: False."""
         n = len(self.ranges)
         if n == 0 or len(xy) == 0:
             return np.zeros(len(xy), dtype=bool)

@@ -106,12 +106,12 @@ def path_to_nearest(cost, start_rc, targets, cost_weight=3.0):
     passable[start_rc[0], start_rc[1]] = True
     g = build_graph(cost, cost_weight, passable)
     s = int(start_rc[0] * cols + start_rc[1])
-    dist = dijkstra(g, directed=True, indices=s, return_predecessors=True)
-    d = np.where(targets.ravel(), dist[0], np.inf)
-    t = int(np.argmin(d))
-    if not np.isfinite(d[t]):
+    dist, pred = dijkstra(g, directed=True, indices=s, return_predecessors=True)
+    dist = np.where(targets.ravel(), dist, np.inf)
+    t = int(np.argmin(dist))
+    if not np.isfinite(dist[t]):
         raise PlanError('no reachable place')
-    return _walk_back(dist[1], s, t, cols)
+    return _walk_back(pred, s, t, cols)
 
 
 def line_cells(a, b):
