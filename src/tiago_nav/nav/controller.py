@@ -173,7 +173,7 @@ class Controller:
         alpha = wrap_angle(math.atan2(ty - y, tx - x) - yaw)
         turn_limit = c.tight_rotate_angle if tight else c.rotate_in_place_angle
         if abs(alpha) > turn_limit and self.v < 0.3:
-            return self._turn(alpha, dt, 'rotate')
+            return self.turn(alpha, dt, 'rotate')
         Ld = max(math.hypot(tx - x, ty - y), 1e-3)
         k = 2.0 * math.sin(alpha) / Ld                          # curvature [1/m]
         v_t = c.max_vel_x
@@ -194,11 +194,11 @@ class Controller:
                 if vs > 0.02 and self.safe(pose, vs, w, points, dt, blind, margins):
                     self.v, self.w = vs, w
                     return vs, w, 'follow'
-            return self._turn(alpha, dt, 'blocked')
+            return self.turn(alpha, dt, 'blocked')
         self.v, self.w = v, w
         return v, w, 'follow'
 
-    def _turn(self, alpha, dt, phase):
+    def turn(self, alpha, dt, phase):
         """Brake and turn on the spot towards heading error ``alpha`` [rad]."""
         c = self.c
         w_t = math.copysign(min(c.max_vel_theta, c.heading_gain * abs(alpha),

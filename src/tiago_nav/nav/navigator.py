@@ -346,7 +346,7 @@ class Navigator:
         marks in it)? Then a person stands in the way, and the base waits for them. Asked again
         at most once a second."""
         cm = self.costmap
-        if not cm.people.any():
+        if not cm.people_set:
             return False
         last = self._person_check
         if last is not None and t - last[0] < 1.0:
@@ -362,7 +362,7 @@ class Navigator:
 
     def _only_people(self, goal):
         """Is the goal blocked by people only (free without them)?"""
-        if not self.costmap.people.any():
+        if not self.costmap.people_set:
             return False
         with self._without_people():
             return self.costmap.cost_at([goal[:2]])[0] < INSCRIBED
@@ -397,17 +397,29 @@ class Navigator:
         pts[0] = pose[:2]
         return densify(pts, 0.05)
 
+    def _nearest_person(self, pose):
+        """``(centre (2,), distance [m])`` of the people layer's cell nearest to ``pose``, or
+        None without people."""
+        cm = self.costmap
+        if not cm.people_set:
+            return None
+        people = cm.grid.cell_to_world(np.argwhere(cm.people))
+        if not len(people):
+            return None
+        d = np.hypot(people[:, 0] - pose[0], people[:, 1] - pose[1])
+        i = int(np.argmin(d))
+        return people[i], float(d[i])
+
     def _wait_for_person(self, pose, t, dt):
         """Stand and face the nearest person's mark: one out of the laser's view (behind the
         base) is seen again, and cleared once the person has gone."""
-        cm = self.costmap
-        people = cm.grid.cell_to_world(np.argwhere(cm.people))
         self.progress_time = t
-        if len(people):
-            near = people[np.argmin(np.hypot(people[:, 0] - pose[0], people[:, 1] - pose[1]))]
+        nearest = self._nearest_person(pose)
+        if nearest is not None:
+            near = nearest[0]
             err = wrap_angle(math.atan2(near[1] - pose[1], near[0] - pose[0]) - pose[2])
             if abs(err) > self.LOOK_ANGLE:
-                v, w, _ = self.controller._turn(err, dt, 'rotate')
+                v, w, _ = self.controller.turn(err, dt, 'rotate')
                 return v, w, ACTIVE, 'waiting for a person'
         self.controller.v = self.controller.w = 0.0
         return 0.0, 0.0, ACTIVE, 'waiting for a person'
@@ -417,9 +429,9 @@ class Navigator:
         end = self.retreat[-1]
         if math.hypot(end[0] - pose[0], end[1] - pose[1]) <= self.cfg.controller.xy_goal_tolerance:
             # there: wait, unless a person came near again (they are walking this way)
-            people = self.costmap.grid.cell_to_world(np.argwhere(self.costmap.people))
-            near = len(people) and np.min(np.hypot(people[:, 0] - pose[0], people[:, 1] - pose[1])) \
-                < self.cfg.give_way_distance - self.cfg.person_clearance
+            nearest = self._nearest_person(pose)
+            near = nearest is not None \
+                and nearest[1] < self.cfg.give_way_distance - self.cfg.person_clearance
             if near:
                 self.retreat = self._give_way_path(pose)
             if not near or self.retreat is False:
