@@ -32,3 +32,26 @@ def test_one_real_run_twice(tmp_path):
     again = run.execute(spec, str(tmp_path / 'second'))
     assert run.differences(r, again) == []
     assert run.differences(r, dict(again, final_pose=[0.0, 0.0, 0.0])) == ['final_pose']
+
+
+def test_a_run_among_walkers_records_them_and_repeats(tmp_path):
+    """The office with four walkers: the supervisor records the walkers and the true poses over
+    the whole mission, and the people figures are a function of the row (the same twice)."""
+    data = {'worlds': [{'file': os.path.join(ROOT, 'worlds', 'office_walkers.yaml'),
+                        'poses': [[11.0, 0.5, 30.0]]}],
+            'profiles': {'ideal': {'laser_model': 'ideal', 'odometry_model': 'ideal',
+                                   'localisation': 'ground_truth', 'laser_noise': 0.01}},
+            'defaults': {'sim_time_limit': 120, 'wall_time_limit': 120, 'startup_timeout': 60}}
+    (spec,), _ = suite.expand(data, 'e2e.yaml', ROOT)
+    r = run.execute(spec, str(tmp_path / 'first'))
+    assert r['outcome'] not in run.INFRA and r['outcome'] != 'timeout', r.get('reason')
+    raw = run.read_json(str(tmp_path / 'first' / 'runs' / spec['id'] / 'raw.json'))
+    truth, walkers = raw['truth_log'], raw['walkers']
+    # from the goal to the result, every scan's walkers (four) and the poses between them
+    assert walkers and all(len(w) == 4 for _, w in walkers)
+    assert truth[-1][0] - truth[0][0] == pytest.approx(r['time_s'], abs=0.2)
+    assert walkers[-1][0] - walkers[0][0] == pytest.approx(r['time_s'], abs=0.2)
+    assert r['collisions'] == 0 and 0.0 < r['closest_walker_m'] < 3.0
+    assert 0.0 <= r['waiting_s'] < r['time_s']
+    again = run.execute(spec, str(tmp_path / 'second'))
+    assert run.differences(r, again) == []

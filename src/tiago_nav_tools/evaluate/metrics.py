@@ -4,17 +4,25 @@ Per run: :func:`success`, :func:`path_length`, :func:`spl`, :func:`barn_score`,
 :func:`min_clearance`, :func:`detection` (recall, false positives, centre RMS through
 :func:`tiago_nav_tools.evaluate.matching.score`; the shapes' scores in
 :mod:`tiago_nav_tools.evaluate.shapes`), :func:`percentile` (localisation error),
-:func:`ratio` (simulated/wall), :func:`shortest_path_length` (the SPL's and BARN's reference).
+:func:`ratio` (simulated/wall), :func:`shortest_path_length` (the SPL's and BARN's reference);
+among walkers :func:`closest_walker`, :func:`waiting_time` and :func:`walker_reports`.
 Over runs: :func:`wilson` (a rate's 95 % interval), :func:`mcnemar_exact` (paired successes),
 :func:`paired_difference` (a paired metric's mean difference and its 95 % interval),
 :func:`median`.
 """
+import bisect
 import math
 
 import numpy as np
 
 ROBOT_RADIUS = 0.27     # [m] the base's footprint (config/simulator.yaml robot_radius)
 MAX_SPEED = 1.0         # [m/s] the base's speed limit (config/navigation.yaml max_vel_x)
+WALKER_GAP = 0.3        # [m] the least gap the base's body must keep to a walker's legs
+STILL = 0.02            # [m/s] and [rad/s]: a base slower than this in both stands still
+GOAL_ZONE = 0.15        # [m] standing still this near pose B is not waiting
+BOUND_CHI2 = 13.816     # the 99.9 % ellipse of a 2-D Gaussian (chi-squared, 2 degrees of freedom)
+PERSON_WINDOW = 5.0     # [s] a report is a walker's when it lies within MATCH_GATE of where the
+                        # walker was in the mission's last PERSON_WINDOW (the scans at rest)
 
 
 def success(outcome):
@@ -137,7 +145,19 @@ def detection_score(truth_xy, found_xy, glimpsed_xy=()):
             'max_error': max(errs) if errs else None, 'pairs': pairs}
 
 
-def detection(truth_xy, found_xy, tolerance, glimpsed_xy=()):
+def outside_bound(true_xy, found_xy, covariance, chi2=BOUND_CHI2):
+    """Whether the true centre ``true_xy`` lies outside the 99.9 % ellipse (``chi2``: the
+    squared Mahalanobis distance at 2 degrees of freedom) of a reported centre ``found_xy``
+    with its 2x2 ``covariance`` [m²] (row-major list or array); a covariance that is not
+    finite and positive definite bounds nothing (outside)."""
+    c = np.asarray(covariance, dtype=float).reshape(2, 2)
+    v = np.asarray(true_xy, dtype=float)[:2] - np.asarray(found_xy, dtype=float)[:2]
+    if not np.all(np.isfinite(c)) or np.linalg.det(c) <= 0 or c[0, 0] <= 0:
+        return True
+    return float(v @ np.linalg.solve(c, v)) > chi2
+
+
+def detection(truth_xy, found_xy, tolerance, glimpsed_xy=(), walkers=None, bounds=None):
     """Judge a detection against the ground truth (:mod:`tiago_nav_tools.evaluate.inview`): ``(ok,
     figures)`` with ``ok`` false when one in view is missed, one found is not there (a false
     positive: matching neither one in view nor a glimpsed one, ``glimpsed_xy``) or a matched
@@ -145,23 +165,110 @@ def detection(truth_xy, found_xy, tolerance, glimpsed_xy=()):
     claim, wherever it came from). ``figures``: ``in_view``, ``glimpsed``, ``found``,
     ``matched`` (in view), ``matched_glimpsed``, ``missed`` (in view, not found), recall,
     false_positives, rms_error, max_error (every matched obstacle), ``errors`` (each matched
-    obstacle's, :func:`detection_score`) and ``problem`` (a sentence, '' when ok)."""
+    obstacle's, :func:`detection_score`) and ``problem`` (a sentence, '' when ok).
+    ``walkers`` (:func:`walker_reports`: found index -> reported as a person): a found centre
+    that matches no obstacle but a walker is no false positive; it is counted in
+    ``walkers_reported`` when reported as a person and in ``walkers_static`` (a failure: a
+    walker reported as a static obstacle) when not. ``bounds`` (found index -> its 2x2
+    covariance [m²]): the centres the detection said it could not fix (``center_fixed``
+    false: a box seen on one face, a leg partly hidden), each judged by the bound it claims
+    (:func:`outside_bound`: the true centre inside the 99.9 % ellipse) instead of
+    ``tolerance``; ``bounded`` counts the matched ones, ``bounded_outside`` those beyond their
+    bound (a failure). Their errors stay in the RMS and maximum."""
     s = detection_score(truth_xy, found_xy, glimpsed_xy)
+    bounds = bounds or {}
+    every = list(truth_xy) + list(glimpsed_xy)
+    bounded = [e for e in s['errors'] if e['found'] in bounds]
+    outside = [e for e in bounded if outside_bound(every[e['index']], found_xy[e['found']],
+                                                   bounds[e['found']])]
+    fixed = [e for e in s['errors'] if e['found'] not in bounds]
+    walkers = walkers or {}
+    unmatched = s['false_positive_indices']
+    fps = [j for j in unmatched if j not in walkers]
+    people = [j for j in unmatched if walkers.get(j) is True]
+    static = [j for j in unmatched if walkers.get(j) is False]
     problems = []
     if s['matched'] < s['true']:
         problems.append('missed %d of %d obstacles in view' % (s['true'] - s['matched'], s['true']))
-    if s['false_positives']:
-        problems.append('%d false positive(s)' % s['false_positives'])
-    if s['max_error'] is not None and s['max_error'] > tolerance:
-        worst = max(s['errors'], key=lambda e: e['error'])
+    if fps:
+        problems.append('%d false positive(s)' % len(fps))
+    if static:
+        problems.append('%d obstacle(s) reported where a walker was, not as a person' % len(static))
+    worst = max(fixed, key=lambda e: e['error']) if fixed else None
+    if worst is not None and worst['error'] > tolerance:
         problems.append('centre error %.3f m > %.3f m%s' % (
-            s['max_error'], tolerance, '' if worst['in_view'] else ' (a glimpsed obstacle)'))
-    return not problems, {'recall': s['recall'], 'false_positives': s['false_positives'],
+            worst['error'], tolerance, '' if worst['in_view'] else ' (a glimpsed obstacle)'))
+    if outside:
+        far = max(outside, key=lambda e: e['error'])
+        problems.append('%d centre(s) not fixed and outside their reported bound (%.3f m off)'
+                        % (len(outside), far['error']))
+    return not problems, {'recall': s['recall'], 'false_positives': len(fps),
+                          'walkers_reported': len(people), 'walkers_static': len(static),
+                          'bounded': len(bounded), 'bounded_outside': len(outside),
                           'rms_error': s['rms_error'], 'max_error': s['max_error'],
                           'in_view': s['true'], 'glimpsed': s['glimpsed'], 'found': s['found'],
                           'matched': s['matched'], 'matched_glimpsed': s['matched_glimpsed'],
                           'missed': s['true'] - s['matched'], 'errors': s['errors'],
                           'problem': '; '.join(problems)}
+
+
+def closest_walker(truth, walkers, robot_radius=ROBOT_RADIUS):
+    """Least gap [m] between the base's footprint (a disc of ``robot_radius`` about its true
+    pose) and a walker's leg (a disc of the walker's leg radius) over a mission: ``truth`` rows
+    ``[t, x, y, yaw, v, w]`` (every ground-truth pose, time-ordered), ``walkers`` rows ``[t,
+    [walker, ...]]`` with each walker ``[x, y, vx, vy, leg_radius, [[x, y], ...] legs,
+    state]`` (the simulator's /sim/objects); each walkers row is compared with the newest true
+    pose not after it. None without both."""
+    if not truth or not walkers:
+        return None
+    times = [row[0] for row in truth]
+    best = math.inf
+    for t, people in walkers:
+        k = max(0, bisect.bisect_right(times, t + 1e-9) - 1)
+        x, y = truth[k][1], truth[k][2]
+        for w in people:
+            legs = np.asarray(w[5], dtype=float).reshape(-1, 2)
+            if len(legs):
+                gap = float(np.min(np.hypot(legs[:, 0] - x, legs[:, 1] - y))) - robot_radius - w[4]
+                best = min(best, gap)
+    return None if best == math.inf else best
+
+
+def waiting_time(truth, goal_xy, still=STILL, zone=GOAL_ZONE):
+    """Simulated time [s] the base stood still (true speed under ``still`` m/s and turn rate
+    under ``still`` rad/s) farther than ``zone`` [m] from ``goal_xy``: each interval between
+    two ``truth`` rows (``[t, x, y, yaw, v, w]``) counts when its first row stands still
+    there."""
+    total = 0.0
+    for a, b in zip(truth, truth[1:]):
+        if abs(a[4]) < still and abs(a[5]) < still and \
+                math.hypot(a[1] - goal_xy[0], a[2] - goal_xy[1]) > zone:
+            total += b[0] - a[0]
+    return total
+
+
+def is_person_report(detail):
+    """Does a reported tiago_nav/Obstacle (as a dict) say it is a person: seen ``moving`` or
+    labelled ``legs``? Anything else is a claim of a static obstacle."""
+    return (detail or {}).get('motion') == 'moving' or (detail or {}).get('shape') == 'legs'
+
+
+def walker_reports(found_xy, details, walkers, end, window=PERSON_WINDOW, gate=None):
+    """Which reported obstacles are walkers: ``{j: is_person_report}`` for each index ``j`` of
+    ``found_xy`` whose centre lies within ``gate`` [m] (default the matching gate) of a walker's
+    centre at some time in ``[end - window, end]`` (``walkers`` as in
+    :func:`closest_walker`; ``details`` the reported messages as dicts, same order)."""
+    from tiago_nav_tools.evaluate.matching import MATCH_GATE
+    gate = MATCH_GATE if gate is None else gate
+    pts = np.asarray([w[:2] for t, people in walkers if end - window <= t <= end for w in people],
+                     dtype=float).reshape(-1, 2)
+    out = {}
+    if not len(pts):
+        return out
+    for j, (x, y) in enumerate(found_xy):
+        if float(np.min(np.hypot(pts[:, 0] - x, pts[:, 1] - y))) <= gate:
+            out[j] = is_person_report(details[j] if j < len(details) else None)
+    return out
 
 
 def wilson(k, n, z=1.959963984540054):

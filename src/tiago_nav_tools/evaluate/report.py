@@ -21,7 +21,8 @@ COLUMNS = ('run_id', 'outcome', 'reason', 'world', 'world_group', 'profile', 'us
            'path_length_m', 'shortest_m', 'spl', 'barn_score', 'collisions', 'min_clearance_m',
            'recall', 'false_positives', 'rms_error', 'max_error', 'in_view', 'found_count',
            'glimpsed', 'missed', 'matched_glimpsed',
-           'loc_error_p95_m', 'loc_error_p95_deg', 'sim_wall_ratio', 'cpu_s', 'attempt')
+           'loc_error_p95_m', 'loc_error_p95_deg', 'closest_walker_m', 'waiting_s',
+           'walkers_reported', 'walkers_static', 'sim_wall_ratio', 'cpu_s', 'attempt')
 MEDIANS = ('time_s', 'wall_s', 'path_length_m', 'spl', 'barn_score', 'min_clearance_m',
            'rms_error', 'loc_error_p95_m', 'sim_wall_ratio', 'cpu_s')
 PAIRED = ('time_s', 'spl', 'barn_score', 'min_clearance_m', 'rms_error')
@@ -144,6 +145,7 @@ def markdown(summary, comparison, results, meta):
     lines += isolation_lines(meta)
     lines += detection_lines(valid)
     lines += shape_lines(valid)
+    lines += people_lines(valid)
     bad = [r for r in valid if r['outcome'] != 'succeeded']
     if bad:
         lines += ['', '## Runs that did not succeed', '']
@@ -158,8 +160,10 @@ def detection_totals(results):
     """Per profile, over the judged runs that reported obstacles (a result with
     ``detection_view``): obstacles ``in_view`` and ``glimpsed`` (:mod:`tiago_nav_tools.evaluate.inview`),
     ``found`` centres, ``missed`` (in view, not found), ``false_positives``, ``matched`` and
-    ``matched_glimpsed``, and the centre error [m] of every matched obstacle, glimpsed ones
-    too (``rms_error``, ``max_error``, and the same over the glimpsed ones alone)."""
+    ``matched_glimpsed``, ``bounded`` and ``bounded_outside`` (matched centres not fixed,
+    judged by their reported bound, and those outside it), and the centre error [m] of every
+    matched obstacle, glimpsed ones too (``rms_error``, ``max_error``, and the same over the
+    glimpsed ones alone)."""
     out = {}
     for r in results:
         view = r.get('detection_view')
@@ -167,9 +171,11 @@ def detection_totals(results):
             continue
         t = out.setdefault(r.get('profile'), {'runs': 0, 'in_view': 0, 'glimpsed': 0, 'found': 0,
                                               'missed': 0, 'false_positives': 0, 'matched': 0,
-                                              'matched_glimpsed': 0, '_e': [], '_g': []})
+                                              'matched_glimpsed': 0, 'bounded': 0,
+                                              'bounded_outside': 0, '_e': [], '_g': []})
         t['runs'] += 1
-        for k in ('in_view', 'glimpsed', 'missed', 'false_positives', 'matched_glimpsed'):
+        for k in ('in_view', 'glimpsed', 'missed', 'false_positives', 'matched_glimpsed',
+                  'bounded', 'bounded_outside'):
             t[k] += int(r.get(k) or 0)
         t['found'] += len(r.get('found') or [])
         t['matched'] += int(r.get('matched') or 0)
@@ -195,17 +201,71 @@ def detection_lines(results):
     lines = ['', '## Detection (runs that reached pose B)', '',
              'In view: at least %d usable beams of the noise-free cast hit the obstacle; glimpsed: '
              'fewer (docs/evaluation.md). A glimpsed obstacle may go unreported; a centre reported '
-             'for it is scored like any other.' % _min_beams(), '',
+             'for it is scored like any other. Not fixed: centres reported with center_fixed '
+             'false, judged by their reported bound (the 99.9 %% ellipse) instead of the '
+             'tolerance.' % _min_beams(), '',
              '| profile | runs | in view | glimpsed | found | missed | false positives | '
-             'matched in view | matched glimpsed | centre RMS [m] | centre max [m] | '
-             'glimpsed RMS [m] | glimpsed max [m] |',
-             '|---|---|---|---|---|---|---|---|---|---|---|---|---|']
+             'matched in view | matched glimpsed | not fixed (outside their bound) | '
+             'centre RMS [m] | centre max [m] | glimpsed RMS [m] | glimpsed max [m] |',
+             '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
     for prof, t in sorted(tot.items(), key=lambda kv: str(kv[0])):
-        lines.append('| %s | %d | %d | %d | %d | %d | %d | %d | %d | %s | %s | %s | %s |' % (
+        lines.append('| %s | %d | %d | %d | %d | %d | %d | %d | %d | %d (%d) | %s | %s | %s | %s |' % (
             prof, t['runs'], t['in_view'], t['glimpsed'], t['found'], t['missed'],
-            t['false_positives'], t['matched'], t['matched_glimpsed'],
+            t['false_positives'], t['matched'], t['matched_glimpsed'], t['bounded'],
+            t['bounded_outside'],
             _f(t['rms_error'], '%.4f'), _f(t['max_error'], '%.4f'),
             _f(t['rms_error_glimpsed'], '%.4f'), _f(t['max_error_glimpsed'], '%.4f')))
+    return lines
+
+
+def people_summary(results):
+    """summary.json's ``people``: per profile and candidate, over the judged runs in worlds with
+    walkers (a result with ``closest_walker_m``): ``runs``, ``collisions``, ``closest_walker_m``
+    (the least gap of the base's body to a walker's legs over them), ``runs_under_gap`` (runs
+    nearer than :data:`metrics.WALKER_GAP`), ``waiting_s_mean`` and ``waiting_s_max``
+    (standing still away from pose B), ``walkers_reported`` (reports of a walker as a person:
+    moving or legs) and ``walkers_static`` (reports of a walker as a static obstacle), with
+    ``runs_walker_static``."""
+    groups = {}
+    for r in results:
+        if 'closest_walker_m' in r:
+            groups.setdefault((str(r.get('profile')), str(r.get('candidate'))), []).append(r)
+    out = []
+    for (profile, cand), rs in sorted(groups.items()):
+        gaps = [r['closest_walker_m'] for r in rs if r.get('closest_walker_m') is not None]
+        waits = [r['waiting_s'] for r in rs if r.get('waiting_s') is not None]
+        out.append({'profile': profile, 'candidate': cand, 'runs': len(rs),
+                    'collisions': sum(int(r.get('collisions') or 0) for r in rs),
+                    'closest_walker_m': min(gaps) if gaps else None,
+                    'runs_under_gap': sum(1 for g in gaps if g < M.WALKER_GAP),
+                    'waiting_s_mean': sum(waits) / len(waits) if waits else None,
+                    'waiting_s_max': max(waits) if waits else None,
+                    'walkers_reported': sum(int(r.get('walkers_reported') or 0) for r in rs),
+                    'walkers_static': sum(int(r.get('walkers_static') or 0) for r in rs),
+                    'runs_walker_static': sum(1 for r in rs if r.get('walkers_static'))})
+    return out
+
+
+def people_lines(results):
+    """summary.md's people section: :func:`people_summary`."""
+    rows = people_summary(results)
+    if not rows:
+        return []
+    lines = ['', '## People (runs in worlds with walkers)', '',
+             'Closest: the least gap between the base\'s body and a walker\'s legs over the mission '
+             '(bar: at least %g m); waiting: time the base stood still away from pose B; walkers '
+             'reported: obstacles reported where a walker was, as a person (moving or legs) or as '
+             'a static obstacle (a detection failure). docs/evaluation.md#people.' % M.WALKER_GAP, '',
+             '| profile | candidate | runs | collisions | closest [m] | runs under %g m | '
+             'waiting mean [s] | waiting max [s] | walkers reported as persons | as static '
+             '(runs) |' % M.WALKER_GAP,
+             '|---|---|---|---|---|---|---|---|---|---|']
+    for g in rows:
+        lines.append('| %s | %s | %d | %d | %s | %d | %s | %s | %d | %d (%d) |' % (
+            g['profile'], g['candidate'], g['runs'], g['collisions'],
+            _f(g['closest_walker_m'], '%.3f'), g['runs_under_gap'], _f(g['waiting_s_mean'], '%.1f'),
+            _f(g['waiting_s_max'], '%.1f'), g['walkers_reported'], g['walkers_static'],
+            g['runs_walker_static']))
     return lines
 
 
@@ -491,6 +551,8 @@ def write_all(out, runs, results, wall_s, workers=None, scheduler=None):
                                                    'detection': detection_totals(
                                                        [r for r in results if not is_infra(r)]),
                                                    'shapes': shape_summary(
+                                                       [r for r in results if not is_infra(r)]),
+                                                   'people': people_summary(
                                                        [r for r in results if not is_infra(r)])})
     text = markdown(summary, comparison, results, meta)
     with open(os.path.join(out, 'summary.md.tmp'), 'w') as f:

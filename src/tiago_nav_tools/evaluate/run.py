@@ -299,6 +299,12 @@ def judge(spec, raw, min_beams=None):
     m['loc_error_max_m'] = M.percentile([e[0] for e in loc], 100)
     m['loc_error_p95_deg'] = (math.degrees(M.percentile([e[1] for e in loc], 95)) if loc else None)
     m['loc_samples'] = len(loc)
+    # among walkers: the least gap of the base's body to a walker's legs, the time it stood
+    # still away from pose B (metrics.closest_walker, metrics.waiting_time)
+    truth_log, walker_log = raw.get('truth_log') or [], raw.get('walkers') or []
+    if world.walkers:
+        m['closest_walker_m'] = M.closest_walker(truth_log, walker_log)
+        m['waiting_s'] = M.waiting_time(truth_log, goal[:2]) if truth_log else None
     det_ok, det = True, {}
     if raw.get('state') == 3 and final:         # SUCCEEDED: judge what it reported
         from tiago_nav_tools.evaluate import inview
@@ -312,9 +318,16 @@ def judge(spec, raw, min_beams=None):
             parts = S.parts_in_view(scene, final, spec['profile'],
                                     [i for i in v.in_view + v.glimpsed if obs[i].shape != 'cylinder'])
         found = [(o[0], o[1]) for o in raw.get('obstacles', [])]
+        # the reports that lie where a walker was during the scans at rest (metrics.PERSON_WINDOW)
+        walkers = M.walker_reports(found, raw.get('obstacles_detail') or [], walker_log,
+                                   walker_log[-1][0]) if walker_log else None
+        # the centres the detection said it could not fix, with the bound it claims
+        details = raw.get('obstacles_detail') or []
+        bounds = {j: d['center_covariance'] for j, d in enumerate(details)
+                  if d.get('center_fixed') is False and d.get('center_covariance')}
         det_ok, det = M.detection([(obs[i].x, obs[i].y) for i in v.in_view], found,
                                   spec['limits']['detection_tolerance'],
-                                  [(obs[i].x, obs[i].y) for i in v.glimpsed])
+                                  [(obs[i].x, obs[i].y) for i in v.glimpsed], walkers, bounds)
         det['truth'] = [[obs[i].x, obs[i].y, obs[i].radius] for i in v.in_view]
         # every obstacle a beam reached: its beams and usable beams (a rescoring's input),
         # whether it is in view, and its centre error when matched (None: not found)

@@ -9,7 +9,8 @@ file; waits for readiness (``/use_sim_time``, every action server and the detect
 a candidate's interface within its ``check_timeout``, ``/clock``, ``/map``,
 ``/sim/ground_truth``); checks that the scenario loaded as specified (map and start pose);
 sends the mission with a plain actionlib SimpleActionClient; watches the ground truth, the
-localisation's estimate and ``/sim/collisions`` until a result or the simulated-time limit;
+localisation's estimate, ``/sim/collisions`` and the walkers on ``/sim/objects`` until a result
+or the simulated-time limit;
 writes ``RUN_DIR/raw.json`` (atomically); stops its children. Stages go to
 ``RUN_DIR/stage`` so that a watchdog kill can tell start-up from mission.
 """
@@ -100,6 +101,9 @@ class Supervisor:
         self.loc_cov_on = False
         self.loc_pose_sub = None
         self.collisions = None
+        self.people_on = False      # recording the true poses and the walkers (the mission)
+        self.truth_log = []         # [t, x, y, yaw, v, w] of every true pose in the mission
+        self.walker_log = []        # [t, walkers] of every /sim/objects with walkers in it
         self.clock = None
         self.grid_msg = None
         self.lock = threading.Lock()
@@ -191,6 +195,8 @@ class Supervisor:
         # every message, none dropped (queue_size None): the path and the localisation's samples
         # are then the same whatever the load
         rospy.Subscriber('/sim/ground_truth', Odometry, self.on_truth, queue_size=None)
+        from tiago_nav.msg import SimObjects
+        rospy.Subscriber('/sim/objects', SimObjects, self.on_objects, queue_size=None)
         from geometry_msgs.msg import PoseWithCovarianceStamped
         self.loc_pose_sub = rospy.Subscriber(LOC_POSE_TOPIC, PoseWithCovarianceStamped,
                                              self.on_loc_pose, queue_size=None)
@@ -237,6 +243,9 @@ class Supervisor:
             self.truth, self.truth_msg = (m.header.stamp, pose), m
             if not self.path or abs(pose[0] - self.path[-1][0]) + abs(pose[1] - self.path[-1][1]) > 0.01:
                 self.path.append(pose)
+            if self.people_on:
+                self.truth_log.append([m.header.stamp.to_sec()] + [round(v, 4) for v in pose] +
+                                      [round(m.twist.twist.linear.x, 4), round(m.twist.twist.angular.z, 4)])
             if self.loc_bucket is not None and m.header.stamp > self.loc_from and \
                     (self.loc_until is None or m.header.stamp <= self.loc_until):
                 # the first true pose of each 0.1 s of simulated time after the goal
@@ -244,6 +253,17 @@ class Supervisor:
                 if bucket != self.loc_bucket:
                     self.loc_bucket = bucket
                     self.loc_due.append((m.header.stamp, pose))
+
+    def on_objects(self, m):
+        """The walkers of a /sim/objects message during the mission: ``[t, [[x, y, vx, vy,
+        leg_radius, legs, state], ...]]`` (metrics.closest_walker)."""
+        people = [[round(o.pose.x, 4), round(o.pose.y, 4), round(o.velocity.x, 4),
+                   round(o.velocity.y, 4), o.leg_radius,
+                   [[round(p.x, 4), round(p.y, 4)] for p in o.legs], o.state]
+                  for o in m.objects if o.shape == 'walker']
+        with self.lock:
+            if self.people_on and people:
+                self.walker_log.append([m.header.stamp.to_sec(), people])
 
     def on_loc_pose(self, m):
         with self.lock:
@@ -348,6 +368,7 @@ class Supervisor:
             self.path = [self.truth[1]]
             self.loc_bucket, self.loc_from = -1, rospy.Time.from_sec(s0)
             self.loc_cov, self.loc_cov_on = [], True
+            self.truth_log, self.walker_log, self.people_on = [], [], True
         client.send_goal(TiagoTaskGoal(x=x, y=y, yaw_deg=yaw, use_corridor_law=self.spec['use_corridor_law']))
         timed_out, ended_since = False, None
         while True:
@@ -381,15 +402,22 @@ class Supervisor:
             m = self.truth_msg
             rest = m is not None and m.header.stamp >= ended and m.twist.twist.linear.x == 0.0 \
                 and m.twist.twist.angular.z == 0.0
-            if fed and rest and self.sample_localisation(tf, until=until) and \
+            with self.lock:     # (the walkers of the last scans up to the result, if any)
+                walked = not self.walker_log or self.walker_log[-1][0] >= ended.to_sec()
+            if fed and rest and walked and self.sample_localisation(tf, until=until) and \
                     self.loc_cov_until(until) is not None:
                 break
             time.sleep(0.01)
         loc_err = [e for e in self.loc_err if e[2] <= until.to_sec()]
         loc_cov = self.loc_cov_until(until)
         with self.lock:
-            self.loc_cov_on = False
+            self.loc_cov_on = self.people_on = False
             self.loc_bucket, self.loc_until = None, None
+            # the walkers and true poses up to the result (the base at rest after it is not the
+            # mission's)
+            t_end = ended.to_sec()
+            truth_log = [r for r in self.truth_log if s0 <= r[0] <= t_end]
+            walker_log = [r for r in self.walker_log if s0 <= r[0] <= t_end]
         sub.unregister()
         feedback = []
         for g, stamp, st, status in published:
@@ -408,7 +436,8 @@ class Supervisor:
                 'sim_s': ended.to_sec() - s0, 'wall_s': wall,
                 'collisions': (self.collisions or 0) - c0, 'final_pose': list(final),
                 'path': [[round(v, 4) for v in p] for p in path], 'feedback': feedback,
-                'loc_errors': loc_err, 'loc_missing': self.loc_missing}
+                'loc_errors': loc_err, 'loc_missing': self.loc_missing,
+                'truth_log': truth_log if walker_log else [], 'walkers': walker_log}
 
     def check_alive_mission(self):
         for name in ('roscore', 'roslaunch', 'candidate'):
