@@ -4,13 +4,19 @@ twelve generated worlds of its class) and ``suites/robustness.yaml`` (96 runs: a
 corridor, a 20 m corridor, bends of 30 to 90 deg, a cluttered room) through ``rosrun tiago_nav
 evaluate`` as a user runs it, both sensing profiles, corridor law on and off, three seeds.
 Reports per suite the success rate (with its Wilson 95 % interval) against the target of at
-least 99 %, per world group, profile and corridor setting the successes, the least clearance, the
-worst localisation p95 and centre RMS, and every run that did not succeed with its reason.
+least 99 %, per world group, profile, corridor setting and candidate the successes, the least
+clearance, the worst localisation p95 and centre RMS, and every run that did not succeed with
+its reason.
 Writes bench/results/suites.json.
 
 ``--from SUITE=DIR`` reads an evaluate output folder of that suite instead of running it: each
 run is judged again from its raw record (``runs/ID/raw.json``) with the current metrics
-(``tiago_nav_tools.evaluate.run.judge``), as the evaluator would judge it now.
+(``tiago_nav_tools.evaluate.run.judge``), as the evaluator would judge it now (the wall time is
+the one the evaluator wrote in the folder's summary.json).
+
+``--suites suites/people.yaml --out bench/results/suites_people.json``: the people suite (204
+runs among walkers and furniture, two detections); its JSON adds per profile and candidate the
+people figures (``people``: tiago_nav_tools.evaluate.report.people_summary).
 
 Every suite is judged under two rules of "in view" (tiago_nav_tools.evaluate.inview): the evaluator's
 (at least MIN_BEAMS = 7 usable beams of the noise-free cast hit the obstacle) and a plain one
@@ -39,8 +45,8 @@ TARGET = 0.99           # success rate per suite
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 from tiago_nav_tools.benchmarks import meta  # noqa: E402
 from tiago_nav_tools.evaluate import metrics as M  # noqa: E402
-from tiago_nav_tools.evaluate.report import detection_totals  # noqa: E402
-from tiago_nav_tools.evaluate.run import judge  # noqa: E402
+from tiago_nav_tools.evaluate.report import detection_totals, people_summary  # noqa: E402
+from tiago_nav_tools.evaluate.run import judge, read_json  # noqa: E402
 from tiago_nav_tools.evaluate.inview import MIN_BEAMS, PLAIN_BEAMS  # noqa: E402
 
 RULES = (('evaluator', MIN_BEAMS), ('plain', PLAIN_BEAMS))   # name, usable beams for "in view"
@@ -88,23 +94,26 @@ def summarise(results):
     lo, hi = M.wilson(ok, n)
     groups = {}
     for r in results:
-        key = (r.get('world_group') or r['world'], r['profile'], bool(r['use_corridor_law']))
+        key = (r.get('world_group') or r['world'], r['profile'], bool(r['use_corridor_law']),
+               r.get('candidate') or 'own')
         groups.setdefault(key, []).append(r)
     rows = []
-    for (group, profile, law), rs in sorted(groups.items()):
-        rows.append({'group': group, 'profile': profile, 'corridor_law': law, 'runs': len(rs),
+    for (group, profile, law, cand), rs in sorted(groups.items()):
+        rows.append({'group': group, 'profile': profile, 'corridor_law': law, 'candidate': cand,
+                     'runs': len(rs),
                      'succeeded': sum(1 for r in rs if r['outcome'] == 'succeeded'),
                      'collisions': sum(int(r.get('collisions') or 0) for r in rs),
                      'min_clearance_m': _worst([r.get('min_clearance_m') for r in rs], min),
                      'loc_error_p95_m_max': _worst([r.get('loc_error_p95_m') for r in rs], max),
                      'rms_error_m_max': _worst([r.get('rms_error') for r in rs], max)})
     failures = [{k: r.get(k) for k in ('run_id', 'world', 'world_group', 'profile',
-                                        'use_corridor_law', 'seed', 'goal', 'outcome', 'reason')}
+                                        'use_corridor_law', 'seed', 'candidate', 'goal',
+                                        'outcome', 'reason')}
                 for r in results if r['outcome'] != 'succeeded']
     return {'runs': n, 'succeeded': ok, 'rate': round(ok / n, 4) if n else None,
             'wilson_95': [round(lo, 4), round(hi, 4)],
             'collisions': sum(int(r.get('collisions') or 0) for r in results),
-            'groups': rows, 'not_succeeded': failures}
+            'groups': rows, 'people': people_summary(results), 'not_succeeded': failures}
 
 
 def rule_figures(results, min_beams):
@@ -158,6 +167,9 @@ def main():
             if folder is None:
                 folder = os.path.join(tmp, name)
                 wall = run_suite(suite, folder, args.workers)
+            else:       # the evaluator's own wall time of that folder's batch, if it says
+                wall = ((read_json(os.path.join(folder, 'summary.json')) or {}).get('meta')
+                        or {}).get('wall_s')
             by_rule = {rule: judged(folder, beams) for rule, beams in RULES}
             s = summarise(by_rule[RULES[0][0]])
             s['rules'] = {rule: rule_figures(by_rule[rule], beams) for rule, beams in RULES}
