@@ -135,3 +135,16 @@ def test_a_person_who_stands_in_the_only_way_is_waited_for_then_the_goal_aborts_
     assert r["time"] >= 8.0 + 3.0                  # waited the person's patience, not 3 s
     assert r['collisions'] == 0
     assert r['closest_walker'] >= 0.3
+
+
+def test_the_goal_clocks_stand_still_while_the_base_waits_for_a_person():
+    # as above, with a deadline (goal_timeout_factor 1.5: 12.25 s for the 7.5 m plan) and a
+    # no-progress window (5 s) shorter than the wait: neither ends the goal while the base
+    # waits for the person; person_patience does, naming them
+    w = corridor([dict(path=[[7.0, 0.0], [4.0, 0.0]], speed=0.6, loop=False, start_delay=0.0)])
+    cfg = NavConfig(person_clearance=0.3, person_patience=8.0, goal_timeout_factor=1.5,
+                    goal_timeout_allowance=1.0, no_progress_timeout=5.0)
+    r = walker_gap_run(w, (8.0, 0.0, 0.0), cfg)
+    assert r['state'] == ABORTED
+    assert 'person' in r['reason'] and 'timeout' not in r['reason'], r['reason']
+    assert r['time'] >= 8.0 + 3.0

@@ -54,8 +54,9 @@ class NavConfig:
     recovery_rotate: float = param(2 * math.pi, '[rad] in-place turn of the rotate recovery', gt=0)
     backup_distance: float = param(0.3, '[m] of the back-up recovery', ge=0)
     backup_speed: float = param(0.15, '[m/s] of the back-up recovery', gt=0)
-    goal_timeout: float = param(-1.0, '[s] abort a goal after this long; < 0: derived from the '
-                                'first plan (goal_timeout_factor * length / max_vel_x + '
+    goal_timeout: float = param(-1.0, '[s] abort a goal after this long (not counting time spent '
+                                'waiting for a person); < 0: derived from the first plan '
+                                '(goal_timeout_factor * length / max_vel_x + '
                                 'goal_timeout_allowance); 0: never')
     goal_timeout_factor: float = param(3.0, 'derived goal_timeout: multiple of the first '
                                        "plan's driving time at max_vel_x", gt=0)
@@ -63,7 +64,8 @@ class NavConfig:
                                           'recoveries and detours', ge=0)
     no_progress_timeout: float = param(40.0, '[s] abort when the path still to go has not '
                                        'shrunk by no_progress_distance for this long '
-                                       '(oscillation, a blocked goal; 0: never)', ge=0)
+                                       '(oscillation, a blocked goal; a wait for a person '
+                                       'starts it again; 0: never)', ge=0)
     no_progress_distance: float = param(0.5, '[m] see no_progress_timeout', gt=0)
     sensor_timeout: float = param(0.5, '[s] stop the base while the newest scan (by its stamp) '
                                   'or the robot pose is older than this', gt=0)
@@ -149,6 +151,7 @@ class Navigator:
         self._person_check = None   # (t, was there a plan without the people layer)
         self.retreat = None         # giving way: None (not yet), a plan, or False (nowhere)
         self.waived = None          # when the people in the way were taken to wait for the base
+        self.held = None            # the last cycle spent waiting for or giving way to a person
         self.points = np.zeros((0, 2))
         self.margins = np.zeros(0)  # [m] per point: how much nearer its obstacle may be
         self.blind = False          # the newest scan had no informative beam
@@ -260,6 +263,7 @@ class Navigator:
         self._person_check = None
         self.retreat = None
         self.waived = None
+        self.held = None
         if self.cfg.goal_timeout > 0:
             self.deadline = t + self.cfg.goal_timeout
             self.timeout_reason = 'timeout: goal not reached in %.0f s' % self.cfg.goal_timeout
@@ -454,6 +458,12 @@ class Navigator:
         cfg = self.cfg
         if self.state != ACTIVE:
             return 0.0, 0.0, self.state, self.reason
+        if self.held is not None:
+            # the last cycle waited for or gave way to a person: the goal's own clocks (its
+            # deadline, the no-progress window) stand still meanwhile; person_patience bounds it
+            self.deadline += t - self.held
+            self.window.reset()
+            self.held = None
         if t > self.deadline:
             return self._finish(ABORTED, self.timeout_reason)
         to_go = self.to_go(pose)
@@ -498,9 +508,11 @@ class Navigator:
                             self.margins[:] = 0.0
                             self.costmap.update()
                             self._replan(pose, t)
+                            self.held = t
                             return self._wait_for_person(pose, t, dt)
                         if self.retreat is None and waited > cfg.planner_patience + cfg.give_way_after:
                             self.retreat = self._give_way_path(pose)
+                        self.held = t
                         if self.retreat is not None and self.retreat is not False:
                             return self._give_way(pose, t, dt)
                         return self._wait_for_person(pose, t, dt)
