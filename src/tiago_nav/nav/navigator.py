@@ -499,6 +499,7 @@ class Navigator:
                         self.patience_from = t
                         self._replan(pose, t)
                     elif self._person_in_the_way(pose, t):
+                        self.held = t       # each branch below waits or gives way
                         if waited > cfg.person_patience:
                             # they stay after the base gave way: they are waiting for it, as
                             # people do; it passes them at its ordinary clearance
@@ -508,11 +509,9 @@ class Navigator:
                             self.margins[:] = 0.0
                             self.costmap.update()
                             self._replan(pose, t)
-                            self.held = t
                             return self._wait_for_person(pose, t, dt)
                         if self.retreat is None and waited > cfg.planner_patience + cfg.give_way_after:
                             self.retreat = self._give_way_path(pose)
-                        self.held = t
                         if self.retreat is not None and self.retreat is not False:
                             return self._give_way(pose, t, dt)
                         return self._wait_for_person(pose, t, dt)

@@ -318,11 +318,11 @@ def judge(spec, raw, min_beams=None):
             parts = S.parts_in_view(scene, final, spec['profile'],
                                     [i for i in v.in_view + v.glimpsed if obs[i].shape != 'cylinder'])
         found = [(o[0], o[1]) for o in raw.get('obstacles', [])]
+        details = raw.get('obstacles_detail') or []
         # the reports that lie where a walker was during the scans at rest (metrics.PERSON_WINDOW)
-        walkers = M.walker_reports(found, raw.get('obstacles_detail') or [], walker_log,
+        walkers = M.walker_reports(found, details, walker_log,
                                    walker_log[-1][0]) if walker_log else None
         # the centres the detection said it could not fix, with the bound it claims
-        details = raw.get('obstacles_detail') or []
         bounds = {j: d['center_covariance'] for j, d in enumerate(details)
                   if d.get('center_fixed') is False and d.get('center_covariance')}
         det_ok, det = M.detection([(obs[i].x, obs[i].y) for i in v.in_view], found,
@@ -343,7 +343,7 @@ def judge(spec, raw, min_beams=None):
         det['shapes'] = S.score(obs, [{'index': i, 'in_view': i in v.in_view, 'found': pair.get(i),
                                        'error': err.get(i)}
                                       for i in sorted(seen) if i in v.in_view or i in pair],
-                                raw.get('obstacles_detail') or [], parts)
+                                details, parts)
     m.update({'detection_' + k if k in ('problem', 'truth', 'view', 'shapes') else k: v
               for k, v in det.items()})
     m['found'] = raw.get('obstacles', [])
