@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from tiago_nav.sim.simulator import SimConfig, Simulator
-from tiago_nav.sim.walkers import KEEPOUT, LEG_RADIUS, Path, legs_at
+from tiago_nav.sim.walkers import KEEPOUT, LEG_RADIUS, PATIENCE, Path, legs_at
 from tiago_nav.sim.world import World
 
 ROOM = {'name': 'walk', 'resolution': 0.05, 'bounds': [-5, -5, 5, 5], 'robot_start': [0, 0, 0]}
@@ -104,27 +104,78 @@ def test_laser_sees_table_legs_and_box_faces_not_the_table_top():
         sim.close()
 
 
-def test_a_walker_stops_for_the_robot_and_goes_on_when_it_has_gone():
-    # the walker's path crosses the robot's position; the robot stands still
+def test_a_walker_stops_for_the_robot_and_walks_round_it_after_its_patience():
+    # the walker's path crosses the robot's position in an open room; the robot stands still
     sim = make([{'path': [[3, 0], [-3, 0]], 'speed': 1.0}])
     try:
-        closest = math.inf
-        for _ in range(300):
+        closest, stood, walked_round = math.inf, 0, False
+        for _ in range(int(12.0 * sim.config.rate)):
             sim.step()
             legs = sim.walkers.legs(0)
             closest = min(closest, float(np.hypot(legs[:, 0], legs[:, 1]).min()))
+            if sim.walkers.state(0, sim.time) == 'yielding':
+                assert sim.walkers.velocity[0] == (0.0, 0.0)
+                stood += 1
+            x, y, _ = sim.walkers.pose(0)
+            walked_round |= abs(y) > 0.5
+        # it stopped short (no nearer than one step of 1 m/s), stood for its patience, and
+        # went round off its line to the end of its path
+        assert stood / sim.config.rate == pytest.approx(PATIENCE, abs=1.5 / sim.config.rate)
+        assert walked_round
+        assert sim.walkers.pose(0)[:2] == pytest.approx((-3.0, 0.0))
+        assert sim.walkers.state(0, sim.time) == 'arrived'
         # its legs never came within 0.4 m of the robot's body (the bar for the robot is 0.3 m)
-        assert closest - sim.config.robot_radius - LEG_RADIUS >= 0.4
+        assert closest - sim.config.robot_radius - LEG_RADIUS >= 0.4 - 1e-9
+        assert sim.collisions == 0
+    finally:
+        sim.close()
+
+
+def test_a_walker_the_robot_came_near_steps_back_before_walking_round():
+    # the walker stops for the robot standing still; the robot then drives towards it
+    # and stops: the walker steps back and walks round, its legs never nearer than they stood
+    sim = make([{'path': [[3, 0], [-3, 0]], 'speed': 1.0}])
+    try:
+        run(sim, 2.2)
+        assert sim.walkers.state(0, sim.time) == 'yielding'
+        run(sim, 0.8, v=0.6)
+        run(sim, 0.7, v=0.0)                                # braked to a stop, before the
+        assert sim.walkers.state(0, sim.time) == 'yielding'  # walker's patience ran out
+
+        def gap():
+            legs = sim.walkers.legs(0)
+            x, y, _ = sim.pose
+            return float(np.hypot(legs[:, 0] - x, legs[:, 1] - y).min()) - sim.config.robot_radius - LEG_RADIUS
+        stood = gap()
+        assert stood < 0.4                                   # the robot's doing
+        least = math.inf
+        for _ in range(int(12.0 * sim.config.rate)):
+            sim.step()
+            least = min(least, gap())
+        assert least >= stood - 1e-9
+        assert sim.walkers.pose(0)[:2] == pytest.approx((-3.0, 0.0))
+        assert sim.collisions == 0
+    finally:
+        sim.close()
+
+
+def test_a_walker_with_no_room_to_walk_round_waits_until_the_robot_has_gone():
+    # the walker comes out of a 2 m corridor (x 0.5-4, walls at y = +-1) towards the robot
+    # standing at its mouth: the corridor's walls leave no room for a way round the robot
+    walls = [{'x': 2.25, 'y': y, 'length': 3.5, 'width': 0.1} for y in (-1.05, 1.05)]
+    world = World.from_dict(dict(ROOM, walls=walls, walkers=[{'path': [[3, 0], [-3, 0]], 'speed': 1.0}]))
+    sim = Simulator(world, SimConfig(laser_noise=0.0))
+    try:
+        run(sim, 8.0)
         x, y, _ = sim.walkers.pose(0)
         gap = math.hypot(x, y) - sim.config.robot_radius
-        assert KEEPOUT <= gap < KEEPOUT + 1.0 / sim.config.rate     # one step of 1 m/s short
+        assert y == 0.0 and KEEPOUT <= gap < KEEPOUT + 1.0 / sim.config.rate   # one step short
         assert sim.walkers.state(0, sim.time) == 'yielding' and sim.walkers.velocity[0] == (0.0, 0.0)
-        assert sim.collisions == 0
         # the robot turns and drives out of the way (along +y); the walker goes on
         run(sim, 2.0, v=0.0, w=math.pi / 4)
         run(sim, 3.0, v=0.5)
         run(sim, 6.0)
-        assert sim.walkers.pose(0)[0] == pytest.approx(-3.0)
+        assert sim.walkers.pose(0)[:2] == pytest.approx((-3.0, 0.0))
         assert sim.collisions == 0
     finally:
         sim.close()

@@ -18,6 +18,7 @@ from tiago_nav.sim.laser import LaserModel
 from tiago_nav.sim.odometry import Odometry, OdometryNoise
 from tiago_nav.sim.scene import LaserConfig, Scene
 from tiago_nav.sim.walkers import Walkers
+from tiago_nav.sim.world import clearance
 
 
 CONTACT_CLEARANCE = 0.02   # [m] a contact event ends when the base is this far from what it hit
@@ -70,7 +71,7 @@ class Simulator:
         self.scene = Scene(world, robot_radius=config.robot_radius, laser=config.laser, gui=gui)
         self.start_pose = tuple(start_pose) if start_pose is not None else world.start_pose
         self.scene.set_robot_pose(self.start_pose)
-        self.walkers = Walkers(world.walkers)
+        self.walkers = Walkers(world.walkers, lambda xy: clearance(world, xy))
         for i in range(len(self.walkers)):
             self.scene.set_walker_legs(i, self.walkers.legs(i))
         touching = self.scene.robot_contacts()
