@@ -139,6 +139,11 @@ NODES = (
         'published_topics': [
             ('{cmd_vel_topic}', 'geometry_msgs/Twist', 'velocity commands'),
             ('~plan', 'nav_msgs/Path', 'latched: the current global plan'),
+            ('~global_costmap/costmap', 'nav_msgs/OccupancyGrid',
+             'latched: the costmap the planner uses (the static map, the laser\'s marks and the '
+             'inflation) in costmap_2d\'s values (100 lethal, 99 inscribed, 1-98 inflation, 0 '
+             'free), with a scan at most `~costmap_publish_frequency` times a second while '
+             'subscribed'),
             ('move_base/goal', 'move_base_msgs/MoveBaseActionGoal',
              'the action goal made from a move_base_simple/goal'),
             _ACK,

@@ -14,7 +14,7 @@ import rospy
 import rostest
 from actionlib_msgs.msg import GoalStatus
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
-from nav_msgs.msg import Odometry
+from nav_msgs.msg import OccupancyGrid, Odometry
 from nav_msgs.srv import GetPlan
 from scipy import ndimage
 from std_msgs.msg import UInt32
@@ -219,6 +219,41 @@ class NavigationTest(SimTestCase):
                 return
             rospy.sleep(0.1)
         self.fail('the robot did not come to rest')
+
+
+    def test_9b_the_costmap_shows_the_unmapped_cylinders_and_nothing_that_is_not_there(self):
+        # at pose B four cylinders are in the laser's view; the published costmap (costmap_2d's
+        # values) covers each with lethal cells, and every lethal cell lies within the robot's
+        # radius of a wall or a cylinder of the world file
+        self.reach(11.0, 0.0, -45.0)
+        got = []
+        sub = rospy.Subscriber('/move_base/global_costmap/costmap', OccupancyGrid, got.append)
+        static = rospy.wait_for_message('/map', OccupancyGrid, timeout=TIMEOUT)
+        end = rospy.Time.now() + rospy.Duration(TIMEOUT)
+        while len(got) < 2 and rospy.Time.now() < end:     # one with a scan after subscribing
+            rospy.sleep(0.1)
+        sub.unregister()
+        self.assertGreaterEqual(len(got), 2, 'no costmap on /move_base/global_costmap/costmap')
+        msg = got[-1]
+        info = msg.info
+        self.assertEqual((info.width, info.height, info.resolution),
+                         (static.info.width, static.info.height, static.info.resolution))
+        cost = np.asarray(msg.data, dtype=np.int8).reshape(info.height, info.width)
+        occupied = np.asarray(static.data, dtype=np.int8).reshape(info.height, info.width) == 100
+        self.assertTrue(np.all(cost[occupied] == 100), 'a wall of the map is not lethal')
+        res, ox, oy = info.resolution, info.origin.position.x, info.origin.position.y
+        rows, cols = np.nonzero(cost == 100)
+        xy = np.column_stack((ox + (cols + 0.5) * res, oy + (rows + 0.5) * res))
+        # distance of each lethal cell to the nearest thing of the world
+        to_wall = ndimage.distance_transform_edt(~occupied) * res
+        gap = to_wall[rows, cols]
+        for c in self.world.movable_obstacles:
+            gap = np.minimum(gap, np.hypot(xy[:, 0] - c.x, xy[:, 1] - c.y) - c.radius)
+        self.assertLessEqual(float(gap.max()), ROBOT_RADIUS + 0.1,
+                             'a lethal cell %.2f m from anything in the world' % gap.max())
+        covered = [c for c in self.world.movable_obstacles
+                   if cost[int((c.y - oy) / res), int((c.x - ox) / res)] == 100]
+        self.assertGreaterEqual(len(covered), 4, 'unmapped cylinders in the costmap: %d' % len(covered))
 
 
 if __name__ == '__main__':

@@ -8,7 +8,7 @@ import pytest
 from conftest import WORLDS
 from tiago_nav.gridmap import GridMap
 from tiago_nav.nav.controller import Controller, ControllerConfig
-from tiago_nav.nav.costmap import INSCRIBED, LETHAL, Costmap, MapScan, inflate
+from tiago_nav.nav.costmap import INSCRIBED, LETHAL, Costmap, MapScan, inflate, occupancy_values
 from tiago_nav.nav.planner import PlanError, grid_path, path_length, plan
 
 
@@ -28,6 +28,15 @@ def test_inflation_values_follow_distance():
     assert cost[20, 20 + 17] == 0                     # 0.85 m > inflation radius
     row = cost[20, 26:37].astype(int)
     assert np.all(np.diff(row) <= 0)                  # decreasing away from the obstacle
+
+
+def test_occupancy_values_are_costmap_2ds():
+    # ROS's costmap_2d publishes lethal 100, inscribed 99, the gradient 1-98, free 0, unknown -1
+    cost = np.array([[0, 1, 2, 126, 252, INSCRIBED, LETHAL, 255]], dtype=np.uint8)
+    assert occupancy_values(cost).tolist() == [[0, 1, 1, 49, 98, 99, 100, -1]]
+    assert occupancy_values(cost).dtype == np.int8
+    # monotone over the gradient
+    assert np.all(np.diff(occupancy_values(np.arange(1, 253, dtype=np.uint8)[None])) >= 0)
 
 
 def test_costmap_inflates_once_per_read_after_scans(monkeypatch):

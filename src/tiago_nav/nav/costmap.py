@@ -31,6 +31,19 @@ INSCRIBED = 253
 MAX_NON_LETHAL = 252
 
 
+def occupancy_values(cost):
+    """``(rows, cols)`` uint8 costs → int8 occupancy values as ROS's costmap_2d publishes them
+    (nav_msgs/OccupancyGrid): 0 free, ``LETHAL`` 100, ``INSCRIBED`` 99, the inflation's 1-252
+    spread over 1-98, 255 (no information) -1."""
+    cost = np.asarray(cost, dtype=np.int32)
+    out = (1 + (97 * (cost - 1)) // 251).astype(np.int8)
+    out[cost == 0] = 0
+    out[cost == INSCRIBED] = 99
+    out[cost == LETHAL] = 100
+    out[cost == 255] = -1
+    return out
+
+
 @dataclass(frozen=True)
 class MapScan:
     """One laser scan placed in the map: the laser's pose ``(x, y, yaw)`` in ``map`` at the

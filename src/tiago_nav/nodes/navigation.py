@@ -7,7 +7,7 @@ tf map -> base_footprint -> pose; commands on /mobile_base_controller/cmd_vel. U
 each cycle takes in every scan up to the cycle's scan stamp (idle too, before each idle
 answer), uses the pose at the cycle's odometry stamp, and answers with its command. Serves the
 ``move_base`` action (move_base_msgs/MoveBaseAction), /move_base_simple/goal, ~plan,
-~make_plan and ~clear_costmaps, all only once /map, a first scan and the robot's transform are
+~global_costmap/costmap, ~make_plan and ~clear_costmaps, all only once /map, a first scan and the robot's transform are
 in (each waited for with a timeout; the node exits 1 naming what is missing). Its speed and
 acceleration limits, goal tolerances and inflation can be changed while it runs
 (dynamic_reconfigure, cfg/MoveBase.cfg): during a goal a change comes in force between two
@@ -30,14 +30,16 @@ from std_srvs.srv import Empty, EmptyResponse
 
 from tiago_nav.cfg import MoveBaseConfig
 from tiago_nav.geometry import compose
-from tiago_nav.nav.costmap import MapScan
+from tiago_nav.gridmap import GridMap
+from tiago_nav.nav.costmap import MapScan, occupancy_values
 from tiago_nav.nav.navigator import NavConfig, Navigator
 from tiago_nav.nav.planner import PlanError
 from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, GoalRunner,
                                   PoseUnavailable, frame_or, no_transform)
 from tiago_nav.params import ParamChanges, nested, param, validate
 from tiago_nav.ros.clock import RosClock
-from tiago_nav.ros.conversions import goal_from_pose, gridmap_from_msg, pose_from_transform, pose_stamped
+from tiago_nav.ros.conversions import (goal_from_pose, gridmap_from_msg, gridmap_to_msg,
+                                       pose_from_transform, pose_stamped)
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, STARTUP_WAIT, ClaimingActionServer,
                                     LockstepParticipant, goal_since, lookup_at,
                                     wait_for_transform)
@@ -73,6 +75,10 @@ class Params:
     map_timeout: float = param(30.0, '[s wall] wait for /map at start-up', gt=0)
     ready_timeout: float = param(30.0, '[s wall] then wait for a first scan and the transform '
                                  'map -> base_footprint before serving goals', gt=0)
+    costmap_publish_frequency: float = param(
+        1.0, '[Hz] ~global_costmap/costmap (what the planner sees, the laser\'s marks and the '
+        'inflation), with each scan at most this often and only while someone subscribes; 0: '
+        'never', ge=0)
     nav: NavConfig = nested(NavConfig)
 
     def __post_init__(self):
@@ -146,6 +152,9 @@ class MoveBase:
         self.map_frame = p.global_frame
         self.cmd_pub = rospy.Publisher(p.cmd_vel_topic, Twist, queue_size=1)
         self.plan_pub = rospy.Publisher('~plan', Path, queue_size=1, latch=True)
+        self.costmap_pub = rospy.Publisher('~global_costmap/costmap', OccupancyGrid, queue_size=1,
+                                           latch=True)
+        self.costmap_sent = None            # the scan stamp [s] of the last costmap published
         rospy.loginfo('move_base: waiting for %s', p.map_topic)
         try:
             msg = wait_for_message(p.map_topic, OccupancyGrid, p.map_timeout)
@@ -319,6 +328,20 @@ class MoveBase:
                      scan.range_max, scan.header.stamp.to_sec(), pose_from_transform(t.transform))
         with self.lock:
             self.nav.add_scan(ms)
+            costmap = self._costmap_due(ms.stamp)
+        if costmap is not None:
+            self.costmap_pub.publish(gridmap_to_msg(costmap, self.map_frame, scan.header.stamp))
+
+    def _costmap_due(self, stamp):
+        """The costmap as a :class:`GridMap` of occupancy values, when one is due with the scan
+        stamped ``stamp`` [s] (costmap_publish_frequency, a subscriber); else None."""
+        f = self.p.costmap_publish_frequency
+        if f <= 0 or self.costmap_pub.get_num_connections() == 0 or (
+                self.costmap_sent is not None and 0.0 <= stamp - self.costmap_sent < 1.0 / f):
+            return None
+        self.costmap_sent = stamp
+        cm = self.nav.costmap
+        return GridMap(occupancy_values(cm.cost), cm.resolution, cm.grid.origin)
 
     def on_localisation_state(self, msg):
         self.localisation_state = msg.data
