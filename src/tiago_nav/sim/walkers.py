@@ -101,7 +101,8 @@ class Walkers:
     nearer), on the side of the shorter way whose points all keep :data:`LEG_REACH` from walls
     and obstacles (``clearance``), at its speed, to the first point of its path beyond the
     robot, where it walks on; with no room either side it waits and looks again every
-    :data:`RETRY`. A walker walking round never steps nearer to the robot than that circle (it
+    :data:`RETRY`; where the robot moves and its way round runs out of room, it goes back the
+    way it came to where it left its path. A walker walking round never steps nearer to the robot than that circle (it
     steps back out when the robot comes nearer), so, as on its path, its legs alone never come
     within 0.4 m of the robot's body.
 
@@ -119,7 +120,8 @@ class Walkers:
         self.velocity = [(0.0, 0.0)] * len(self.walkers)
         self.waiting = [False] * len(self.walkers)
         self.waited = [0.0] * len(self.walkers)   # [s] kept waiting by the robot so far
-        self.rounding = [None] * len(self.walkers)  # (s where it rejoins its path, +1 ccw / -1 cw)
+        self.rounding = [None] * len(self.walkers)  # (s where it rejoins its path, +1 ccw / -1 cw,
+                                                    #  going back to where it left its path)
 
     def __len__(self):
         return len(self.walkers)
@@ -188,13 +190,15 @@ class Walkers:
         room). Nearer than ``near`` to the robot's centre it steps straight back from it, facing
         as it stood (its legs, swinging slower than it walks, draw away too); then it walks
         straight to where it rejoins its path once that line keeps ``near`` from the robot's
-        centre, else along the circle of radius ``near``."""
-        exit_s, turn = self.rounding[i]
+        centre, else along the circle of radius ``near``. Where the robot moved and the next
+        point has no room, it turns back the way it came, to where it left its path."""
+        exit_s, turn, back = self.rounding[i]
         x0, y0, h0 = self.poses[i]
         ex, ey, _ = self.paths[i].at(exit_s)
         r = math.hypot(x0 - rx, y0 - ry)
         step = self.walkers[i].speed * dt
-        if r < near - 1e-9:
+        stepping_back = r < near - 1e-9
+        if stepping_back:
             if r <= 0.0:
                 return None, self.s[i]
             x1, y1, heading = x0 + step * (x0 - rx) / r, y0 + step * (y0 - ry) / r, h0
@@ -211,11 +215,15 @@ class Walkers:
             a1 = math.atan2(y0 - ry, x0 - rx) + turn * step / r
             x1, y1, heading = rx + r * math.cos(a1), ry + r * math.sin(a1), a1 + turn * math.pi / 2
         if not self._room(np.array([[x1, y1]]), np.array([[x0, y0]])):
+            if not (stepping_back or back):
+                # the robot moved and the way round has no room now: back the way it came, to
+                # where it left its path
+                self.rounding[i] = (self.s[i], -turn, True)
             return None, self.s[i]
         return (x1, y1, heading), self.s[i]
 
     def _way_round(self, i, rx, ry, near):
-        """``(s, turn)``: where walker ``i`` rejoins its path beyond the robot at ``(rx, ry)``
+        """``(s, turn, False)``: where walker ``i`` rejoins its path beyond the robot at ``(rx, ry)``
         (its first point at least ``near`` + :data:`ROUND_STEP` from the robot's centre after
         one nearer) and the side (+1 counter-clockwise, -1 clockwise) of the shorter way round
         with room along the circle of radius ``near`` about the robot's centre; None when there
@@ -242,7 +250,7 @@ class Walkers:
         for turn, angle in sorted(((1, ccw), (-1, 2.0 * math.pi - ccw)), key=lambda t: t[1]):
             a = a0 + turn * np.linspace(0.0, angle, max(2, int(math.ceil(angle * near / ROUND_STEP)) + 1))
             if self._room(np.column_stack((rx + near * np.cos(a), ry + near * np.sin(a)))):
-                return exit_s, turn
+                return exit_s, turn, False
         return None
 
     def _room(self, xy, here=None):
