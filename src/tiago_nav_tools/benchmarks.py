@@ -865,11 +865,15 @@ def render_suites(d):
             out += _table(('profile', 'candidate', 'runs', 'collisions',
                            'closest to a walker [m]', 'runs under 0.3 m', 'waiting mean [s]',
                            'waiting max [s]', 'walkers reported as persons',
-                           'walkers reported static', 'runs with one static'),
+                           'walkers reported static', 'runs with one static',
+                           'oldest ghost [s]', 'runs with a ghost over 2 s',
+                           'runs without a costmap'),
                           [(g['profile'], g['candidate'], g['runs'], g['collisions'],
                             g['closest_walker_m'], g['runs_under_gap'], g['waiting_s_mean'],
                             g['waiting_s_max'], g['walkers_reported'], g['walkers_static'],
-                            g['runs_walker_static']) for g in s['people']])
+                            g['runs_walker_static'], g.get('ghost_age_s_max'),
+                            g.get('runs_ghost_over'), g.get('runs_no_costmap'))
+                           for g in s['people']])
         fails = s.get('not_succeeded') or []
         out += ['', 'Not succeeded: %s' % ('none.' if not fails else '')]
         out += ['- `%s` %s, %s, law %s, seed %s%s: %s: %s' % (

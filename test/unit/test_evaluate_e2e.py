@@ -53,5 +53,8 @@ def test_a_run_among_walkers_records_them_and_repeats(tmp_path):
     assert walkers[-1][0] - walkers[0][0] == pytest.approx(r['time_s'], abs=0.2)
     assert r['collisions'] == 0 and 0.0 < r['closest_walker_m'] < 3.0
     assert 0.0 <= r['waiting_s'] < r['time_s']
+    # move_base's costmap, once a second of simulated time, watched for ghosts
+    assert len(raw['ghosts']) == pytest.approx(r['time_s'], abs=2.0)
+    assert r['ghost_age_s'] is not None and r['ghost_age_s'] >= 0.0
     again = run.execute(spec, str(tmp_path / 'second'))
     assert run.differences(r, again) == []

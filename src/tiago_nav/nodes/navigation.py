@@ -154,7 +154,7 @@ class MoveBase:
         self.plan_pub = rospy.Publisher('~plan', Path, queue_size=1, latch=True)
         self.costmap_pub = rospy.Publisher('~global_costmap/costmap', OccupancyGrid, queue_size=1,
                                            latch=True)
-        self.costmap_sent = None            # the scan stamp [s] of the last costmap published
+        self.costmap_sent = None            # the period of the last costmap published
         rospy.loginfo('move_base: waiting for %s', p.map_topic)
         try:
             msg = wait_for_message(p.map_topic, OccupancyGrid, p.map_timeout)
@@ -334,12 +334,15 @@ class MoveBase:
 
     def _costmap_due(self, stamp):
         """The costmap as a :class:`GridMap` of occupancy values, when one is due with the scan
-        stamped ``stamp`` [s] (costmap_publish_frequency, a subscriber); else None."""
+        stamped ``stamp`` [s]: the first scan of each period of costmap_publish_frequency (by
+        the stamps, so that in lockstep the same scans publish it whenever a subscriber came),
+        while someone subscribes; else None."""
         f = self.p.costmap_publish_frequency
-        if f <= 0 or self.costmap_pub.get_num_connections() == 0 or (
-                self.costmap_sent is not None and 0.0 <= stamp - self.costmap_sent < 1.0 / f):
+        period = math.floor(stamp * f + 1e-9) if f > 0 else None
+        if period is None or period == self.costmap_sent or \
+                self.costmap_pub.get_num_connections() == 0:
             return None
-        self.costmap_sent = stamp
+        self.costmap_sent = period
         cm = self.nav.costmap
         return GridMap(occupancy_values(cm.cost), cm.resolution, cm.grid.origin)
 

@@ -18,6 +18,7 @@ import numpy as np
 ROBOT_RADIUS = 0.27     # [m] the base's footprint (config/simulator.yaml robot_radius)
 MAX_SPEED = 1.0         # [m/s] the base's speed limit (config/navigation.yaml max_vel_x)
 WALKER_GAP = 0.3        # [m] the least gap the base's body must keep to a walker's legs
+GHOST_AGE = 2.0         # [s] the oldest a ghost may grow after the laser saw its place free
 STILL = 0.02            # [m/s] and [rad/s]: a base slower than this in both stands still
 GOAL_ZONE = 0.15        # [m] standing still this near pose B is not waiting
 BOUND_CHI2 = 13.816     # the 99.9 % ellipse of a 2-D Gaussian (chi-squared, 2 degrees of freedom)

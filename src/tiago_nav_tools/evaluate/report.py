@@ -22,7 +22,7 @@ COLUMNS = ('run_id', 'outcome', 'reason', 'world', 'world_group', 'profile', 'us
            'recall', 'false_positives', 'rms_error', 'max_error', 'in_view', 'found_count',
            'glimpsed', 'missed', 'matched_glimpsed',
            'loc_error_p95_m', 'loc_error_p95_deg', 'closest_walker_m', 'waiting_s',
-           'walkers_reported', 'walkers_static', 'sim_wall_ratio', 'cpu_s', 'attempt')
+           'walkers_reported', 'walkers_static', 'ghost_age_s', 'sim_wall_ratio', 'cpu_s', 'attempt')
 MEDIANS = ('time_s', 'wall_s', 'path_length_m', 'spl', 'barn_score', 'min_clearance_m',
            'rms_error', 'loc_error_p95_m', 'sim_wall_ratio', 'cpu_s')
 PAIRED = ('time_s', 'spl', 'barn_score', 'min_clearance_m', 'rms_error')
@@ -225,7 +225,10 @@ def people_summary(results):
     nearer than :data:`metrics.WALKER_GAP`), ``waiting_s_mean`` and ``waiting_s_max``
     (standing still away from pose B), ``walkers_reported`` (reports of a walker as a person:
     moving or legs) and ``walkers_static`` (reports of a walker as a static obstacle), with
-    ``runs_walker_static``."""
+    ``runs_walker_static``; ``ghost_age_s_max`` (the oldest ghost in the navigation's
+    published costmaps, :mod:`~tiago_nav_tools.evaluate.ghosts`), ``runs_ghost_over`` (runs
+    with one older than :data:`metrics.GHOST_AGE`) and ``runs_no_costmap`` (runs whose
+    navigation published none)."""
     groups = {}
     for r in results:
         if 'closest_walker_m' in r:
@@ -234,6 +237,7 @@ def people_summary(results):
     for (profile, cand), rs in sorted(groups.items()):
         gaps = [r['closest_walker_m'] for r in rs if r.get('closest_walker_m') is not None]
         waits = [r['waiting_s'] for r in rs if r.get('waiting_s') is not None]
+        ghosts = [r['ghost_age_s'] for r in rs if r.get('ghost_age_s') is not None]
         out.append({'profile': profile, 'candidate': cand, 'runs': len(rs),
                     'collisions': sum(int(r.get('collisions') or 0) for r in rs),
                     'closest_walker_m': min(gaps) if gaps else None,
@@ -242,7 +246,10 @@ def people_summary(results):
                     'waiting_s_max': max(waits) if waits else None,
                     'walkers_reported': sum(int(r.get('walkers_reported') or 0) for r in rs),
                     'walkers_static': sum(int(r.get('walkers_static') or 0) for r in rs),
-                    'runs_walker_static': sum(1 for r in rs if r.get('walkers_static'))})
+                    'runs_walker_static': sum(1 for r in rs if r.get('walkers_static')),
+                    'ghost_age_s_max': max(ghosts) if ghosts else None,
+                    'runs_ghost_over': sum(1 for g in ghosts if g > M.GHOST_AGE),
+                    'runs_no_costmap': len(rs) - len(ghosts)})
     return out
 
 
@@ -255,17 +262,21 @@ def people_lines(results):
              'Closest: the least gap between the base\'s body and a walker\'s legs over the mission '
              '(bar: at least %g m); waiting: time the base stood still away from pose B; walkers '
              'reported: obstacles reported where a walker was, as a person (moving or legs) or as '
-             'a static obstacle (a detection failure). docs/evaluation.md#people.' % M.WALKER_GAP, '',
+             'a static obstacle (a detection failure); oldest ghost: a mark in the navigation\'s '
+             'published costmap where nothing is, after a scan saw its place free (bar: %g s; '
+             'runs without a costmap in brackets). docs/evaluation.md#people.'
+             % (M.WALKER_GAP, M.GHOST_AGE), '',
              '| profile | candidate | runs | collisions | closest [m] | runs under %g m | '
              'waiting mean [s] | waiting max [s] | walkers reported as persons | as static '
-             '(runs) |' % M.WALKER_GAP,
-             '|---|---|---|---|---|---|---|---|---|---|']
+             '(runs) | oldest ghost [s] | runs over %g s |' % (M.WALKER_GAP, M.GHOST_AGE),
+             '|---|---|---|---|---|---|---|---|---|---|---|---|']
     for g in rows:
-        lines.append('| %s | %s | %d | %d | %s | %d | %s | %s | %d | %d (%d) |' % (
+        lines.append('| %s | %s | %d | %d | %s | %d | %s | %s | %d | %d (%d) | %s%s | %d |' % (
             g['profile'], g['candidate'], g['runs'], g['collisions'],
             _f(g['closest_walker_m'], '%.3f'), g['runs_under_gap'], _f(g['waiting_s_mean'], '%.1f'),
             _f(g['waiting_s_max'], '%.1f'), g['walkers_reported'], g['walkers_static'],
-            g['runs_walker_static']))
+            g['runs_walker_static'], _f(g['ghost_age_s_max'], '%.1f'),
+            ' (%d)' % g['runs_no_costmap'] if g['runs_no_costmap'] else '', g['runs_ghost_over']))
     return lines
 
 

@@ -305,6 +305,9 @@ def judge(spec, raw, min_beams=None):
     if world.walkers:
         m['closest_walker_m'] = M.closest_walker(truth_log, walker_log)
         m['waiting_s'] = M.waiting_time(truth_log, goal[:2]) if truth_log else None
+        # the oldest ghost in the navigation's published costmaps (ghosts.py; None: none came)
+        ghosts = raw.get('ghosts') or []
+        m['ghost_age_s'] = max(g[1] for g in ghosts) if ghosts else None
     det_ok, det = True, {}
     if raw.get('state') == 3 and final:         # SUCCEEDED: judge what it reported
         from tiago_nav_tools.evaluate import inview

@@ -9,8 +9,9 @@ file; waits for readiness (``/use_sim_time``, every action server and the detect
 a candidate's interface within its ``check_timeout``, ``/clock``, ``/map``,
 ``/sim/ground_truth``); checks that the scenario loaded as specified (map and start pose);
 sends the mission with a plain actionlib SimpleActionClient; watches the ground truth, the
-localisation's estimate, ``/sim/collisions`` and the walkers on ``/sim/objects`` until a result
-or the simulated-time limit;
+localisation's estimate, ``/sim/collisions`` and the walkers on ``/sim/objects`` (among them
+also move_base's published costmap and the scans, for the ghosts: ghosts.py) until a result or
+the simulated-time limit;
 writes ``RUN_DIR/raw.json`` (atomically); stops its children. Stages go to
 ``RUN_DIR/stage`` so that a watchdog kill can tell start-up from mission.
 """
@@ -104,6 +105,8 @@ class Supervisor:
         self.people_on = False      # recording the true poses and the walkers (the mission)
         self.truth_log = []         # [t, x, y, yaw, v, w] of every true pose in the mission
         self.walker_log = []        # [t, walkers] of every /sim/objects with walkers in it
+        self.ghosts = None          # the GhostWatch of a mission among walkers (ghosts.py)
+        self.world = None
         self.clock = None
         self.grid_msg = None
         self.lock = threading.Lock()
@@ -246,6 +249,8 @@ class Supervisor:
             if self.people_on:
                 self.truth_log.append([m.header.stamp.to_sec()] + [round(v, 4) for v in pose] +
                                       [round(m.twist.twist.linear.x, 4), round(m.twist.twist.angular.z, 4)])
+                if self.ghosts is not None:
+                    self.ghosts.pose(m.header.stamp.to_sec(), pose)
             if self.loc_bucket is not None and m.header.stamp > self.loc_from and \
                     (self.loc_until is None or m.header.stamp <= self.loc_until):
                 # the first true pose of each 0.1 s of simulated time after the goal
@@ -264,6 +269,52 @@ class Supervisor:
         with self.lock:
             if self.people_on and people:
                 self.walker_log.append([m.header.stamp.to_sec(), people])
+                if self.ghosts is not None:
+                    self.ghosts.walkers(m.header.stamp.to_sec(), [q for w in people for q in w[5]],
+                                        max(w[4] for w in people))
+
+    def on_costmap(self, m):
+        """move_base's published costmap, for the ghosts (among walkers)."""
+        import numpy as np
+        values = np.asarray(m.data, dtype=np.int8).reshape(m.info.height, m.info.width)
+        with self.lock:
+            if self.people_on and self.ghosts is not None:
+                self.ghosts.costmap(m.header.stamp.to_sec(), values)
+
+    def on_scan(self, m):
+        with self.lock:
+            if self.people_on and self.ghosts is not None:
+                self.ghosts.scan(m.header.stamp.to_sec(), m.ranges, m.angle_min, m.angle_increment,
+                                 m.range_min, m.range_max)
+
+    def watch_ghosts(self, tf):
+        """Among walkers: a :class:`~tiago_nav_tools.evaluate.ghosts.GhostWatch` fed by
+        move_base's published costmap, the scans, the true poses and the walkers; its
+        subscribers (None elsewhere)."""
+        import numpy as np
+        import rospy
+        from nav_msgs.msg import OccupancyGrid
+        from sensor_msgs.msg import LaserScan
+        from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
+        from tiago_nav_tools.evaluate.ghosts import GhostWatch
+        if not self.world.walkers:
+            return None
+        info = self.grid_msg.info
+        static = np.asarray(self.grid_msg.data, dtype=np.int8).reshape(info.height, info.width) == 100
+        try:        # where the laser sits on the base (tf), as the navigation places scans
+            t = tf.lookup_transform('base_footprint', 'base_laser_link', rospy.Time(0),
+                                    rospy.Duration(5.0)).transform.translation
+            offset = math.hypot(t.x, t.y)
+        except Exception:   # noqa: BLE001 (tf2's exceptions; the mock's own offset then)
+            offset = LASER_OFFSET
+        self.ghosts = GhostWatch(static, info.resolution,
+                                 (info.origin.position.x, info.origin.position.y),
+                                 self.world.movable_obstacles,
+                                 rospy.get_param('/move_base/robot_radius', ROBOT_RADIUS), offset,
+                                 rospy.get_param('/move_base/raytrace_range', 5.0))
+        return [rospy.Subscriber('/move_base/global_costmap/costmap', OccupancyGrid,
+                                 self.on_costmap, queue_size=None),
+                rospy.Subscriber('/scan', LaserScan, self.on_scan, queue_size=None)]
 
     def on_loc_pose(self, m):
         with self.lock:
@@ -315,7 +366,7 @@ class Supervisor:
         """The scenario loaded as specified: the map is the world's, the robot at its start."""
         from tiago_nav.sim.raster import rasterise_world
         from tiago_nav.sim.world import load_world
-        world = load_world(self.spec['world_path'])
+        world = self.world = load_world(self.spec['world_path'])
         grid = rasterise_world(world)
         info = self.grid_msg.info
         if (info.width, info.height) != (grid.width, grid.height) or \
@@ -356,6 +407,7 @@ class Supervisor:
                                lambda m: published.append((m.status.goal_id.id, m.header.stamp.to_sec(),
                                                            int(m.feedback.state), m.feedback.status)),
                                queue_size=None)
+        ghost_subs = self.watch_ghosts(tf)
         client = actionlib.SimpleActionClient('tiago_controller', TiagoTaskAction)
         if not wait_server(client, 30.0):
             raise Infra('INFRA_NODE_DIED', 'the tiago_controller action server went away before the goal')
@@ -418,7 +470,13 @@ class Supervisor:
             t_end = ended.to_sec()
             truth_log = [r for r in self.truth_log if s0 <= r[0] <= t_end]
             walker_log = [r for r in self.walker_log if s0 <= r[0] <= t_end]
+            ghosts = []
+            if self.ghosts is not None:
+                self.ghosts.flush(t_end)
+                ghosts = [r for r in self.ghosts.records if s0 <= r[0] <= t_end]
         sub.unregister()
+        for g in ghost_subs or []:
+            g.unregister()
         feedback = []
         for g, stamp, st, status in published:
             if g == goal_id and (not feedback or feedback[-1][1] != st):
@@ -437,7 +495,8 @@ class Supervisor:
                 'collisions': (self.collisions or 0) - c0, 'final_pose': list(final),
                 'path': [[round(v, 4) for v in p] for p in path], 'feedback': feedback,
                 'loc_errors': loc_err, 'loc_missing': self.loc_missing,
-                'truth_log': truth_log if walker_log else [], 'walkers': walker_log}
+                'truth_log': truth_log if walker_log else [], 'walkers': walker_log,
+                'ghosts': ghosts}
 
     def check_alive_mission(self):
         for name in ('roscore', 'roslaunch', 'candidate'):

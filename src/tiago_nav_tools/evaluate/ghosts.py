@@ -1,0 +1,187 @@
+"""Ghosts in move_base's published costmap: marks of what is no longer there, after the laser
+has seen the place free (issue: people leave marks that never clear).
+
+The navigation node publishes its costmap (``/move_base/global_costmap/costmap``, costmap_2d's
+values, inflated: every cell within the robot's radius of a mark is 99 or 100). The laser's
+marks are recovered from it by erosion: a cell whose whole disc of ``robot_radius`` minus
+1.5 cells is so (an isolated mark keeps itself and its neighbours; where lethal discs merge,
+at a wall's corner or between two legs, the cells between them survive too). The same is done
+to the costmap the things that are there at the costmap's stamp would make alone: the static
+map's occupied cells, the world file's movable obstacles (their outlines, ``distance``) and the
+walkers' legs of the nearest ``/sim/objects`` at or before it. A recovered mark farther than
+``EXPLAINED`` from every mark of that costmap is a *phantom*. A phantom is a *ghost* from the
+first scan after it became one that saw its place free
+(:meth:`tiago_nav.nav.costmap.MapScan.seen_beyond` with a one-cell margin, the laser placed at
+the robot's true pose, within ``raytrace_range``: beyond it move_base trusts no free space), for
+as long as it stays a phantom. Its age at a costmap is that costmap's stamp minus that scan's.
+Costmaps come at ``costmap_publish_frequency`` (1 Hz): a ghost is seen at the first costmap
+after it appears, so the ages are lower bounds, within a second of the truth.
+
+Frames and units: the map frame, metres, seconds (ROS time).
+"""
+import bisect
+import math
+
+import numpy as np
+from scipy import ndimage
+
+from tiago_nav.geometry import compose
+from tiago_nav.nav.costmap import MapScan
+
+EXPLAINED = 0.1     # [m] a mark this near a mark of what is there is that thing's (a hit lies
+                    # within half a cell of its mark, and a few centimetres off the surface
+                    # where the localisation places the scan)
+LETHAL_VALUE = 99   # costmap_2d's values of a cell within the robot's radius of a mark: 99
+                    # (inscribed, on the radius) and 100 (lethal, inside it)
+
+
+def _disc(r):
+    """A boolean disc of radius ``r`` [cells] (a structuring element)."""
+    k = int(math.floor(r))
+    yy, xx = np.mgrid[-k:k + 1, -k:k + 1]
+    return xx * xx + yy * yy <= r * r
+
+
+class GhostWatch:
+    """Feed it costmaps (:meth:`costmap`), scans (:meth:`scan`), true poses (:meth:`pose`) and
+    walkers (:meth:`walkers`) as they come, each stream in stamp order; :attr:`records` holds
+    one ``[stamp, oldest ghost age [s] (0 without ghosts), ghost cells, phantom cells]`` per
+    costmap. Costmaps and scans are looked at in stamp order (a scan before a costmap of the
+    same stamp) once the true poses and the walkers have come up to their stamp (the streams
+    arrive out of step under load), and the rest at :meth:`flush`.
+
+    ``static``: the ``(rows, cols)`` bool occupied cells of ``/map``; ``resolution`` [m],
+    ``origin`` ``(x, y)`` of its cell (0, 0)'s corner; ``movables``: the world file's movable
+    obstacles (objects with ``distance(x, y)``); ``robot_radius`` [m]; ``laser_offset`` [m]:
+    the laser ahead of the base centre; ``raytrace_range`` [m]: move_base's."""
+
+    def __init__(self, static, resolution, origin, movables, robot_radius, laser_offset,
+                 raytrace_range):
+        self.static = np.asarray(static, dtype=bool)
+        self.res = float(resolution)
+        self.origin = (float(origin[0]), float(origin[1]))
+        self.robot_radius = float(robot_radius)
+        self.laser_offset = float(laser_offset)
+        self.raytrace_range = float(raytrace_range)
+        r = max(robot_radius - 1.5 * self.res, 0.0) / self.res
+        self.disc = _disc(r)
+        self.near = _disc(EXPLAINED / self.res)
+        rows, cols = self.static.shape
+        rc = np.argwhere(np.ones(self.static.shape, dtype=bool))
+        xy = self._centres(rc)
+        gap = np.full(len(rc), np.inf)
+        for m in movables:
+            gap = np.minimum(gap, m.distance(xy[:, 0], xy[:, 1]))
+        # what the obstacles occupy, as the laser's marks would (a cell a surface crosses)
+        self.fixed = self.static | (gap <= 0.5 * math.sqrt(2.0) * self.res).reshape(rows, cols)
+        self.phantoms = np.zeros((0, 2), dtype=int)     # (row, col) of the last costmap's
+        self.seen_free = {}                             # phantom cell -> stamp [s] of its scan
+        self.legs, self.leg_stamps = [], []             # [((K, 2) leg centres, radius)], [s]
+        self.truth, self.truth_stamps = [], []          # [(x, y, yaw)], [s]
+        self.events = []                                # [(stamp, 0 scan / 1 costmap, data)]
+        self.records = []
+
+    def walkers(self, stamp, legs, leg_radius):
+        """The walkers' ``(K, 2)`` leg centres [m] with ``leg_radius`` [m] at ``stamp``."""
+        self.legs.append((np.asarray(legs, dtype=float).reshape(-1, 2), float(leg_radius)))
+        self.leg_stamps.append(float(stamp))
+        self._advance()
+
+    def pose(self, stamp, pose):
+        """The robot's true ``(x, y, yaw)`` at ``stamp``."""
+        self.truth.append(tuple(pose))
+        self.truth_stamps.append(float(stamp))
+        self._advance()
+
+    def costmap(self, stamp, values):
+        """A published costmap: ``(rows, cols)`` int8 ``values`` at ``stamp`` [s]."""
+        self.events.append((float(stamp), 1, np.asarray(values)))
+        self._advance()
+
+    def scan(self, stamp, ranges, angle_min, angle_increment, range_min, range_max):
+        """A laser scan at ``stamp`` [s]."""
+        self.events.append((float(stamp), 0, (ranges, angle_min, angle_increment, range_min,
+                                              range_max)))
+        self._advance()
+
+    def _advance(self, until=None):
+        """Look at the events up to where both the true poses and the walkers have come (or
+        up to ``until`` [s])."""
+        if until is None:
+            if not self.truth_stamps or not self.leg_stamps:
+                return
+            until = min(self.truth_stamps[-1], self.leg_stamps[-1])
+        if not self.events or self.events[0][0] > until:
+            return
+        self.events.sort(key=lambda e: e[:2])
+        while self.events and self.events[0][0] <= until:
+            stamp, kind, data = self.events.pop(0)
+            if kind:
+                self._costmap(stamp, data)
+            else:
+                self._scan(stamp, *data)
+
+    def flush(self, until=math.inf):
+        """Look at every event stamped up to ``until`` [s] (the end of the mission)."""
+        self._advance(until)
+
+    @staticmethod
+    def _at(stamps, log, stamp):
+        """The entry of ``log`` of the newest of ``stamps`` at or before ``stamp`` (None
+        before the first)."""
+        i = bisect.bisect_right(stamps, stamp + 1e-9)
+        return log[i - 1] if i else None
+
+    def _marks(self, lethal):
+        """The marks an inflated lethal ``(rows, cols)`` bool grid comes from (erosion)."""
+        return ndimage.binary_erosion(lethal, structure=self.disc, border_value=1)
+
+    def _centres(self, rc):
+        return np.column_stack((self.origin[0] + (rc[:, 1] + 0.5) * self.res,
+                                self.origin[1] + (rc[:, 0] + 0.5) * self.res))
+
+    def _costmap(self, stamp, values):
+        marks = self._marks(np.asarray(values) >= LETHAL_VALUE)
+        there = self.fixed.copy()
+        walkers = self._at(self.leg_stamps, self.legs, stamp)
+        if walkers is not None and len(walkers[0]):
+            rc = np.argwhere(np.ones(there.shape, dtype=bool))
+            xy = self._centres(rc)
+            d = np.full(len(rc), np.inf)
+            for lx, ly in walkers[0]:
+                d = np.minimum(d, np.hypot(xy[:, 0] - lx, xy[:, 1] - ly))
+            there |= (d <= walkers[1] + 0.5 * math.sqrt(2.0) * self.res).reshape(there.shape)
+        lethal = ndimage.distance_transform_edt(~there) * self.res <= self.robot_radius
+        explained = ndimage.binary_dilation(self._marks(lethal), structure=self.near)
+        rc = np.argwhere(marks & ~explained)
+        self.phantoms = rc
+        keep = set(map(tuple, rc))
+        self.seen_free = {c: t for c, t in self.seen_free.items() if c in keep}
+        ages = [stamp - t for t in self.seen_free.values()]
+        self.records.append([round(float(stamp), 4), round(max(ages, default=0.0), 4),
+                             len(ages), len(rc)])
+
+    def _scan(self, stamp, ranges, angle_min, angle_increment, range_min, range_max):
+        """A laser scan at ``stamp`` [s], placed at the robot's true pose then: the phantoms
+        it sees free become ghosts."""
+        if not len(self.phantoms):
+            return
+        truth = self._at(self.truth_stamps, self.truth, stamp)
+        if truth is None:
+            return
+        laser = compose(truth, (self.laser_offset, 0.0, 0.0))
+        scan = MapScan(laser, np.asarray(ranges, dtype=float), angle_min, angle_increment,
+                       range_min, range_max, stamp)
+        todo = [i for i, c in enumerate(map(tuple, self.phantoms)) if c not in self.seen_free]
+        if not todo:
+            return
+        rc = self.phantoms[todo]
+        xy = self._centres(rc)
+        free = scan.seen_beyond(xy, self.res) & (
+            np.hypot(xy[:, 0] - laser[0], xy[:, 1] - laser[1]) <= self.raytrace_range)
+        for c in map(tuple, rc[free]):
+            self.seen_free[c] = float(stamp)
+
+    def oldest(self, start=-math.inf, end=math.inf):
+        """The oldest ghost age [s] of the costmaps stamped in ``[start, end]``."""
+        return max((r[1] for r in self.records if start <= r[0] <= end), default=0.0)

@@ -1,0 +1,122 @@
+"""The evaluator's ghost watch (tiago_nav_tools.evaluate.ghosts) on costmaps made by the
+navigation's own inflation and published values: a mark a walker left is a ghost from the first
+scan that sees its place free, its age grows with the costmaps until it clears; a mark where a
+walker or an obstacle stands, near the map's walls, or never seen free is none."""
+import numpy as np
+import pytest
+
+from tiago_nav.nav.costmap import inflate, occupancy_values
+from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
+from tiago_nav.sim.scene import LaserConfig
+from tiago_nav.sim.world import World
+from tiago_nav_tools.evaluate.ghosts import GhostWatch
+
+RES = 0.05
+ORIGIN = (-1.0, -3.0)
+SHAPE = (120, 160)          # 6 m x 8 m: x -1..7, y -3..3
+
+
+def cell(x, y):
+    return int((y - ORIGIN[1]) / RES), int((x - ORIGIN[0]) / RES)
+
+
+def static_map():
+    occ = np.zeros(SHAPE, dtype=bool)
+    occ[:, -2:] = True                       # a wall at x = 6.9-7
+    return occ
+
+
+def costmap(marks=()):
+    """The published values of the navigation's costmap with the map and these marks."""
+    occ = static_map()
+    for x, y in marks:
+        occ[cell(x, y)] = True
+    cost, _ = inflate(occ, RES, ROBOT_RADIUS, 0.8, 4.0)
+    return occupancy_values(cost)
+
+
+def watch(movables=()):
+    return GhostWatch(static_map(), RES, ORIGIN, movables, ROBOT_RADIUS, LASER_OFFSET, 5.0)
+
+
+def scan(w, stamp, ranges=6.0):
+    """A scan from the robot at the origin facing +x: every beam reaches ``ranges`` [m]."""
+    c = LaserConfig()
+    n = len(c.angles())
+    w.scan(stamp, np.full(n, ranges), c.angle_min, c.angle_increment, 0.05, 25.0)
+
+
+def at(w, t, pose=(0.0, 0.0, 0.0), legs=((4.0, 2.0), (4.0, 2.2))):
+    """The true pose and the walkers at ``t``."""
+    w.pose(t, pose)
+    w.walkers(t, legs, 0.06)
+
+
+def test_a_mark_left_by_a_walker_is_a_ghost_from_the_scan_that_sees_it_free():
+    w = watch()
+    at(w, 0.0, legs=[[2.0, 0.0], [2.0, 0.2]])
+    w.costmap(0.0, costmap([(2.0, 0.0)]))
+    assert w.records[-1][1:] == [0.0, 0, 0]          # the walker is there: no phantom
+    at(w, 1.0)                                       # it walked on
+    w.costmap(1.0, costmap([(2.0, 0.0)]))
+    assert w.records[-1][2] == 0 and w.records[-1][3] > 0   # a phantom, not yet seen free
+    scan(w, 1.5)                                     # every beam to 6 m: its place seen free
+    at(w, 2.0)
+    w.costmap(2.0, costmap([(2.0, 0.0)]))
+    assert w.records[-1][1] == pytest.approx(0.5) and w.records[-1][2] == w.records[-1][3]
+    at(w, 4.0)
+    w.costmap(4.0, costmap([(2.0, 0.0)]))
+    assert w.records[-1][1] == pytest.approx(2.5)
+    at(w, 5.0)
+    w.costmap(5.0, costmap())                        # cleared
+    assert w.records[-1][1:] == [0.0, 0, 0]
+    assert w.oldest() == pytest.approx(2.5)
+    assert w.oldest(end=3.0) == pytest.approx(0.5)
+
+
+def test_marks_of_what_is_there_or_never_seen_free_are_no_ghosts():
+    world = World.from_dict({'name': 'g', 'resolution': RES, 'bounds': [-1, -3, 7, 3],
+                             'robot_start': [0, 0, 0],
+                             'movable_obstacles': [{'x': 3.0, 'y': 1.0, 'radius': 0.2}]})
+    w = watch(world.movable_obstacles)
+    at(w, 0.0)
+    # a mark on the obstacle's outline, one 5 cm off the wall (the localisation), one behind
+    # the laser (outside its fan): only the last is a phantom
+    marks = [(3.0, 0.8), (6.85, 0.0), (-0.5, 0.0)]
+    w.costmap(0.0, costmap(marks))
+    behind = w.records[-1][3]
+    w.costmap(0.0, costmap([(-0.5, 0.0)]))
+    assert behind == w.records[-1][3] > 0
+    scan(w, 0.5)
+    scan(w, 0.6, ranges=1.0)                         # a wall 1 m ahead: nothing seen beyond
+    at(w, 1.0)
+    w.costmap(1.0, costmap(marks))
+    assert w.records[-1][1:3] == [0.0, 0]            # never seen free: no ghost
+    # a phantom ahead seen only up to a wall in front of it (1 m) is no ghost either
+    at(w, 2.0)
+    w.costmap(2.0, costmap(marks + [(2.0, 0.0)]))
+    scan(w, 2.5, ranges=1.0)
+    at(w, 3.0)
+    w.costmap(3.0, costmap(marks + [(2.0, 0.0)]))
+    assert w.records[-1][1:3] == [0.0, 0] and w.records[-1][3] > behind
+
+
+def test_streams_out_of_step_are_looked_at_in_stamp_order():
+    # the scan and the costmap come before the true pose and the walkers of their stamps (a
+    # loaded machine): nothing is judged until those come; the robot then faces away (-x)
+    # and sees nothing of the mark ahead of where it stood
+    w = watch()
+    at(w, 0.0)
+    w.costmap(0.0, costmap([(2.0, 0.0)]))
+    scan(w, 0.5)
+    w.costmap(1.0, costmap([(2.0, 0.0)]))
+    assert len(w.records) == 1
+    at(w, 0.5, pose=(0.0, 0.0, np.pi))
+    at(w, 1.0, pose=(0.0, 0.0, np.pi))
+    assert len(w.records) == 2
+    assert w.records[-1][1:3] == [0.0, 0] and w.records[-1][3] > 0
+    # the end of the mission judges what is left, with the poses there are
+    scan(w, 1.5)
+    w.costmap(2.0, costmap([(2.0, 0.0)]))
+    w.flush()
+    assert len(w.records) == 3
