@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from tiago_nav.sim.simulator import SimConfig, Simulator
-from tiago_nav.sim.walkers import KEEPOUT, LEG_RADIUS, PATIENCE, Path, legs_at
-from tiago_nav.sim.world import World
+from tiago_nav.sim.walkers import KEEPOUT, LEG_RADIUS, PATIENCE, Path, Walkers, legs_at
+from tiago_nav.sim.world import Walker, World
 
 ROOM = {'name': 'walk', 'resolution': 0.05, 'bounds': [-5, -5, 5, 5], 'robot_start': [0, 0, 0]}
 
@@ -157,6 +157,34 @@ def test_a_walker_the_robot_came_near_steps_back_before_walking_round():
         assert sim.collisions == 0
     finally:
         sim.close()
+
+
+def test_a_walker_whose_way_round_runs_out_of_room_goes_back_and_on_later():
+    # walls at y = 1.25 and y = -1.5 (their gap to a point, as world.clearance gives it): no
+    # room above the robot at (0, 0), room below; walking round below, the robot moves 0.4 m
+    # down and the way round has no room either: the walker goes back to where it left its
+    # path, and once the robot's new place leaves room above, walks round there to its end
+    walkers = Walkers([Walker(path=[(3.0, 0.0), (-3.0, 0.0)], speed=1.0, loop=False, start_delay=0.0)],
+                      lambda xy: float(np.min(np.minimum(1.25 - xy[:, 1], xy[:, 1] + 1.5))))
+    dt, radius, robot = 1.0 / 60, 0.27, (0.0, 0.0)
+    left, lowest, back, closest = None, 0.0, False, math.inf
+    for k in range(int(20.0 / dt)):
+        walkers.step(k * dt, dt, robot, radius)
+        x, y, _ = walkers.pose(0)
+        if left is None and walkers.rounding[0] is not None:
+            left = walkers.s[0]
+        lowest = min(lowest, y)
+        if lowest < -0.5 and robot == (0.0, 0.0):
+            robot = (0.0, -0.4)                     # the robot moves down, under the walker
+        if walkers.rounding[0] is not None and walkers.rounding[0][2]:
+            back = True
+        if robot == (0.0, 0.0):                     # before the robot moved at it
+            legs = walkers.legs(0)
+            closest = min(closest, float(np.hypot(legs[:, 0], legs[:, 1]).min()))
+    assert left is not None and back
+    assert walkers.pose(0)[:2] == pytest.approx((-3.0, 0.0))
+    assert walkers.state(0, 20.0) == 'arrived'
+    assert closest - radius - LEG_RADIUS >= 0.4 - 1e-9
 
 
 def test_a_walker_with_no_room_to_walk_round_waits_until_the_robot_has_gone():
