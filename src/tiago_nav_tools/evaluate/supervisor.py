@@ -301,12 +301,16 @@ class Supervisor:
             return None
         info = self.grid_msg.info
         static = np.asarray(self.grid_msg.data, dtype=np.int8).reshape(info.height, info.width) == 100
-        try:        # where the laser sits on the base (tf), as the navigation places scans
-            t = tf.lookup_transform('base_footprint', 'base_laser_link', rospy.Time(0),
-                                    rospy.Duration(5.0)).transform.translation
-            offset = math.hypot(t.x, t.y)
-        except Exception:   # noqa: BLE001 (tf2's exceptions; the mock's own offset then)
-            offset = LASER_OFFSET
+        # where the laser sits on the base (tf, static), as the navigation places scans; polled
+        # in wall time (simulated time stands still until the goal), else the mock's own
+        offset, end = LASER_OFFSET, time.monotonic() + 5.0
+        while time.monotonic() < end:
+            if tf.can_transform('base_footprint', 'base_laser_link', rospy.Time(0)):
+                t = tf.lookup_transform('base_footprint', 'base_laser_link',
+                                        rospy.Time(0)).transform.translation
+                offset = math.hypot(t.x, t.y)
+                break
+            time.sleep(0.01)
         self.ghosts = GhostWatch(static, info.resolution,
                                  (info.origin.position.x, info.origin.position.y),
                                  self.world.movable_obstacles,
