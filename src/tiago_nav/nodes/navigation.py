@@ -7,8 +7,9 @@ tf map -> base_footprint -> pose; commands on /mobile_base_controller/cmd_vel. U
 each cycle takes in every scan up to the cycle's scan stamp (idle too, before each idle
 answer), uses the pose at the cycle's odometry stamp, and answers with its command. Serves the
 ``move_base`` action (move_base_msgs/MoveBaseAction), /move_base_simple/goal, ~plan,
-~global_costmap/costmap, ~make_plan and ~clear_costmaps, all only once /map, a first scan and the robot's transform are
-in (each waited for with a timeout; the node exits 1 naming what is missing). Its speed and
+~global_costmap/costmap, ~make_plan and ~clear_costmaps, all only once /map, a first scan and
+the robot's transform are in (each waited for with a timeout; the node exits 1 naming what is
+missing). Its speed and
 acceleration limits, goal tolerances and inflation can be changed while it runs
 (dynamic_reconfigure, cfg/MoveBase.cfg): during a goal a change comes in force between two
 control cycles (:class:`tiago_nav.params.ParamChanges`).

@@ -2,10 +2,11 @@
 
 A walker is a point moving along its polyline (:class:`tiago_nav.sim.world.Walker`) at its
 speed once its ``start_delay`` has passed; its state is the distance ``s`` [m] walked along
-its path (and, while it walks round the robot, its place off the path), so a walker is a function of the world and of simulated time, except that one about to step
-into the robot stops and waits (:class:`Walkers`), as a person does, and one kept waiting
-:data:`PATIENCE` walks round the robot where the room allows: then it is also a function of
-the robot's path, which in lockstep is itself a function of world and seed.
+its path (and, while it walks round the robot, its place off the path), so a walker is a
+function of the world and of simulated time, except that one about to step into the robot
+stops and waits (:class:`Walkers`), as a person does, and one kept waiting :data:`PATIENCE`
+walks round the robot where the room allows: then it is also a function of the robot's path,
+which in lockstep is itself a function of world and seed.
 
 The laser sees a walker as two legs, not as a body: TIAGo's laser is about 0.1 m above the
 floor (0.3 m in this mock, :data:`tiago_nav.robot.LASER_HEIGHT`), below the knees, where a
@@ -102,9 +103,9 @@ class Walkers:
     and obstacles (``clearance``), at its speed, to the first point of its path beyond the
     robot, where it walks on; with no room either side it waits and looks again every
     :data:`RETRY`; where the robot moves and its way round runs out of room, it goes back the
-    way it came to where it left its path. A walker walking round never steps nearer to the robot than that circle (it
-    steps back out when the robot comes nearer), so, as on its path, its legs alone never come
-    within 0.4 m of the robot's body.
+    way it came to where it left its path. A walker walking round never steps nearer to the
+    robot than that circle (it steps back out when the robot comes nearer), so, as on its path,
+    its legs alone never come within 0.4 m of the robot's body.
 
     ``clearance``: a function of ``(N, 2)`` map positions [m] returning the least gap [m]
     between them and the world's walls and obstacles (:func:`tiago_nav.sim.world.clearance`);
@@ -223,11 +224,11 @@ class Walkers:
         return (x1, y1, heading), self.s[i]
 
     def _way_round(self, i, rx, ry, near):
-        """``(s, turn, False)``: where walker ``i`` rejoins its path beyond the robot at ``(rx, ry)``
-        (its first point at least ``near`` + :data:`ROUND_STEP` from the robot's centre after
-        one nearer) and the side (+1 counter-clockwise, -1 clockwise) of the shorter way round
-        with room along the circle of radius ``near`` about the robot's centre; None when there
-        is no such point within reach or no room either side."""
+        """``(s, turn, False)``: where walker ``i`` rejoins its path beyond the robot at
+        ``(rx, ry)`` (its first point at least ``near`` + :data:`ROUND_STEP` from the robot's
+        centre after one nearer) and the side (+1 counter-clockwise, -1 clockwise) of the
+        shorter way round with room along the circle of radius ``near`` about the robot's
+        centre; None when there is no such point within reach or no room either side."""
         path, s = self.paths[i], self.s[i]
         end = s + 2.0 * near + 4.0
         if not path.loop:
@@ -248,7 +249,8 @@ class Walkers:
         a0 = math.atan2(y0 - ry, x0 - rx)
         ccw = (math.atan2(ey - ry, ex - rx) - a0) % (2.0 * math.pi)
         for turn, angle in sorted(((1, ccw), (-1, 2.0 * math.pi - ccw)), key=lambda t: t[1]):
-            a = a0 + turn * np.linspace(0.0, angle, max(2, int(math.ceil(angle * near / ROUND_STEP)) + 1))
+            n = max(2, int(math.ceil(angle * near / ROUND_STEP)) + 1)
+            a = a0 + turn * np.linspace(0.0, angle, n)
             if self._room(np.column_stack((rx + near * np.cos(a), ry + near * np.sin(a)))):
                 return exit_s, turn, False
         return None

@@ -57,7 +57,7 @@ class GhostWatch:
 
     def __init__(self, static, resolution, origin, movables, robot_radius, laser_offset,
                  raytrace_range):
-        self.static = np.asarray(static, dtype=bool)
+        static = np.asarray(static, dtype=bool)
         self.res = float(resolution)
         self.origin = (float(origin[0]), float(origin[1]))
         self.robot_radius = float(robot_radius)
@@ -66,14 +66,13 @@ class GhostWatch:
         r = max(robot_radius - 1.5 * self.res, 0.0) / self.res
         self.disc = _disc(r)
         self.near = _disc(EXPLAINED / self.res)
-        rows, cols = self.static.shape
-        rc = np.argwhere(np.ones(self.static.shape, dtype=bool))
-        xy = self._centres(rc)
-        gap = np.full(len(rc), np.inf)
+        # every cell's centre [m], row by row
+        self.xy = self._centres(np.argwhere(np.ones(static.shape, dtype=bool)))
+        gap = np.full(len(self.xy), np.inf)
         for m in movables:
-            gap = np.minimum(gap, m.distance(xy[:, 0], xy[:, 1]))
+            gap = np.minimum(gap, m.distance(self.xy[:, 0], self.xy[:, 1]))
         # what the obstacles occupy, as the laser's marks would (a cell a surface crosses)
-        self.fixed = self.static | (gap <= 0.5 * math.sqrt(2.0) * self.res).reshape(rows, cols)
+        self.fixed = static | (gap <= 0.5 * math.sqrt(2.0) * self.res).reshape(static.shape)
         self.phantoms = np.zeros((0, 2), dtype=int)     # (row, col) of the last costmap's
         self.seen_free = {}                             # phantom cell -> stamp [s] of its scan
         self.legs, self.leg_stamps = [], []             # [((K, 2) leg centres, radius)], [s]
@@ -145,11 +144,9 @@ class GhostWatch:
         there = self.fixed.copy()
         walkers = self._at(self.leg_stamps, self.legs, stamp)
         if walkers is not None and len(walkers[0]):
-            rc = np.argwhere(np.ones(there.shape, dtype=bool))
-            xy = self._centres(rc)
-            d = np.full(len(rc), np.inf)
+            d = np.full(len(self.xy), np.inf)
             for lx, ly in walkers[0]:
-                d = np.minimum(d, np.hypot(xy[:, 0] - lx, xy[:, 1] - ly))
+                d = np.minimum(d, np.hypot(self.xy[:, 0] - lx, self.xy[:, 1] - ly))
             there |= (d <= walkers[1] + 0.5 * math.sqrt(2.0) * self.res).reshape(there.shape)
         lethal = ndimage.distance_transform_edt(~there) * self.res <= self.robot_radius
         explained = ndimage.binary_dilation(self._marks(lethal), structure=self.near)
@@ -181,7 +178,3 @@ class GhostWatch:
             np.hypot(xy[:, 0] - laser[0], xy[:, 1] - laser[1]) <= self.raytrace_range)
         for c in map(tuple, rc[free]):
             self.seen_free[c] = float(stamp)
-
-    def oldest(self, start=-math.inf, end=math.inf):
-        """The oldest ghost age [s] of the costmaps stamped in ``[start, end]``."""
-        return max((r[1] for r in self.records if start <= r[0] <= end), default=0.0)

@@ -300,7 +300,8 @@ class Supervisor:
         if not self.world.walkers:
             return None
         info = self.grid_msg.info
-        static = np.asarray(self.grid_msg.data, dtype=np.int8).reshape(info.height, info.width) == 100
+        static = np.asarray(self.grid_msg.data, dtype=np.int8).reshape(info.height,
+                                                                       info.width) == 100
         # where the laser sits on the base (tf, static), as the navigation places scans; polled
         # in wall time (simulated time stands still until the goal), else the mock's own
         offset, end = LASER_OFFSET, time.monotonic() + 5.0
