@@ -5,6 +5,7 @@ walker or an obstacle stands, near the map's walls, or never seen free is none."
 import numpy as np
 import pytest
 
+from tiago_nav.gridmap import FREE, OCCUPIED, GridMap
 from tiago_nav.nav.costmap import inflate, occupancy_values
 from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
 from tiago_nav.sim.scene import LaserConfig
@@ -36,7 +37,8 @@ def costmap(marks=()):
 
 
 def watch(movables=()):
-    return GhostWatch(static_map(), RES, ORIGIN, movables, ROBOT_RADIUS, LASER_OFFSET, 5.0)
+    grid = GridMap(np.where(static_map(), OCCUPIED, FREE).astype(np.int8), RES, ORIGIN)
+    return GhostWatch(grid, movables, ROBOT_RADIUS, LASER_OFFSET, 5.0)
 
 
 def scan(w, stamp, ranges=6.0):

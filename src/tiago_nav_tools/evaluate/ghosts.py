@@ -26,6 +26,7 @@ import numpy as np
 from scipy import ndimage
 
 from tiago_nav.geometry import compose
+from tiago_nav.gridmap import distance_to_mask
 from tiago_nav.nav.costmap import MapScan
 
 EXPLAINED = 0.1     # [m] a mark this near a mark of what is there is that thing's (a hit lies
@@ -50,16 +51,15 @@ class GhostWatch:
     same stamp) once the true poses and the walkers have come up to their stamp (the streams
     arrive out of step under load), and the rest at :meth:`flush`.
 
-    ``static``: the ``(rows, cols)`` bool occupied cells of ``/map``; ``resolution`` [m],
-    ``origin`` ``(x, y)`` of its cell (0, 0)'s corner; ``movables``: the world file's movable
-    obstacles (objects with ``distance(x, y)``); ``robot_radius`` [m]; ``laser_offset`` [m]:
-    the laser ahead of the base centre; ``raytrace_range`` [m]: move_base's."""
+    ``grid``: ``/map`` as a :class:`~tiago_nav.gridmap.GridMap`; ``movables``: the world
+    file's movable obstacles (objects with ``distance(x, y)``); ``robot_radius`` [m];
+    ``laser_offset`` [m]: the laser ahead of the base centre; ``raytrace_range`` [m]:
+    move_base's."""
 
-    def __init__(self, static, resolution, origin, movables, robot_radius, laser_offset,
-                 raytrace_range):
-        static = np.asarray(static, dtype=bool)
-        self.res = float(resolution)
-        self.origin = (float(origin[0]), float(origin[1]))
+    def __init__(self, grid, movables, robot_radius, laser_offset, raytrace_range):
+        static = grid.occupied()
+        self.grid = grid
+        self.res = float(grid.resolution)
         self.robot_radius = float(robot_radius)
         self.laser_offset = float(laser_offset)
         self.raytrace_range = float(raytrace_range)
@@ -67,7 +67,7 @@ class GhostWatch:
         self.disc = _disc(r)
         self.near = _disc(EXPLAINED / self.res)
         # every cell's centre [m], row by row
-        self.xy = self._centres(np.argwhere(np.ones(static.shape, dtype=bool)))
+        self.xy = grid.cell_to_world(np.argwhere(np.ones(static.shape, dtype=bool)))
         gap = np.full(len(self.xy), np.inf)
         for m in movables:
             gap = np.minimum(gap, m.distance(self.xy[:, 0], self.xy[:, 1]))
@@ -135,10 +135,6 @@ class GhostWatch:
         """The marks an inflated lethal ``(rows, cols)`` bool grid comes from (erosion)."""
         return ndimage.binary_erosion(lethal, structure=self.disc, border_value=1)
 
-    def _centres(self, rc):
-        return np.column_stack((self.origin[0] + (rc[:, 1] + 0.5) * self.res,
-                                self.origin[1] + (rc[:, 0] + 0.5) * self.res))
-
     def _costmap(self, stamp, values):
         marks = self._marks(np.asarray(values) >= LETHAL_VALUE)
         there = self.fixed.copy()
@@ -148,7 +144,7 @@ class GhostWatch:
             for lx, ly in walkers[0]:
                 d = np.minimum(d, np.hypot(self.xy[:, 0] - lx, self.xy[:, 1] - ly))
             there |= (d <= walkers[1] + 0.5 * math.sqrt(2.0) * self.res).reshape(there.shape)
-        lethal = ndimage.distance_transform_edt(~there) * self.res <= self.robot_radius
+        lethal = distance_to_mask(there, self.res) <= self.robot_radius
         explained = ndimage.binary_dilation(self._marks(lethal), structure=self.near)
         rc = np.argwhere(marks & ~explained)
         self.phantoms = rc
@@ -173,7 +169,7 @@ class GhostWatch:
         if not todo:
             return
         rc = self.phantoms[todo]
-        xy = self._centres(rc)
+        xy = self.grid.cell_to_world(rc)
         free = scan.seen_beyond(xy, self.res) & (
             np.hypot(xy[:, 0] - laser[0], xy[:, 1] - laser[1]) <= self.raytrace_range)
         for c in map(tuple, rc[free]):

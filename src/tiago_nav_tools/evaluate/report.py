@@ -22,7 +22,8 @@ COLUMNS = ('run_id', 'outcome', 'reason', 'world', 'world_group', 'profile', 'us
            'recall', 'false_positives', 'rms_error', 'max_error', 'in_view', 'found_count',
            'glimpsed', 'missed', 'matched_glimpsed',
            'loc_error_p95_m', 'loc_error_p95_deg', 'closest_walker_m', 'waiting_s',
-           'walkers_reported', 'walkers_static', 'ghost_age_s', 'sim_wall_ratio', 'cpu_s', 'attempt')
+           'walkers_reported', 'walkers_static', 'ghost_age_s', 'sim_wall_ratio', 'cpu_s',
+           'attempt')
 MEDIANS = ('time_s', 'wall_s', 'path_length_m', 'spl', 'barn_score', 'min_clearance_m',
            'rms_error', 'loc_error_p95_m', 'sim_wall_ratio', 'cpu_s')
 PAIRED = ('time_s', 'spl', 'barn_score', 'min_clearance_m', 'rms_error')

@@ -291,17 +291,14 @@ class Supervisor:
         """Among walkers: a :class:`~tiago_nav_tools.evaluate.ghosts.GhostWatch` fed by
         move_base's published costmap, the scans, the true poses and the walkers; its
         subscribers (None elsewhere)."""
-        import numpy as np
         import rospy
         from nav_msgs.msg import OccupancyGrid
         from sensor_msgs.msg import LaserScan
         from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
+        from tiago_nav.ros.conversions import gridmap_from_msg
         from tiago_nav_tools.evaluate.ghosts import GhostWatch
         if not self.world.walkers:
             return None
-        info = self.grid_msg.info
-        static = np.asarray(self.grid_msg.data, dtype=np.int8).reshape(info.height,
-                                                                       info.width) == 100
         # where the laser sits on the base (tf, static), as the navigation places scans; polled
         # in wall time (simulated time stands still until the goal), else the mock's own
         offset, end = LASER_OFFSET, time.monotonic() + 5.0
@@ -312,9 +309,7 @@ class Supervisor:
                 offset = math.hypot(t.x, t.y)
                 break
             time.sleep(0.01)
-        self.ghosts = GhostWatch(static, info.resolution,
-                                 (info.origin.position.x, info.origin.position.y),
-                                 self.world.movable_obstacles,
+        self.ghosts = GhostWatch(gridmap_from_msg(self.grid_msg), self.world.movable_obstacles,
                                  rospy.get_param('/move_base/robot_radius', ROBOT_RADIUS), offset,
                                  rospy.get_param('/move_base/raytrace_range', 5.0))
         return [rospy.Subscriber('/move_base/global_costmap/costmap', OccupancyGrid,
