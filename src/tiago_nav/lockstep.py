@@ -428,6 +428,17 @@ class ParticipantCore:
             return None
         return t.stamp
 
+    def answer_again(self):
+        """True when the newest tick names this participant for a time its last answer sent
+        covers: that answer was lost on its way, for the simulator still waits for it (it sends
+        the tick again while an answer is missing) and takes a repeated answer once. (rospy
+        closes a subscriber's older connection to a publisher when a second one comes up, with
+        what was still in it: the answer to a registration's tick was lost so, and, no tick
+        being answered twice, the simulator held until it dropped the participant, and again
+        each time it rejoined, for good.)"""
+        t = self.latest
+        return t is not None and t.named and t.stamp <= self.answered_upto + EPS
+
     def cover(self, stamp):
         """The stamp [s] an idle answer to the tick at ``stamp`` carries: its last deadline
         before the next multiple of ``idle_period`` (``stamp`` itself when the period is not

@@ -282,6 +282,34 @@ def test_a_named_tick_the_control_loop_answered_is_not_answered_again_after_rele
     assert core.cover(67.65) == pytest.approx(67.65)
 
 
+def test_a_lost_answer_is_sent_again_when_the_tick_comes_again():
+    """A participant registers at 1 s (stamped 0: the simulator holds at once); its answer to
+    that tick is lost on its way (rospy closed the connection it went on). The tick comes again
+    while the simulator waits, and the participant sends its answer again: time goes on. (It
+    answered no tick twice: the simulator held until it dropped the participant, and again
+    each time it rejoined.) A tick that does not name it gets nothing more."""
+    sched, log = schedule(timeout=1.0)
+    core = ParticipantCore(0.1, now=1.0)
+    sched.receive(Ack('p', 0.0, 0.1), wall=0.0)              # the registration
+    assert sched.hold(1.0, wall=0.0) == ['p']
+    core.on_tick(Tick(1.0, named=True))
+    assert not core.answer_again()
+    core.answered(core.idle_answer())                        # sent, and lost
+    for wall in (1.5, 2.0):                                  # the simulator gives up on it, it
+        sched.hold(1.0, wall=wall)                           # announces itself again: held
+    assert log.warnings() and 'p' not in sched.members
+    sched.receive(Ack('p', 0.0, 0.1, busy=True), wall=2.1)
+    assert sched.hold(1.0, wall=2.1) == ['p']
+    core.on_tick(Tick(1.0, named=True))                      # the tick, again
+    assert core.idle_answer() is None and core.answer_again()
+    assert sched.receive(Ack('p', 1.0, 0.1, busy=True), wall=2.2)
+    assert sched.hold(1.0, wall=2.2) == [] and sched.deadline('p') == pytest.approx(1.1)
+    core.on_tick(Tick(1.0))                                  # sent to others: not for it
+    assert not core.answer_again()
+    core.on_tick(Tick(1.1, named=True))                      # its next deadline: a new answer
+    assert not core.answer_again() and core.idle_answer() == pytest.approx(1.1)
+
+
 def test_claimed_cycle_is_the_first_deadline_after_the_goal_whoever_answered_before():
     """The goal (stamped 0.2) and the tick for 0.2 race: either way the control loop's first
     cycle is 0.3."""

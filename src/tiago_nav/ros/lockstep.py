@@ -6,6 +6,7 @@ told apart); :class:`LockstepParticipant` a control loop's side, used in place o
 the exact scan and transform of a cycle (ROS time stands still while the simulator holds).
 """
 import collections
+import copy
 import math
 import threading
 import time
@@ -353,6 +354,7 @@ class LockstepParticipant:
         self._answered = True
         self._left = False
         self._busy = False       # what the last answer sent said of work (Ack.busy)
+        self._last_ack = None    # the last answer sent (sent again when it was lost)
         self.joined = threading.Event()     # registered: the inputs flow (see ``inputs``)
         self._join = _Join(self)
         self.pub = direct_publisher(ACK_TOPIC, LockstepAck, subscriber_listener=self._join)
@@ -444,6 +446,7 @@ class LockstepParticipant:
                           has_command=cmd is not None, cmd=cmd or Twist(), leave=leave,
                           busy=busy)
         self._busy = busy
+        self._last_ack = msg
         self.pub.publish(msg)
         return msg
 
@@ -472,6 +475,14 @@ class LockstepParticipant:
             if self.core.latest is tick:
                 self._msgs = {tick.stamp: msg}
             self.cond.notify_all()
+            last = self._last_ack
+            if last is not None and not self._left and self.core.answer_again() and \
+                    last.stamp.to_sec() >= tick.stamp - EPS:
+                # the same answer (the simulator ignores it if it has it), saying what this
+                # participant says now of work
+                again = copy.copy(last)
+                again.busy = self._busy
+                self.pub.publish(again)
         self._idle_answer()
 
     def _idle_answer(self):
