@@ -34,6 +34,13 @@ def test_one_real_run_twice(tmp_path):
     assert run.differences(r, dict(again, final_pose=[0.0, 0.0, 0.0])) == ['final_pose']
 
 
+def every_scan(log):
+    """Whether a log of ``[stamp, ...]`` has an entry for every scan, none missing."""
+    from tiago_nav.sim.simulator import SimConfig
+    stamps = [e[0] for e in log]
+    return max(b - a for a, b in zip(stamps, stamps[1:])) < 1.5 / SimConfig().scan_rate
+
+
 def test_a_run_among_walkers_records_them_and_repeats(tmp_path):
     """The office with four walkers: the supervisor records the walkers and the true poses over
     the whole mission, and the people figures are a function of the row (the same twice)."""
@@ -47,14 +54,17 @@ def test_a_run_among_walkers_records_them_and_repeats(tmp_path):
     assert r['outcome'] not in run.INFRA and r['outcome'] != 'timeout', r.get('reason')
     raw = run.read_json(str(tmp_path / 'first' / 'runs' / spec['id'] / 'raw.json'))
     truth, walkers = raw['truth_log'], raw['walkers']
-    # from the goal to the result, every scan's walkers (four) and the poses between them
+    # from the goal to the result, every scan's walkers (four, none missing) and the poses
+    # between them
     assert walkers and all(len(w) == 4 for _, w in walkers)
     assert truth[-1][0] - truth[0][0] == pytest.approx(r['time_s'], abs=0.2)
     assert walkers[-1][0] - walkers[0][0] == pytest.approx(r['time_s'], abs=0.2)
+    assert every_scan(walkers)
     assert r['collisions'] == 0 and 0.0 < r['closest_walker_m'] < 3.0
     assert 0.0 <= r['waiting_s'] < r['time_s']
     # move_base's costmap, once a second of simulated time, watched for ghosts
     assert len(raw['ghosts']) == pytest.approx(r['time_s'], abs=2.0)
     assert r['ghost_age_s'] is not None and r['ghost_age_s'] >= 0.0
     again = run.execute(spec, str(tmp_path / 'second'))
+    assert every_scan(run.read_json(str(tmp_path / 'second' / 'runs' / spec['id'] / 'raw.json'))['walkers'])
     assert run.differences(r, again) == []

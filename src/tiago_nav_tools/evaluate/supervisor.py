@@ -199,7 +199,8 @@ class Supervisor:
         # are then the same whatever the load
         rospy.Subscriber('/sim/ground_truth', Odometry, self.on_truth, queue_size=None)
         from tiago_nav.msg import SimObjects
-        rospy.Subscriber('/sim/objects', SimObjects, self.on_objects, queue_size=None)
+        self.objects_sub = rospy.Subscriber('/sim/objects', SimObjects, self.on_objects,
+                                            queue_size=None)
         from geometry_msgs.msg import PoseWithCovarianceStamped
         self.loc_pose_sub = rospy.Subscriber(LOC_POSE_TOPIC, PoseWithCovarianceStamped,
                                              self.on_loc_pose, queue_size=None)
@@ -411,8 +412,15 @@ class Supervisor:
         client = actionlib.SimpleActionClient('tiago_controller', TiagoTaskAction)
         if not wait_server(client, 30.0):
             raise Infra('INFRA_NODE_DIED', 'the tiago_controller action server went away before the goal')
+        # what is recorded from the goal on comes from its first message: wait until each of
+        # these subscriptions is connected (the walkers' had missed their first 3 s, in one
+        # run of twenty on a busy machine), those of topics nobody publishes excepted (a
+        # candidate's move_base may publish no costmap)
+        advertised = {name for name, _ in rospy.get_published_topics()}
+        subs = [sub] + ([self.objects_sub] + ghost_subs if ghost_subs else [])
+        subs = [s for s in subs if s is sub or s.resolved_name in advertised]
         end = time.monotonic() + 30.0
-        while sub.get_num_connections() == 0 and time.monotonic() < end:
+        while any(s.get_num_connections() == 0 for s in subs) and time.monotonic() < end:
             time.sleep(0.01)
         x, y, yaw = self.spec['goal']
         c0, s0, w0 = self.collisions or 0, rospy.get_time(), time.monotonic()
