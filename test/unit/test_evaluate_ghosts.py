@@ -1,7 +1,8 @@
 """The evaluator's ghost watch (tiago_nav_tools.evaluate.ghosts) on costmaps made by the
 navigation's own inflation and published values: a mark a walker left is a ghost from the first
 scan that sees its place free, its age grows with the costmaps until it clears; a mark where a
-walker or an obstacle stands, near the map's walls, or never seen free is none."""
+walker or an obstacle stands, near the map's walls, or never seen free is none, and so is a
+region whose cells between marks were seen free while a mark was not."""
 import numpy as np
 import pytest
 
@@ -121,3 +122,23 @@ def test_streams_out_of_step_are_looked_at_in_stamp_order():
     w.costmap(2.0, costmap([(2.0, 0.0)]))
     w.flush()
     assert len(w.records) == 3
+
+
+def test_a_region_is_a_ghost_only_once_all_of_it_was_seen_free():
+    """Two marks 0.25 m apart across the laser's view (a walker's two legs' trails): their
+    inflated discs merge, and the cells between them survive the erosion. A scan that ends
+    on the far mark sees the near half of the region free, not the far mark: no ghost. Once a
+    scan sees past both, the region is one, aged from that scan."""
+    w = watch()
+    marks = [(2.0, 0.0), (2.25, 0.0)]
+    at(w, 0.0)
+    w.costmap(0.0, costmap(marks))
+    assert w.records[-1][3] > 0
+    scan(w, 0.5, ranges=2.25 - LASER_OFFSET)         # every beam ends on the far mark
+    at(w, 1.0)
+    w.costmap(1.0, costmap(marks))
+    assert len(w.seen_free) > 0 and w.records[-1][1:3] == [0.0, 0]
+    scan(w, 1.5)                                     # every beam to 6 m
+    at(w, 2.0)
+    w.costmap(2.0, costmap(marks))
+    assert w.records[-1][1] == pytest.approx(0.5) and w.records[-1][2] == w.records[-1][3]

@@ -9,11 +9,13 @@ at a wall's corner or between two legs, the cells between them survive too). The
 to the costmap the things that are there at the costmap's stamp would make alone: the static
 map's occupied cells, the world file's movable obstacles (their outlines, ``distance``) and the
 walkers' legs of the nearest ``/sim/objects`` at or before it. A recovered mark farther than
-``EXPLAINED`` from every mark of that costmap is a *phantom*. A phantom is a *ghost* from the
-first scan after it became one that saw its place free
+``EXPLAINED`` from every mark of that costmap is a *phantom*. A phantom cell is *seen free*
+from the first scan after it became one that saw its place free
 (:meth:`tiago_nav.nav.costmap.MapScan.seen_beyond` with a one-cell margin, the laser placed at
-the robot's true pose, within ``raytrace_range``: beyond it move_base trusts no free space), for
-as long as it stays a phantom. Its age at a costmap is that costmap's stamp minus that scan's.
+the robot's true pose, within ``raytrace_range``: beyond it move_base trusts no free space). A
+region of phantoms (8-connected) is a *ghost* once every one of its cells has been seen free
+(the marks it comes from lie somewhere in it, but not every cell of it is one), for as long as
+it stays. Its age at a costmap is that costmap's stamp minus the latest of those scans.
 Costmaps come at ``costmap_publish_frequency`` (1 Hz): a ghost is seen at the first costmap
 after it appears, so the ages are lower bounds, within a second of the truth.
 
@@ -146,13 +148,31 @@ class GhostWatch:
             there |= (d <= walkers[1] + 0.5 * math.sqrt(2.0) * self.res).reshape(there.shape)
         lethal = distance_to_mask(there, self.res) <= self.robot_radius
         explained = ndimage.binary_dilation(self._marks(lethal), structure=self.near)
-        rc = np.argwhere(marks & ~explained)
+        phantom = marks & ~explained
+        rc = np.argwhere(phantom)
         self.phantoms = rc
         keep = set(map(tuple, rc))
         self.seen_free = {c: t for c, t in self.seen_free.items() if c in keep}
-        ages = [stamp - t for t in self.seen_free.values()]
-        self.records.append([round(float(stamp), 4), round(max(ages, default=0.0), 4),
-                             len(ages), len(rc)])
+        # a phantom is a ghost once every cell of its region has been seen free: the marks it
+        # comes from lie somewhere in it, but erosion also keeps up to 1.5 cells round a mark
+        # and the cells between marks less than a robot's width apart, which a scan can see
+        # free while the mark beside them stays (a walker's trail seen through a door: its
+        # cells between the two legs' lines "ghosts" for 4.9 s, the marks never seen free)
+        ages, cells = [], 0
+        labels, n = ndimage.label(phantom, structure=np.ones((3, 3), dtype=bool))
+        if n and self.seen_free:
+            seen = np.full(phantom.shape, -np.inf)
+            idx = tuple(np.array(list(self.seen_free)).T)
+            seen[idx] = list(self.seen_free.values())
+            regions = np.arange(1, n + 1)
+            latest = ndimage.maximum(seen, labels, regions)
+            unseen = ndimage.maximum(seen == -np.inf, labels, regions)
+            size = ndimage.sum(phantom, labels, regions)
+            whole = ~np.asarray(unseen, dtype=bool)
+            ages = [stamp - t for t in np.asarray(latest)[whole]]
+            cells = int(np.asarray(size)[whole].sum())
+        self.records.append([round(float(stamp), 4), round(float(max(ages, default=0.0)), 4),
+                             cells, len(rc)])
 
     def _scan(self, stamp, ranges, angle_min, angle_increment, range_min, range_max):
         """A laser scan at ``stamp`` [s], placed at the robot's true pose then: the phantoms
