@@ -41,9 +41,9 @@ from tiago_nav.params import ParamChanges, nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import (goal_from_pose, gridmap_from_msg, gridmap_to_msg,
                                        pose_from_transform, pose_stamped)
-from tiago_nav.ros.lockstep import (CYCLE_WAIT, STARTUP_WAIT, ClaimingActionServer,
-                                    LockstepParticipant, goal_since, lookup_at,
-                                    wait_for_transform)
+from tiago_nav.ros.lockstep import (CYCLE_WAIT, STARTUP_WAIT, USE_LOCKSTEP,
+                                    ClaimingActionServer, LockstepParticipant, direct_publisher,
+                                    goal_since, lookup_at, wait_for_transform)
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros import reconfigure
 from tiago_nav.ros.tcpros import concurrent_handshakes
@@ -153,8 +153,11 @@ class MoveBase:
         self.map_frame = p.global_frame
         self.cmd_pub = rospy.Publisher(p.cmd_vel_topic, Twist, queue_size=1)
         self.plan_pub = rospy.Publisher('~plan', Path, queue_size=1, latch=True)
-        self.costmap_pub = rospy.Publisher('~global_costmap/costmap', OccupancyGrid, queue_size=1,
-                                           latch=True)
+        # in lockstep (the evaluator records every one) written in the scan's thread, as the
+        # simulator's sensor streams are: a queue of one drops one its thread has not sent yet
+        self.costmap_pub = direct_publisher('~global_costmap/costmap', OccupancyGrid, latch=True) \
+            if rospy.get_param(USE_LOCKSTEP, False) else \
+            rospy.Publisher('~global_costmap/costmap', OccupancyGrid, queue_size=1, latch=True)
         self.costmap_sent = None            # the period of the last costmap published
         rospy.loginfo('move_base: waiting for %s', p.map_topic)
         try:
