@@ -165,12 +165,10 @@ class GhostWatch:
             idx = tuple(np.array(list(self.seen_free)).T)
             seen[idx] = list(self.seen_free.values())
             regions = np.arange(1, n + 1)
-            latest = ndimage.maximum(seen, labels, regions)
-            unseen = ndimage.maximum(seen == -np.inf, labels, regions)
-            size = ndimage.sum(phantom, labels, regions)
-            whole = ~np.asarray(unseen, dtype=bool)
-            ages = [stamp - t for t in np.asarray(latest)[whole]]
-            cells = int(np.asarray(size)[whole].sum())
+            whole = np.asarray(ndimage.minimum(seen, labels, regions)) > -np.inf   # all seen
+            latest = np.asarray(ndimage.maximum(seen, labels, regions))[whole]
+            ages = [stamp - t for t in latest]
+            cells = int(np.asarray(ndimage.sum(phantom, labels, regions))[whole].sum())
         self.records.append([round(float(stamp), 4), round(float(max(ages, default=0.0)), 4),
                              cells, len(rc)])
 
