@@ -281,7 +281,8 @@ for step in "${STEPS[@]}"; do
   [ -n "${RESULT[$step]:-}" ] || continue
   [ "$step" = shell ] || echo "make $step: ${RESULT[$step]}"
   case "$step" in
-    test) sed 's/^ *[0-9]* s| //' "$LOG/test.log" | grep -E '^[0-9]+ passed, [0-9]+ failed' | tail -1 \
+    test) sed 's/^ *[0-9]* s| //' "$LOG/test.log" | grep -E '^FAILED ' || true
+          sed 's/^ *[0-9]* s| //' "$LOG/test.log" | grep -E '^[0-9]+ passed, [0-9]+ failed' | tail -1 \
             || echo "(no test summary line)" ;;
     demo|mission) sed 's/^ *[0-9]* s| //' "$LOG/$step.log" | grep -v '^\[' \
             | sed -n '/^== demo: /p;/^\(SUCCEEDED\|ABORTED\|PREEMPTED\|REJECTED\|final pose\|demo: \)/p;/^ground truth/,/^== demo /p' ;;
