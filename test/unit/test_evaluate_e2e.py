@@ -59,7 +59,7 @@ def test_a_run_among_walkers_records_them_and_repeats(tmp_path):
     assert walkers and all(len(w) == 4 for _, w in walkers)
     assert truth[-1][0] - truth[0][0] == pytest.approx(r['time_s'], abs=0.2)
     assert walkers[-1][0] - walkers[0][0] == pytest.approx(r['time_s'], abs=0.2)
-    assert every_scan(walkers)
+    assert every_scan(walkers) and r['end_missing'] == []
     assert r['collisions'] == 0 and 0.0 < r['closest_walker_m'] < 3.0
     assert 0.0 <= r['waiting_s'] < r['time_s']
     # move_base's costmap, once a second of simulated time, watched for ghosts

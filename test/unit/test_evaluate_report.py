@@ -107,3 +107,18 @@ def test_slots_never_shared(tmp_path):
     holder.communicate('')
     assert first != second
     assert run.port_of(second) == 12000 + 10 * second
+
+
+def test_a_run_whose_last_records_did_not_come_says_so():
+    """The supervisor waits END_WAIT for the mission's last records; what did not come stays in
+    the result and summary.md names the run (its logs are short)."""
+    assert run.judge(SPEC, raw())['end_missing'] == []
+    r = dict(run.judge(SPEC, raw(end_missing=['walkers', 'base_at_rest'])), run_id='abc',
+             run_wall_s=1.0)
+    assert r['outcome'] == 'succeeded' and r['end_missing'] == ['walkers', 'base_at_rest']
+    text = report.markdown(report.summarise([r]), [], [r], {'wall_s': 10.0, 'missions_per_minute': 1.0})
+    assert '## Runs whose last records did not all come' in text
+    assert '- `abc`: no walkers, base_at_rest within 10 s of the result' in text
+    clean = dict(run.judge(SPEC, raw()), run_id='abc', run_wall_s=1.0)
+    assert 'did not all come' not in report.markdown(report.summarise([clean]), [], [clean],
+                                                     {'wall_s': 10.0, 'missions_per_minute': 1.0})

@@ -15,6 +15,7 @@ from xml.sax.saxutils import escape, quoteattr
 from tiago_nav_tools.evaluate import metrics as M
 from tiago_nav_tools.evaluate import timing
 from tiago_nav_tools.evaluate.run import INFRA, write_json
+from tiago_nav_tools.evaluate.supervisor import END_WAIT
 
 COLUMNS = ('run_id', 'outcome', 'reason', 'world', 'world_group', 'profile', 'use_corridor_law',
            'seed', 'candidate', 'goal_x', 'goal_y', 'goal_yaw_deg', 'success', 'time_s', 'wall_s',
@@ -142,6 +143,11 @@ def markdown(summary, comparison, results, meta):
     if infra:
         lines += ['', '## Infrastructure errors (retried once; not in the rates)', '']
         lines += ['- `%s` %s: %s' % (r['run_id'], r.get('outcome'), r.get('reason', '')) for r in infra]
+    short = [r for r in valid if r.get('end_missing')]
+    if short:
+        lines += ['', '## Runs whose last records did not all come (judged on what came)', '']
+        lines += ['- `%s`: no %s within %g s of the result' % (
+            r['run_id'], ', '.join(r['end_missing']), END_WAIT) for r in short]
     lines[3:3] = divergence_lines(results)       # (after the headline)
     lines += isolation_lines(meta)
     lines += detection_lines(valid)

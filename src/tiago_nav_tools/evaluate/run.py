@@ -357,6 +357,9 @@ def judge(spec, raw, min_beams=None):
     m['loc_covariance'] = raw.get('loc_covariance', [])
     m['path'] = path
     m['feedback'] = raw.get('feedback', [])
+    # the mission's last records that had not come within the supervisor's END_WAIT: the logs
+    # (walkers, true poses, localisation) they would have ended are short by that much
+    m['end_missing'] = raw.get('end_missing') or []
     if raw.get('timed_out'):
         outcome = 'timeout'
         reason = raw.get('reason') or 'no result within %g s of simulated time' % spec['limits']['sim_time_limit']

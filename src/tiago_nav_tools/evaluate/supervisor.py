@@ -457,15 +457,19 @@ class Supervisor:
         # tf up to the result (each bounded: a run that ends badly may never give them)
         wanted = getattr(result, 'state', None)
         deadline = time.monotonic() + END_WAIT
-        while time.monotonic() < deadline:
+        while True:
             fed = wanted is None or any(g == goal_id and st == wanted for g, _, st, _ in list(published))
             m = self.truth_msg
             rest = m is not None and m.header.stamp >= ended and m.twist.twist.linear.x == 0.0 \
                 and m.twist.twist.angular.z == 0.0
             with self.lock:     # (the walkers of the last scans up to the result, if any)
                 walked = not self.walker_log or self.walker_log[-1][0] >= ended.to_sec()
-            if fed and rest and walked and self.sample_localisation(tf, until=until) and \
-                    self.loc_cov_until(until) is not None:
+            got = {'feedback': fed, 'base_at_rest': rest, 'walkers': walked,
+                   'localisation': self.sample_localisation(tf, until=until),
+                   'covariance': self.loc_cov_until(until) is not None}
+            # what had not come by the deadline stays in the record: the logs it ends are short
+            end_missing = [k for k, v in got.items() if not v]
+            if not end_missing or time.monotonic() >= deadline:
                 break
             time.sleep(0.01)
         loc_err = [e for e in self.loc_err if e[2] <= until.to_sec()]
@@ -504,7 +508,7 @@ class Supervisor:
                 'path': [[round(v, 4) for v in p] for p in path], 'feedback': feedback,
                 'loc_errors': loc_err, 'loc_missing': self.loc_missing,
                 'truth_log': truth_log if walker_log else [], 'walkers': walker_log,
-                'ghosts': ghosts}
+                'ghosts': ghosts, 'end_missing': end_missing}
 
     def check_alive_mission(self):
         for name in ('roscore', 'roslaunch', 'candidate'):
