@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from tiago_nav.gridmap import FREE, OCCUPIED, GridMap
-from tiago_nav.nav.costmap import inflate, occupancy_values
+from tiago_nav.nav.costmap import Costmap, MapScan, inflate, occupancy_values
 from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
 from tiago_nav.sim.scene import LaserConfig
 from tiago_nav.sim.world import World
-from tiago_nav_tools.evaluate.ghosts import GhostWatch
+from tiago_nav_tools.evaluate.ghosts import GhostWatch, seen_free
 
 RES = 0.05
 ORIGIN = (-1.0, -3.0)
@@ -142,3 +142,30 @@ def test_a_region_is_a_ghost_only_once_all_of_it_was_seen_free():
     at(w, 2.0)
     w.costmap(2.0, costmap(marks))
     assert w.records[-1][1] == pytest.approx(0.5) and w.records[-1][2] == w.records[-1][3]
+
+
+def test_a_cell_is_seen_free_exactly_where_the_costmap_clears_it():
+    """At the edge of ``raytrace_range`` a beam reaching beyond a mark does not clear it when
+    the cell's centre lies within half a cell of the range: the watch must not count such a
+    cell seen free, or a mark move_base cannot clear yet is called a ghost."""
+    grid = GridMap(np.zeros((240, 160), dtype=np.int8), RES, (0.0, 0.0))
+    cm = Costmap(grid, obstacle_range=4.0, raytrace_range=5.0)
+    laser = (1.013, 6.007, 0.0)
+    rng = np.random.default_rng(3)
+    d = rng.uniform(4.5, 5.5, 400)
+    a = rng.uniform(-1.5, 1.5, 400)
+    rc = np.unique(grid.world_to_cell(np.column_stack((laser[0] + d * np.cos(a),
+                                                       laser[1] + d * np.sin(a)))), axis=0)
+    cm.obstacles[rc[:, 0], rc[:, 1]] = True
+    c = LaserConfig()
+    s = MapScan(laser, np.full(len(c.angles()), 8.0), c.angle_min, c.angle_increment, 0.05, 25.0)
+    xy = grid.cell_to_world(rc)
+    free = seen_free(s, xy, RES, cm.raytrace_range)
+    centre = np.hypot(xy[:, 0] - laser[0], xy[:, 1] - laser[1])
+    edge = (centre > 5.0 - 0.5 * RES) & (centre <= 5.0) & s.seen_beyond(xy, RES)
+    assert edge.sum() >= 5 and not free[edge].any()   # seen through, but on the range's edge
+    cm.add_scan(s)
+    cleared = ~cm.obstacles[rc[:, 0], rc[:, 1]]
+    assert free.sum() >= 50
+    assert np.array_equal(free, cleared & s.seen_beyond(xy, RES))
+    assert not (free & ~cleared).any()

@@ -11,8 +11,7 @@ map's occupied cells, the world file's movable obstacles (their outlines, ``dist
 walkers' legs of the nearest ``/sim/objects`` at or before it. A recovered mark farther than
 ``EXPLAINED`` from every mark of that costmap is a *phantom*. A phantom cell is *seen free*
 from the first scan after it became one that saw its place free
-(:meth:`tiago_nav.nav.costmap.MapScan.seen_beyond` with a one-cell margin, the laser placed at
-the robot's true pose, within ``raytrace_range``: beyond it move_base trusts no free space). A
+(:func:`seen_free`, the laser placed at the robot's true pose). A
 region of phantoms (8-connected) is a *ghost* once every one of its cells has been seen free
 (the marks it comes from lie somewhere in it, but not every cell of it is one), for as long as
 it stays. Its age at a costmap is that costmap's stamp minus the latest of those scans.
@@ -36,6 +35,18 @@ EXPLAINED = 0.1     # [m] a mark this near a mark of what is there is that thing
                     # where the localisation places the scan)
 LETHAL_VALUE = 99   # costmap_2d's values of a cell within the robot's radius of a mark: 99
                     # (inscribed, on the radius) and 100 (lethal, inside it)
+
+
+def seen_free(scan, xy, resolution, raytrace_range):
+    """Boolean per ``(N, 2)`` cell centre [m, map frame]: did ``scan`` (a
+    :class:`~tiago_nav.nav.costmap.MapScan`) see the cell free where move_base would clear it?
+    Every beam near the centre reached beyond it
+    (:meth:`~tiago_nav.nav.costmap.MapScan.seen_beyond` with a one-cell margin), and the centre
+    lies half a cell (``resolution`` [m]) or more inside ``raytrace_range`` [m]: the costmap
+    clears a cell only where a beam's reach, capped at that range, passes its centre by half
+    a cell, so a cell on the range's edge is never cleared from there, seen free or not."""
+    d = np.hypot(xy[:, 0] - scan.laser_pose[0], xy[:, 1] - scan.laser_pose[1])
+    return scan.seen_beyond(xy, resolution) & (d + 0.5 * resolution < raytrace_range)
 
 
 def _disc(r):
@@ -188,7 +199,6 @@ class GhostWatch:
             return
         rc = self.phantoms[todo]
         xy = self.grid.cell_to_world(rc)
-        free = scan.seen_beyond(xy, self.res) & (
-            np.hypot(xy[:, 0] - laser[0], xy[:, 1] - laser[1]) <= self.raytrace_range)
+        free = seen_free(scan, xy, self.res, self.raytrace_range)
         for c in map(tuple, rc[free]):
             self.seen_free[c] = float(stamp)

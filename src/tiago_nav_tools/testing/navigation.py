@@ -22,6 +22,7 @@ from tiago_nav.nav.runner import (ABORTED, PREEMPTED, SUCCEEDED, GoalError, Goal
 from tiago_nav.sim.raster import rasterise_world
 from tiago_nav.sim.simulator import SimConfig, Simulator
 from tiago_nav.sim.walkers import LEG_RADIUS
+from tiago_nav_tools.evaluate.ghosts import seen_free as seen_free_by
 from tiago_nav_tools.testing.fakes import FakeActionServer
 
 EPS = 1e-9     # [s] now() runs this far ahead so that a Ticker's summed periods land on steps
@@ -116,11 +117,10 @@ class SimIO:
 
 def ghost_ages(costmap, scan, seen_free):
     """The oldest ghost [s] after ``scan`` went into ``costmap``: a cell the laser marked
-    that a scan saw free (every beam near its centre reached beyond it,
-    :meth:`~tiago_nav.nav.costmap.MapScan.seen_beyond` with a one-cell margin) within the
-    costmap's ``raytrace_range`` (beyond it the costmap trusts no free space) is a ghost from
-    that scan's stamp on, for as long as it stays marked. ``seen_free`` (cell -> stamp) carries
-    the ghosts from scan to scan."""
+    that a scan saw free where the costmap would clear it
+    (:func:`tiago_nav_tools.evaluate.ghosts.seen_free`) is a ghost from that scan's stamp on,
+    for as long as it stays marked. ``seen_free`` (cell -> stamp) carries the ghosts from scan
+    to scan."""
     rc = np.argwhere(costmap.obstacles)
     marked = set(map(tuple, rc))
     for cell in list(seen_free):
@@ -128,8 +128,7 @@ def ghost_ages(costmap, scan, seen_free):
             del seen_free[cell]
     if len(rc):
         xy = costmap.grid.cell_to_world(rc)
-        free = scan.seen_beyond(xy, costmap.resolution) & (np.hypot(
-            xy[:, 0] - scan.laser_pose[0], xy[:, 1] - scan.laser_pose[1]) <= costmap.raytrace_range)
+        free = seen_free_by(scan, xy, costmap.resolution, costmap.raytrace_range)
         for cell in map(tuple, rc[free]):
             seen_free.setdefault(cell, scan.stamp)
     return max((scan.stamp - t for t in seen_free.values()), default=0.0)
