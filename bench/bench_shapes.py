@@ -8,9 +8,11 @@ movable obstacle in view), one scan with 0.01 m range noise and the tiago laser 
 per-beam median of 5 such scans (as the service combines them at rest), placed with the exact
 pose (no pose correction: the figures are the shape fits', not the localisation's).
 
-Per object in view (tiago_nav_tools.evaluate.inview), by shape: found once (a detection of the matching
-shape, box -> rectangle, table/chair -> legs, cylinder -> circle, within the object's radius +
-0.1 m), found as something else, missed; centre error; orientation error; whether its 95 %
+Per object in view (tiago_nav_tools.evaluate.inview), by shape: the detections are matched to
+the objects in view as the evaluator matches them (tiago_nav_tools.evaluate.matching: one to
+one, least total distance, within 0.3 m); found once (matched to a detection of its shape, box
+-> rectangle, table/chair -> legs, cylinder -> circle), found as something else (matched to
+another shape), missed; centre error; orientation error; whether its 95 %
 ellipse holds the error. The rules (labels, orientation periods, where the targets apply) are
 the evaluator's, tiago_nav_tools.evaluate.shapes: orientation of the length modulo 180 deg, 90
 deg for a square and for a box whose length the detection does not claim (one face, or a face
@@ -41,6 +43,7 @@ from tiago_nav.detection import DetectionParams, ObstacleDetector  # noqa: E402
 from tiago_nav.geometry import compose, inverse  # noqa: E402
 from tiago_nav.scan import median_ranges  # noqa: E402
 from tiago_nav_tools.evaluate import inview  # noqa: E402
+from tiago_nav_tools.evaluate.matching import MATCH_GATE, match_obstacles  # noqa: E402
 from tiago_nav_tools.evaluate.shapes import (EXPECT, TARGET_CENTRE, TARGET_ORIENTATION,  # noqa: E402
                                              length_claimed, orientation_error, seen_parts)
 from tiago_nav.sim.laser import LaserModel  # noqa: E402
@@ -51,7 +54,8 @@ from tiago_nav.sim.world import World  # noqa: E402
 WORLDS = ('room_furniture', 'lab_mixed')
 NOISE = 0.01
 REST = 5
-GATE = 0.1                    # [m] a detection matches an object within its radius + this
+GATE = 0.1                    # [m] an unmatched detection this near an object (+ its radius)
+                              # out of view is a glimpse of it, not a false positive
 CHI2_2_95 = 5.991
 
 
@@ -86,46 +90,51 @@ def run(poses_n, seed):
                                      ('median of 5', median_ranges(scans, cfg.range_min, cfg.range_max))):
                     found = det.detect(ranges, cfg.angle_min, cfg.angle_increment, cfg.range_min,
                                        cfg.range_max, laser, laser_in_base=in_base)
-                    used = set()
-                    for i in sorted(visible):
+                    # the evaluator's matching: one to one, least total distance, within the gate
+                    vis = sorted(visible)
+                    pairs, _, _ = match_obstacles(
+                        [(w.movable_obstacles[i].x, w.movable_obstacles[i].y) for i in vis],
+                        [d.center for d in found])
+                    paired = {vis[a]: (j, e) for a, j, e in pairs}
+                    used = {j for j, _ in paired.values()}
+                    for i in vis:
                         obj = w.movable_obstacles[i]
                         hit = pts[(ids == scene.movable_ids[i]) & usable & np.isfinite(clean)]
                         parts = seen_parts(obj, hit)
-                        near = [(math.hypot(d.center[0] - obj.x, d.center[1] - obj.y), j)
-                                for j, d in enumerate(found) if j not in used]
-                        near = [t for t in near if t[0] <= obj.radius + GATE]
-                        same = [t for t in near if found[t[1]].shape == EXPECT[obj.shape]]
                         row = {'world': name, 'pose': k, 'mode': mode, 'shape': obj.shape,
                                'object': i, 'seen_parts': parts,
                                'target_applies': (obj.shape == 'box' and parts >= 2)
                                or (obj.shape in ('table', 'chair') and parts >= 3)}
-                        if same:
-                            e, j = min(same)
-                            used.add(j)
+                        if i not in paired:
+                            row['found'] = 'missed'
+                        elif found[paired[i][0]].shape != EXPECT[obj.shape]:
+                            row['found'] = 'as ' + found[paired[i][0]].shape
+                        else:
+                            j, e = paired[i]
                             d = found[j]
                             err = np.array([d.center[0] - obj.x, d.center[1] - obj.y])
                             cov = d.center_covariance
                             nees = float(err @ np.linalg.solve(cov, err)) \
                                 if np.all(np.isfinite(cov)) and np.linalg.det(cov) > 0 else None
+                            # more of the same shape within the gate, matched to nothing
+                            dup = sum(1 for m, o in enumerate(found) if m not in used
+                                      and o.shape == d.shape and math.hypot(
+                                          o.center[0] - obj.x, o.center[1] - obj.y) <= MATCH_GATE)
                             row.update(found='once', centre_error_m=round(float(e), 4),
                                        orientation_error_deg=orientation_error(
                                            d.orientation, obj,
                                            length_claimed(d.extent, d.center_fixed)),
                                        center_fixed=bool(d.center_fixed),
                                        inside_95=None if nees is None else nees <= CHI2_2_95,
-                                       duplicates=len(same) - 1)
-                        elif near:
-                            row.update(found='as ' + found[min(near)[1]].shape)
-                            used.add(min(near)[1])
-                        else:
-                            row['found'] = 'missed'
+                                       duplicates=dup)
                         rows.append(row)
                     for j, d in enumerate(found):
                         if j in used:
                             continue
-                        # near an object out of view (glimpsed) is not false
+                        # near an object out of view (glimpsed) is not false; beside one in
+                        # view, matched to another detection or not, it is
                         if any(math.hypot(d.center[0] - o.x, d.center[1] - o.y) <= o.radius + GATE
-                               for o in w.movable_obstacles):
+                               for i, o in enumerate(w.movable_obstacles) if i not in visible):
                             continue
                         fps.append({'world': name, 'pose': k, 'mode': mode, 'shape': d.shape,
                                     'center': [round(v, 3) for v in d.center], 'note': d.note})
