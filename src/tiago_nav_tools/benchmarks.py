@@ -81,10 +81,12 @@ ABOUT = {
     'shapes': (
         'Boxes, tables and chairs (and the cylinders among them) in `worlds/room_furniture.yaml` '
         'and `worlds/lab_mixed.yaml` (walkers left out), 30 seeded random poses each, the tiago '
-        'laser with 0.01 m noise, one scan and the median of 5 at rest, exact pose: found once '
-        'with its shape, centre and orientation errors, where two faces of a box or three legs '
-        'of a table or chair are seen (the targets: <= 3 cm, <= 5 deg) and over all in view '
-        '([detection.md](detection.md#shapes)).'),
+        'laser with 0.01 m noise, one scan and the median of 5 at rest, exact pose, the '
+        'detections matched to the objects in view as the evaluator matches them (one to one, '
+        'least total distance, within 0.3 m): found once with its shape, centre and orientation '
+        'errors, where two faces of a box or three legs of a table or chair are seen (the '
+        'targets: <= 3 cm, <= 5 deg) and over all in view; a false positive matches no object '
+        'in view ([detection.md](detection.md#shapes)).'),
     'legs_real': (
         'People on leg_tracker\'s real recordings (`../shared/data/real/`), a laser standing '
         'still in rooms nobody mapped: the pipeline with `shapes` on over the static background '

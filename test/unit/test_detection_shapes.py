@@ -120,3 +120,81 @@ def test_what_moves_between_the_scans_at_rest_is_moving_with_its_velocity():
     v = [o.velocity for o in moving if o.shape == 'legs']
     assert v, motions
     assert abs(v[0][0] - 0.9) < 0.2 and abs(v[0][1]) < 0.2, v
+
+
+def leg_at(x, y, r=0.015, var=1e-4):
+    return shapes.Leg(np.array([x, y]), r, np.array([0, 1, 2]), var)
+
+
+def as_sets(groups, legs):
+    return sorted(sorted((round(float(legs[i].center[0]), 2), round(float(legs[i].center[1]), 2))
+                         for i in g) for g in groups)
+
+
+def test_the_grouping_that_explains_the_most_legs_wins():
+    """Four chairs seen on three legs each: the inner legs of the four also stand at the
+    corners of a 0.58 m x 1.5 m rectangle with nothing inside it. Taking that four-leg group
+    first leaves every chair two legs; the chairs explain all twelve."""
+    chairs = [[(0.0, 0.0), (0.42, 0.0), (0.0, 0.42)], [(1.0, 0.0), (1.42, 0.0), (1.42, 0.42)],
+              [(0.42, 1.5), (0.0, 1.5), (0.42, 1.92)], [(1.0, 1.5), (1.42, 1.5), (1.0, 1.92)]]
+    legs = [leg_at(x, y) for c in chairs for x, y in c]
+    groups, rest = shapes.group_furniture(legs)
+    assert rest == []
+    assert as_sets(groups, legs) == sorted(sorted(c) for c in chairs)
+
+
+def test_three_legs_with_another_leg_on_their_side_are_no_piece():
+    """A chair's two legs and a leg of the next chair 1.4 m away make a perfect right angle,
+    but the chair's third leg stands on that rectangle's side: the chair is the piece."""
+    chair = [(0.0, 0.0), (0.42, -0.01), (0.0, 0.42)]
+    other = [(1.4, 0.42), (1.82, 0.42)]
+    legs = [leg_at(x, y) for x, y in chair + other]
+    groups, rest = shapes.group_furniture(legs)
+    assert as_sets(groups, legs) == [sorted(chair)]
+    assert sorted(rest) == [3, 4]
+
+
+def test_a_fourth_corner_is_seen_empty_only_where_no_leg_could_stand():
+    inc = math.radians(0.33)
+    n = 101                                         # beams from -50 inc to +50 inc, laser at 0
+    corner = (2.0, 0.0)                             # on beam 50, 2 m away
+
+    def view(ranges):
+        return shapes.ScanView(ranges, -50 * inc, inc, (0.0, 0.0, 0.0), 25.0)
+
+    past = np.full(n, 6.0)
+    assert view(past).free(corner, 0.06, 0.015)     # beams 1.15 cm apart: no 3 cm leg between
+    hit = past.copy()
+    hit[52] = 2.03                                  # one beam hits something there
+    assert not view(hit).free(corner, 0.06, 0.015)
+    dropped = past.copy()
+    dropped[50:52] = np.nan                         # two beams say nothing: a leg fits the gap
+    assert view(dropped).free(corner, 0.06) and not view(dropped).free(corner, 0.06, 0.015)
+    far = (6.0, 0.0)                                # 3.5 cm between beams: a leg slips through
+    assert not view(np.full(n, 12.0)).free(far, 0.06, 0.015)
+
+
+def test_a_veiled_beam_is_given_back_to_a_lone_thin_point():
+    r = np.array([5.0, 5.0, 3.0, np.nan, 4.0, np.nan, 5.0, 5.0, 5.0, 4.01, 4.0, 4.0])
+    raw = np.array([5.0, 5.0, 3.0, 4.02, 4.0, 4.6, 5.0, 5.0, 5.0, 4.01, 4.0, 4.0])
+    veiled = np.isnan(r)
+    # beam 4 stands alone at 4.0 m: beam 3 (dropped, 4.02 m) is its leg's; beam 5 (4.6 m) is not
+    assert shapes.veiled_leg_beams([4, 9, 10, 11], r, raw, veiled).tolist() == [3]
+    # a point with a neighbour at its range is a surface's edge: nothing given back
+    r2, raw2 = r.copy(), raw.copy()
+    r2[5] = raw2[5] = 4.01
+    assert shapes.veiled_leg_beams([4, 5], r2, raw2, np.isnan(r2)).tolist() == []
+
+
+def test_two_lone_legs_of_a_piece_are_one_object_whose_bound_holds_its_centre():
+    """A desk's two legs seen 1.2 m apart, its other two hidden: one object, its centre not
+    fixed, the desk's true centre (0.3 m across their middle) inside its 95 % ellipse."""
+    legs = [leg_at(2.0, 0.0, 0.025), leg_at(2.0, 1.2, 0.025)]
+    (pair,) = shapes.pair_furniture(legs)
+    s = shapes.lone_furniture_shape(legs, pair)
+    assert s.shape == 'legs' and not s.center_fixed and 'two legs' in s.note
+    err = np.array([2.3 - s.center[0], 0.6 - s.center[1]])
+    assert err @ np.linalg.solve(s.covariance, err) < 5.99
+    along = np.array([0.0, 0.05])                   # along the pair it is fixed
+    assert along @ np.linalg.solve(s.covariance, along) > 5.99
+    assert shapes.pair_furniture([legs[0], leg_at(5.5, 0.0)]) == [[0], [1]]   # too far apart

@@ -317,9 +317,15 @@ class ObstacleDetector:
             correction = PoseCorrection(False, tuple(laser_pose),
                                         reason='the discontinuity method reads no map')
         else:
+            veiled = None
+            if p.shapes and method == 'circle_fit':
+                # the beams the veil rule dropped (not the body's): a thin leg's may come back
+                veiled = np.isnan(r) & ~np.isnan(usable_ranges(
+                    raw, angle_min, angle_increment, range_min, range_max,
+                    **dict(body, shadow_angle=0.0)))
             found, correction = self._clusters(r, angle_min, angle_increment, range_min,
                                                range_max, min(range_max, p.max_range),
-                                               tuple(laser_pose), method, p, raw, given)
+                                               tuple(laser_pose), method, p, raw, given, veiled)
         if not correction.applied and given is not None:
             # placed with the given pose: the localisation's covariance, and the raster it
             # registers to (one wall's cell along each axis)
@@ -379,10 +385,11 @@ class ObstacleDetector:
         return PoseCorrection(True, pose, delta, n, inliers, covariance=cov, raster=raster)
 
     def _clusters(self, r, angle_min, inc, rmin, laser_max, rmax, laser_pose, method, p,
-                  raw=None, given=None):
+                  raw=None, given=None, veiled=None):
         """The detections of the circle_fit and centroid methods (see :meth:`locate`): ``r``
         the usable ranges [m], ``raw`` the scan's own (None: ``r``), for the beams beside a
-        cluster that the veil filter dropped."""
+        cluster that the veil filter dropped; ``veiled``: the beams the veil rule dropped
+        (bool per beam; None: none given back to thin legs, :func:`shapes.veiled_leg_beams`)."""
         raw = r if raw is None else raw
         local, beam = scan_to_points(r, angle_min, inc, rmin, rmax)
         # invalid beams (NaN, inf, out of limits) just before each valid one: a hole in the scan
@@ -482,7 +489,18 @@ class ObstacleDetector:
             out.append(Detection((cx, cy), rad, len(c), c, cov))
         if p.shapes and method == 'circle_fit':
             view = shapes.ScanView(r, angle_min, inc, laser_pose, rmax)
-            others = _shape_detections(pts[~round_pts], beam[~round_pts], view, out, p)
+            sp, sb = pts[~round_pts], beam[~round_pts]
+            back = (shapes.veiled_leg_beams(sb, r, raw, veiled, p.range_noise)
+                    if veiled is not None else np.empty(0, dtype=int))
+            if back.size:
+                ang = angle_min + inc * back
+                bp = transform_points(laser_pose, np.column_stack((raw[back] * np.cos(ang),
+                                                                   raw[back] * np.sin(ang))))
+                ok = subtract(bp, self.distance, p.scan_minus_map_threshold)
+                sp, sb = np.vstack((sp, bp[ok])), np.concatenate((sb, back[ok]))
+                order = np.argsort(sb, kind='stable')
+                sp, sb = sp[order], sb[order]
+            others = _shape_detections(sp, sb, view, out, p)
             out = out + others      # (after the small circles that joined them left out)
         return out, correction
 

@@ -361,6 +361,33 @@ def leg(points, sensor, increment, noise=0.01, round_checked=False):
     return centre, r, var, 0.5 * (width - spacing)
 
 
+def veiled_leg_beams(beams, r, raw, veiled, noise=0.01):
+    """Beams to give back to a thin leg: the veil filter (:func:`tiago_nav.scan.usable_ranges`)
+    drops the first beam behind a nearer edge, and a table's or chair's leg seen by two beams
+    just behind a nearer leg keeps one point, too few to be a leg. A beam ``j`` is given back
+    when ``veiled[j]`` (the veil rule dropped it: ``r[j]`` NaN, ``raw[j]`` a hit), it lies
+    beside a kept point ``k`` of ``beams`` (``r[k]`` finite) whose range ``raw[j]`` matches
+    within :data:`FURNITURE_LEG_RADIUS` plus 3 ``noise`` [m], and ``k`` is alone (the beam on its
+    other side is not at its range: a surface's edge point has its neighbours). ``r``, ``raw``
+    [m] and ``veiled`` (bool) per beam of the scan. Returns the sorted beam indices."""
+    r = np.asarray(r, dtype=float)
+    raw = np.asarray(raw, dtype=float)
+    n = len(r)
+    tol = FURNITURE_LEG_RADIUS + 3.0 * noise
+    out = set()
+    for k in np.asarray(beams, dtype=int):
+        if not np.isfinite(r[k]):
+            continue
+        for step in (-1, 1):
+            j, o = k + step, k - step
+            if not (0 <= j < n and veiled[j] and abs(raw[j] - r[k]) <= tol):
+                continue
+            if 0 <= o < n and np.isfinite(r[o]) and abs(r[o] - r[k]) <= tol:
+                continue                        # k has a neighbour at its range: not alone
+            out.add(int(j))
+    return np.array(sorted(out), dtype=int)
+
+
 def split_pair(points, sensor, increment, noise=0.01):
     """Two legs side by side seen as one run of ``(N, 2)`` points in scan order: at most
     :data:`PERSON_PAIR_WIDTH` wide, and the point farthest from ``sensor`` between the two ends
@@ -396,14 +423,16 @@ def person_sized(radius, least):
 def group_furniture(legs, free=None):
     """Legs of tables and chairs: sets of 3 or 4 legs at the corners of one rectangle.
 
-    ``legs``: list of :class:`Leg` (furniture-thin ones); ``free(xy) -> bool``: whether the
-    scan saw the place ``xy`` [m] empty (a beam went past it), so that three legs whose fourth
-    corner is seen empty are no table (None: never); nor are legs with another leg inside
-    their rectangle. Candidates are corners ``j`` with two
+    ``legs``: list of :class:`Leg` (furniture-thin ones); ``free(xy, radius, leg) -> bool``:
+    whether the scan saw the disc of ``radius`` [m] about ``xy`` [m] empty of a leg of radius
+    ``leg`` (:meth:`ScanView.free`), so that three legs whose fourth corner, within
+    :data:`SIDE_TOL`, is seen empty of a leg like theirs are no table (None: never; a thin
+    leg a beam or two hit, too few for a leg, or that slipped between beams, is still there); nor are legs with another leg inside
+    their rectangle or on its sides (anywhere but at its corners). Candidates are corners ``j`` with two
     neighbours at :data:`FURNITURE_SIDE` distances and a right angle within
     :data:`RIGHT_ANGLE_TOL`; a fourth leg within :data:`SIDE_TOL` of the completed corner joins.
-    Four-leg groups first, then three, best right angle first, no leg in two groups.
-    Returns ``(groups, rest)``: lists of index lists into ``legs``."""
+    No leg in two groups: of the sets of groups, the one that explains the most legs
+    (:func:`_best_packing`). Returns ``(groups, rest)``: lists of index lists into ``legs``."""
     n = len(legs)
     c = np.array([l.center for l in legs]).reshape(-1, 2)
     cands = []
@@ -427,27 +456,104 @@ def group_furniture(legs, free=None):
                 group = [j, i, k]
                 if m >= 0 and dist4[m] <= SIDE_TOL:
                     group.append(m)
-                elif free is not None and free(fourth):
+                elif free is not None and free(fourth, SIDE_TOL, min(l.radius for l in (
+                        legs[i], legs[j], legs[k]))):
                     continue                            # the fourth corner is seen empty
                 radii = [legs[g].radius for g in group]
                 if max(radii) - min(radii) > 0.03:
                     continue                            # one piece has one kind of leg
-                # no other leg stands inside it (a table's legs with a chair's are no table)
+                # no other leg stands inside it or on its sides, only at its corners (a table's
+                # legs with a chair's, or two chairs' legs together, are no piece)
                 e1, e2 = u / lu, v / lv
                 rel = c - c[j]
                 a1, a2 = rel @ e1, rel @ e2
-                inside = (a1 > SIDE_TOL) & (a1 < lu - SIDE_TOL) & (a2 > SIDE_TOL) & (a2 < lv - SIDE_TOL)
+                inside = (a1 > -SIDE_TOL) & (a1 < lu + SIDE_TOL) & (a2 > -SIDE_TOL) & (a2 < lv + SIDE_TOL)
+                for cx, cy in ((0.0, 0.0), (lu, 0.0), (0.0, lv), (lu, lv)):
+                    inside &= np.hypot(a1 - cx, a2 - cy) > SIDE_TOL
                 inside[group] = False
                 if np.any(inside):
                     continue
-                cands.append((-len(group), err, group))
-    cands.sort(key=lambda t: (t[0], t[1]))
-    used, groups = set(), []
-    for _, _, g in cands:
-        if used.isdisjoint(g):
-            groups.append(g)
-            used.update(g)
+                # its outline: the corners in turn, the unseen fourth where it would stand
+                far = c[group[3]] if len(group) == 4 else fourth
+                cands.append((group, err, np.array([c[j], c[i], far, c[k]])))
+    groups = _best_packing(cands, n)
+    used = {i for g in groups for i in g}
     return groups, [i for i in range(n) if i not in used]
+
+
+def _overlap(p, q, margin):
+    """Whether two convex polygons (``(4, 2)`` corners in turn [m]) overlap by more than
+    ``margin`` [m] along every axis of their sides (separating axes)."""
+    for poly in (p, q):
+        for e in np.diff(np.vstack((poly, poly[:1])), axis=0):
+            ax = np.array([-e[1], e[0]]) / max(float(np.hypot(*e)), 1e-12)
+            a, b = p @ ax, q @ ax
+            if min(a.max(), b.max()) - max(a.min(), b.min()) <= margin:
+                return False
+    return True
+
+
+def _best_packing(cands, n, budget=20000):
+    """The set of leg groups (``cands``: ``(group, right-angle error, outline)``, each group a
+    list of leg indices below ``n``, its outline the rectangle's ``(4, 2)`` corners), no two
+    sharing a leg or overlapping (by more than :data:`SIDE_TOL`: a piece's legs stand outside
+    any other piece, as :func:`group_furniture` asks of each), that explains the most legs,
+    then has the most four-leg groups, then the least summed error. Chairs round a table put
+    legs of different pieces at right angles too: a group that takes legs of two chairs, or
+    crosses the table, leaves them unexplained. An exact search (each leg in turn: in none of
+    the groups, or in one of those that fit) of at most ``budget`` steps, from the greedy
+    choice (four legs first, then best right angle), which stays when the search ends without
+    a better one. Returns the groups, four-leg ones first."""
+    order = sorted(range(len(cands)), key=lambda m: (-len(cands[m][0]), cands[m][1]))
+    clash = {}
+
+    def fits(m, chosen, used):
+        if not used.isdisjoint(cands[m][0]):
+            return False
+        for o in chosen:
+            key = (min(m, o), max(m, o))
+            if key not in clash:
+                clash[key] = _overlap(cands[m][2], cands[o][2], SIDE_TOL)
+            if clash[key]:
+                return False
+        return True
+
+    def score(chosen):
+        return (sum(len(cands[m][0]) for m in chosen), sum(len(cands[m][0]) == 4 for m in chosen),
+                -sum(cands[m][1] for m in chosen))
+
+    greedy, used = [], set()
+    for m in order:
+        if fits(m, greedy, used):
+            greedy.append(m)
+            used.update(cands[m][0])
+    best = [greedy, score(greedy)]
+    by_leg = [[m for m in order if i in cands[m][0]] for i in range(n)]
+    steps = [0]
+
+    def search(i, chosen, used, covered):
+        steps[0] += 1
+        if steps[0] > budget:
+            return
+        while i < n and (i in used or not by_leg[i]):
+            i += 1
+        # even every leg left in a group cannot beat the best: stop here
+        if covered + sum(1 for j in range(i, n) if j not in used and by_leg[j]) < best[1][0]:
+            return
+        if i == n:
+            sc = score(chosen)
+            if sc > best[1]:
+                best[0], best[1] = list(chosen), sc
+            return
+        for m in by_leg[i]:
+            if fits(m, chosen, used):
+                chosen.append(m)
+                search(i + 1, chosen, used | set(cands[m][0]), covered + len(cands[m][0]))
+                chosen.pop()
+        search(i + 1, chosen, used, covered)           # leg i in no group
+
+    search(0, [], set(), 0)
+    return [cands[m][0] for m in sorted(best[0], key=order.index)]
 
 
 def furniture_shape(legs, group):
@@ -550,14 +656,30 @@ class ScanView:
             return None
         return v == math.inf or (dist + FREE_MARGIN < v <= self.range_max) or v > self.range_max
 
-    def free(self, xy):
-        """Whether the scan saw the place ``xy`` [m] empty: its beam went past it."""
+    def free(self, xy, radius=0.0, leg=0.0):
+        """Whether the scan saw the disc of ``radius`` [m] about ``xy`` [m] empty: every beam
+        that crosses it (the nearest one at least) went past it, and at least one of them
+        said so (a beam a filter dropped says nothing). With ``leg`` [m], empty of a leg of
+        that radius: also no room for one between the beams that went past (the first and
+        last beams across the disc among them, neighbours at most a leg's width apart at
+        its range): a thin leg slips between beams far away, or where one was dropped."""
         x, y, yaw = self.pose
         dist = math.hypot(xy[0] - x, xy[1] - y)
         bearing = math.atan2(xy[1] - y, xy[0] - x) - yaw
         bearing = math.atan2(math.sin(bearing), math.cos(bearing))
-        j = int(round((bearing - self.angle_min) / self.inc))
-        return bool(self._past(j, dist))
+        half = math.asin(min(1.0, radius / max(dist, 1e-9)))
+        c = (bearing - self.angle_min) / self.inc
+        lo = min(int(math.ceil(c - half / abs(self.inc))), int(round(c)))
+        hi = max(int(math.floor(c + half / abs(self.inc))), int(round(c)))
+        said = [self._past(j, dist + radius) for j in range(lo, hi + 1)]
+        if not (all(v is not False for v in said) and any(v for v in said)):
+            return False
+        if leg <= 0:
+            return True
+        past = [j for j, v in zip(range(lo, hi + 1), said) if v]
+        widest = max(np.diff([lo] + past + [hi]).max(initial=0), 1)
+        return bool(said[0] and said[-1] and widest * max(dist - radius, 0.0) * abs(self.inc)
+                    < 2.0 * leg)
 
     def end_seen(self, beam, step, dist):
         """Whether the object's edge at beam ``beam`` is a silhouette edge: the next beam
@@ -656,19 +778,64 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
         s.points = np.concatenate([pts_of(i) for i in idx])
         s.used = used_of(idx)
         out.append(s)
-    for i in rest:
-        l = legs[i]
-        if i in done or i >= n_own or len(l.index) < 3 or not _isolated(l.index, beams, p, sensor, view):
-            continue                      # a stub of something larger, or too few points
-        if True:                          # a thin leg alone: furniture whose other legs hide
-            out.append(Shape('legs', (float(l.center[0]), float(l.center[1])),
-                             (l.var + (FURNITURE_SIDE[1] / 2.0) ** 2 / 3.0) * np.eye(2),
-                             note='one leg of a table or chair seen (the others hidden or out '
-                             'of view): the piece\'s centre is within %.1f m of it'
-                             % (FURNITURE_SIDE[1] / 2.0), center_fixed=False,
-                             legs=l.center.reshape(1, 2), points=p[l.index],
-                             leg_radius=l.radius, kind='furniture'))
+    # thin legs left alone (not stubs of something larger: 3 points or more, the beams either
+    # side going past them): furniture whose other legs hide, two of one piece together
+    alone = [i for i in rest if i not in done and i < n_own and len(legs[i].index) >= 3
+             and legs[i].radius <= FURNITURE_LEG_RADIUS
+             and _isolated(legs[i].index, beams, p, sensor, view)]
+    for g in pair_furniture([legs[i] for i in alone]):
+        idx = [alone[i] for i in g]
+        s = lone_furniture_shape(legs, idx)
+        s.points = np.concatenate([p[legs[i].index] for i in idx])
+        out.append(s)
     return out, legs[:n_own]
+
+
+def pair_furniture(legs):
+    """Thin legs left alone (list of :class:`Leg`) two by two: legs of one kind (radii within
+    0.03 m) a piece's side or diagonal apart (:data:`FURNITURE_SIDE`), nearest pairs first;
+    the rest alone. Returns index lists into ``legs``."""
+    n = len(legs)
+    pairs = []
+    for a in range(n):
+        for b in range(a + 1, n):
+            d = float(np.hypot(*(legs[a].center - legs[b].center)))
+            if FURNITURE_SIDE[0] <= d <= FURNITURE_SIDE[1] * math.sqrt(2.0) \
+                    and abs(legs[a].radius - legs[b].radius) <= 0.03:
+                pairs.append((d, a, b))
+    pairs.sort()
+    used, out = set(), []
+    for _, a, b in pairs:
+        if a not in used and b not in used:
+            out.append([a, b])
+            used.update((a, b))
+    return out + [[i] for i in range(n) if i not in used]
+
+
+def lone_furniture_shape(legs, group):
+    """The ``legs`` :class:`Shape` of one or two legs of a table or chair whose other legs are
+    hidden (``center_fixed`` false). One leg: the piece's centre lies within half the longest
+    diagonal (:data:`FURNITURE_SIDE`) of it, any way round. Two: they are a side (the centre
+    off their middle across it, up to half the longest side, either way) or a diagonal (the
+    centre their middle): the middle is reported, the covariance uniform over that segment."""
+    c = np.array([legs[g].center for g in group])
+    var = np.array([legs[g].var for g in group])
+    r = float(np.mean([legs[g].radius for g in group]))
+    half = FURNITURE_SIDE[1] / 2.0
+    if len(group) == 1:
+        return Shape('legs', (float(c[0, 0]), float(c[0, 1])), (var[0] + half ** 2 / 3.0) * np.eye(2),
+                     note='one leg of a table or chair seen (the others hidden or out of view): '
+                     'the piece\'s centre is within %.1f m of it' % half, center_fixed=False,
+                     legs=c, leg_radius=r, kind='furniture')
+    centre = c.mean(axis=0)
+    e = (c[1] - c[0]) / float(np.hypot(*(c[1] - c[0])))
+    n = np.array([-e[1], e[0]])
+    cov = var.sum() / 4.0 * np.eye(2) + half ** 2 / 3.0 * np.outer(n, n)
+    return Shape('legs', (float(centre[0]), float(centre[1])), cov,
+                 note='two legs of a table or chair seen, %.2f m apart (the others hidden or out '
+                 'of view): the piece\'s centre is on the line across their middle, within '
+                 '%.1f m of it' % (float(np.hypot(*(c[1] - c[0]))), half), center_fixed=False,
+                 legs=c, leg_radius=r, kind='furniture')
 
 
 def _ends(seg, p, beams, sensor, view):
