@@ -427,10 +427,10 @@ def group_furniture(legs, free=None):
     whether the scan saw the disc of ``radius`` [m] about ``xy`` [m] empty of a leg of radius
     ``leg`` (:meth:`ScanView.free`), so that three legs whose fourth corner, within
     :data:`SIDE_TOL`, is seen empty of a leg like theirs are no table (None: never; a thin
-    leg a beam or two hit, too few for a leg, or that slipped between beams, is still there); nor are legs with another leg inside
-    their rectangle or on its sides (anywhere but at its corners). Candidates are corners ``j`` with two
-    neighbours at :data:`FURNITURE_SIDE` distances and a right angle within
-    :data:`RIGHT_ANGLE_TOL`; a fourth leg within :data:`SIDE_TOL` of the completed corner joins.
+    leg a beam or two hit, too few for a leg, or that slipped between beams, is still
+    there); nor are legs with another leg inside their rectangle or on its sides (anywhere
+    but at its corners). Candidates are corners ``j`` with two neighbours at
+    :data:`FURNITURE_SIDE` distances and a right angle within :data:`RIGHT_ANGLE_TOL`; a fourth leg within :data:`SIDE_TOL` of the completed corner joins.
     No leg in two groups: of the sets of groups, the one that explains the most legs
     (:func:`_best_packing`). Returns ``(groups, rest)``: lists of index lists into ``legs``."""
     n = len(legs)
@@ -467,7 +467,8 @@ def group_furniture(legs, free=None):
                 e1, e2 = u / lu, v / lv
                 rel = c - c[j]
                 a1, a2 = rel @ e1, rel @ e2
-                inside = (a1 > -SIDE_TOL) & (a1 < lu + SIDE_TOL) & (a2 > -SIDE_TOL) & (a2 < lv + SIDE_TOL)
+                inside = ((a1 > -SIDE_TOL) & (a1 < lu + SIDE_TOL)
+                          & (a2 > -SIDE_TOL) & (a2 < lv + SIDE_TOL))
                 for cx, cy in ((0.0, 0.0), (lu, 0.0), (0.0, lv), (lu, lv)):
                     inside &= np.hypot(a1 - cx, a2 - cy) > SIDE_TOL
                 inside[group] = False
@@ -814,8 +815,8 @@ def pair_furniture(legs):
 
 def lone_furniture_shape(legs, group):
     """The ``legs`` :class:`Shape` of one or two legs of a table or chair whose other legs are
-    hidden (``center_fixed`` false). One leg: the piece's centre lies within half the longest
-    diagonal (:data:`FURNITURE_SIDE`) of it, any way round. Two: they are a side (the centre
+    hidden (``center_fixed`` false). One leg: the piece's centre within half the longest side
+    (:data:`FURNITURE_SIDE`) of it, any way round. Two: they are a side (the centre
     off their middle across it, up to half the longest side, either way) or a diagonal (the
     centre their middle): the middle is reported, the covariance uniform over that segment."""
     c = np.array([legs[g].center for g in group])
@@ -823,7 +824,8 @@ def lone_furniture_shape(legs, group):
     r = float(np.mean([legs[g].radius for g in group]))
     half = FURNITURE_SIDE[1] / 2.0
     if len(group) == 1:
-        return Shape('legs', (float(c[0, 0]), float(c[0, 1])), (var[0] + half ** 2 / 3.0) * np.eye(2),
+        return Shape('legs', (float(c[0, 0]), float(c[0, 1])),
+                     (var[0] + half ** 2 / 3.0) * np.eye(2),
                      note='one leg of a table or chair seen (the others hidden or out of view): '
                      'the piece\'s centre is within %.1f m of it' % half, center_fixed=False,
                      legs=c, leg_radius=r, kind='furniture')
