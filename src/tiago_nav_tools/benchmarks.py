@@ -216,8 +216,8 @@ ABOUT = {
         'with the ideal and the TIAGo laser, scored also on the people: the smallest gap between '
         'the base\'s footprint and a walker\'s leg over each goal (target: never under 0.3 m), '
         'the time the base stood still away from its goal, and the oldest ghost (a cell the '
-        'laser marked that stayed marked after a scan saw it free within the costmap\'s '
-        'raytrace_range; target: 2 s); targets there: at least 99 % success, 0 collisions. It '
+        'laser marked that stayed marked after a scan saw it free where the costmap could '
+        'clear it, its centre half a cell inside raytrace_range; target: 2 s); targets there: at least 99 % success, 0 collisions. It '
         'runs with the defaults (people are obstacles like any other) and with '
         '`person_clearance` 0.3 m (docs/navigation.md); neither meets the targets yet.'),
     'corridor': (
