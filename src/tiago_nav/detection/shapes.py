@@ -589,6 +589,16 @@ def furniture_shape(legs, group):
                  leg_radius=float(np.mean([legs[g].radius for g in group])), kind='furniture')
 
 
+def _nearest_pairs(pairs):
+    """Disjoint pairs from ``(distance, a, b)`` candidates, nearest first: ``[[a, b], ...]``."""
+    used, out = set(), []
+    for _, a, b in sorted(pairs):
+        if a not in used and b not in used:
+            out.append([a, b])
+            used.update((a, b))
+    return out
+
+
 def pair_people(legs):
     """People: pairs of person-sized legs (:func:`person_sized`, seen by at least
     :data:`MIN_PERSON_LEG_POINTS` beams) at most
@@ -606,12 +616,8 @@ def pair_people(legs):
             d = float(np.hypot(*(legs[ok[a]].center - legs[ok[b]].center)))
             if d <= PERSON_LEG_SPACING:
                 pairs.append((d, ok[a], ok[b]))
-    pairs.sort()
-    used, out = set(), []
-    for _, i, j in pairs:
-        if i not in used and j not in used:
-            out.append([i, j])
-            used.update((i, j))
+    out = _nearest_pairs(pairs)
+    used = {i for pair in out for i in pair}
     return out, [i for i in ok if i not in used]
 
 
@@ -804,12 +810,8 @@ def pair_furniture(legs):
             if FURNITURE_SIDE[0] <= d <= FURNITURE_SIDE[1] * math.sqrt(2.0) \
                     and abs(legs[a].radius - legs[b].radius) <= 0.03:
                 pairs.append((d, a, b))
-    pairs.sort()
-    used, out = set(), []
-    for _, a, b in pairs:
-        if a not in used and b not in used:
-            out.append([a, b])
-            used.update((a, b))
+    out = _nearest_pairs(pairs)
+    used = {i for pair in out for i in pair}
     return out + [[i] for i in range(n) if i not in used]
 
 
