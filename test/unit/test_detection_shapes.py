@@ -198,3 +198,42 @@ def test_two_lone_legs_of_a_piece_are_one_object_whose_bound_holds_its_centre():
     along = np.array([0.0, 0.05])                   # along the pair it is fixed
     assert along @ np.linalg.solve(s.covariance, along) > 5.99
     assert shapes.pair_furniture([legs[0], leg_at(5.5, 0.0)]) == [[0], [1]]   # too far apart
+
+
+def flat_run_scan(cut=False):
+    """A 768-beam scan like leg_tracker's (0.35 deg, range_min 0.03 m): a flat run 0.18 m wide
+    square on at 2 m (a trouser leg), the beams beside it written as the Hokuyo's error code 0
+    (below range_min: invalid), the rest far; ``cut``: something nearer right beside it."""
+    inc = math.radians(0.35)
+    n = 768
+    a = (np.arange(n) - n // 2) * inc
+    r = np.full(n, 6.0)
+    face = np.abs(2.0 * np.tan(a)) <= 0.09
+    r[face] = 2.0 / np.cos(a[face]) + np.random.default_rng(1).normal(0.0, 0.003, face.sum())
+    edge = np.flatnonzero(face)
+    r[edge[0] - 3:edge[0]] = 0.0
+    r[edge[-1] + 1:edge[-1] + 4] = 0.0
+    if cut:
+        r[edge[-1] + 1:edge[-1] + 8] = 1.5
+    return r, -(n // 2) * inc, inc
+
+
+@pytest.mark.parametrize('cut', [False, True])
+def test_a_whole_flat_run_of_a_calfs_width_is_a_persons_leg(cut):
+    """Cloth hangs flat round a calf at a laser's height: a run as narrow as a leg, flatter than
+    a circle, whose ends nothing nearer cuts, is a person's leg; a Hokuyo's error code beside it
+    (a finite range below range_min) says nothing, it is not something nearer. Cut by something
+    nearer, it may be the visible part of a wider face: not a leg."""
+    r, amin, inc = flat_run_scan(cut)
+    view = shapes.ScanView(r, amin, inc, (0.0, 0.0, 0.0), 11.0, 0.03)
+    valid = np.isfinite(view.r) & (r < 3.0)
+    beams = np.flatnonzero(valid)
+    ang = amin + inc * beams
+    p = np.column_stack((r[beams] * np.cos(ang), r[beams] * np.sin(ang)))
+    found, _ = shapes.describe(p, beams, view, 0.01)
+    people = [s for s in found if s.shape == 'legs' and s.kind == 'person']
+    if cut:
+        assert not [s for s in people if s.center[0] > 1.8], [(s.shape, s.note) for s in found]
+    else:
+        assert len(people) == 1, [(s.shape, s.note) for s in found]
+        assert math.hypot(people[0].legs[0][0] - 2.09, people[0].legs[0][1]) < 0.05

@@ -645,10 +645,14 @@ class ScanView:
     """What one scan says about places (beam geometry in the plane frame of the points):
     ``ranges`` [m] (REP 117, NaN for beams a filter dropped), the beams' first angle
     ``angle_min`` and step ``increment`` [rad] in the laser frame, the laser's pose ``(x, y,
-    yaw)`` in the points' frame, ``range_max`` [m]."""
+    yaw)`` in the points' frame, ``range_max`` [m] and ``range_min`` [m]: a finite range below
+    it is invalid (REP 117; a Hokuyo writes its error codes there), it says nothing, as NaN
+    (``-inf``, too close, is something nearer)."""
 
-    def __init__(self, ranges, angle_min, increment, laser_pose, range_max):
-        self.r = np.asarray(ranges, dtype=float)
+    def __init__(self, ranges, angle_min, increment, laser_pose, range_max, range_min=0.0):
+        self.ranges = np.asarray(ranges, dtype=float)
+        self.r = self.ranges.copy()
+        self.r[np.isfinite(self.r) & (self.r < range_min)] = np.nan
         self.angle_min, self.inc = float(angle_min), float(increment)
         self.pose = tuple(float(v) for v in laser_pose)
         self.range_max = float(range_max)
@@ -717,9 +721,9 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
     sensor = np.array(view.pose[:2])
     out, legs = [], []
     runs = []
-    for coarse in segments(p, beams, sensor, view.inc, gap, view.r, FACE_INCIDENCE, noise):
+    for coarse in segments(p, beams, sensor, view.inc, gap, view.ranges, FACE_INCIDENCE, noise):
         fine = [coarse[f] for f in segments(p[coarse], beams[coarse], sensor, view.inc, gap,
-                                            view.r)]
+                                            view.ranges)]
         # an oblique face breaks into pieces between beams: one run, unless its pieces are
         # each as narrow as legs (a person's two legs side by side)
         narrow = all(np.hypot(*(p[f].max(axis=0) - p[f].min(axis=0))) <= LEG_MAX_WIDTH
@@ -737,6 +741,13 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
         span = float(np.hypot(*(q.max(axis=0) - q.min(axis=0))))
         if span <= LEG_MAX_WIDTH and _stands_apart(seg, beams, p, sensor, view):
             found = leg(q, sensor, view.inc, noise)
+            if found is None and _stands_apart(seg, beams, p, sensor, view, hidden=False):
+                # flat but whole (nothing nearer cuts either end) and of a calf's width: a
+                # trouser leg hangs flat at a laser's height; a box's face this narrow is cut
+                # by what hides the rest of it, or seen with its side as an L
+                found = leg(q, sensor, view.inc, noise, round_checked=True)
+                if found is not None and not person_sized(found[1], found[3]):
+                    found = None
             if found is not None:
                 legs.append(Leg(found[0], found[1], seg, found[2], found[3]))
                 continue
@@ -883,11 +894,12 @@ def _join_hidden(found, p, beams, sensor, view, noise):
     return others + out
 
 
-def _stands_apart(index, beams, points, sensor, view):
+def _stands_apart(index, beams, points, sensor, view, hidden=True):
     """Whether a run (``index`` into ``points``) stands apart from what is beside it, as a leg
     does: the beam next to it on each side either went past it (:data:`FREE_MARGIN` behind or
-    no return) or hit something nearer that hides it; a beam a filter dropped is looked past.
-    A neighbour at about its range is the rest of a larger surface (a wall's end seen edge-on)."""
+    no return) or, with ``hidden``, hit something nearer that hides it; a beam a filter
+    dropped is looked past. A neighbour at about its range is the rest of a larger surface (a
+    wall's end seen edge-on)."""
     b = np.asarray(beams)[index]
     d = float(np.min(np.hypot(*(points[index] - sensor).T)))
     for j0, step in ((int(b.min()) - 1, -1), (int(b.max()) + 1, 1)):
@@ -897,7 +909,7 @@ def _stands_apart(index, beams, points, sensor, view):
             v = float(view.r[j])
             if v != v:
                 continue
-            if not (v < d - 0.05 or v > d + FREE_MARGIN):
+            if not ((hidden and v < d - 0.05) or v > d + FREE_MARGIN):
                 return False
             break
     return True
