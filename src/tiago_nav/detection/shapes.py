@@ -647,7 +647,8 @@ class ScanView:
     ``angle_min`` and step ``increment`` [rad] in the laser frame, the laser's pose ``(x, y,
     yaw)`` in the points' frame, ``range_max`` [m] and ``range_min`` [m]: a finite range below
     it is invalid (REP 117; a Hokuyo writes its error codes there), it says nothing, as NaN
-    (``-inf``, too close, is something nearer)."""
+    (``-inf``, too close, is something nearer). ``r`` holds the ranges so read, ``ranges`` the
+    ones given (what :func:`segments` counts as a beam with no hit between two points)."""
 
     def __init__(self, ranges, angle_min, increment, laser_pose, range_max, range_min=0.0):
         self.ranges = np.asarray(ranges, dtype=float)
