@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from tiago_nav.detection.shapes import PERSON_LEG_SPACING
+from tiago_nav.detection.shapes import PERSON_LEG_RADIUS, PERSON_LEG_SPACING
 from tiago_nav.scan import HIT, classify
 
 CHANGE = 0.1          # [m] a beam's hit moved by more than this: ten times the range noise
@@ -80,6 +80,28 @@ def leg_like(d):
     return d.shape == 'legs' and (d.legs is None or len(d.legs) <= 2)
 
 
+def never_a_person(d):
+    """Whether a detection cannot be (a part of) a person: a table or a chair (3 or 4 legs), a
+    rectangle, a circle wider than a calf (:data:`PERSON_LEG_RADIUS`). One or two legs, a
+    calf-sized circle (a leg, when the shapes detection is off) and ``unknown`` may be."""
+    if d.shape == 'legs':
+        return d.legs is not None and len(d.legs) >= 3
+    if d.shape == 'circle':
+        return d.radius > PERSON_LEG_RADIUS[1]
+    return d.shape == 'rectangle'
+
+
+def stayed(d, newest, oldest):
+    """Whether the median's detection ``d`` is in the ``newest`` and the ``oldest`` scans'
+    detections alone, of its shape, within :data:`CHANGE` of its centre, and the newest one was
+    not judged moving: it stood still while beams at its edges changed (a chair's thin leg hit
+    by a beam in one scan and missed in the other, someone walking behind it)."""
+    def there(dets, still):
+        return any(o.shape == d.shape and (not still or o.motion != 'moving') and math.hypot(
+            o.center[0] - d.center[0], o.center[1] - d.center[1]) <= CHANGE for o in dets)
+    return there(newest, True) and there(oldest, False)
+
+
 def _legs_of(d):
     return np.asarray(d.legs if d.legs is not None else [d.center], dtype=float).reshape(-1, 2)
 
@@ -96,7 +118,10 @@ def combine(still, newest, oldest, changed, dt, laser_pose, angle_min, increment
     and is not reported as a static object. A leg with no moving one near it but points of
     ``newest`` or ``oldest`` on changed beams within a stride is a walker's planted leg whose
     other leg swung beside or behind it (a person walking toward the laser hides one leg behind
-    the other): ``'moving'``, its velocity not measured (NaN)."""
+    the other): ``'moving'``, its velocity not measured (NaN). One of ``still`` on changed
+    beams is left to ``newest``'s, unless it cannot be a person (:func:`never_a_person`) and
+    :func:`stayed`: then it is static (the newest scan's own detection of it, on fewer changed
+    beams, was not judged moving, and nothing else would report it)."""
     out, moving = [], []
     swung = [d.points[changed[beams_of(d.points, laser_pose, angle_min, increment,
                                        len(changed))]]
@@ -108,7 +133,8 @@ def combine(still, newest, oldest, changed, dt, laser_pose, angle_min, increment
             d.velocity, d.velocity_std = velocity(d, oldest, dt)
             moving.append(d)
     for d in still:
-        if moved(d, changed, laser_pose, angle_min, increment):
+        if moved(d, changed, laser_pose, angle_min, increment) and not (
+                never_a_person(d) and stayed(d, newest, oldest)):
             continue
         walker = None
         if leg_like(d):
