@@ -6,6 +6,7 @@ import os
 import pytest
 
 from conftest import ROOT
+from tiago_nav.robot import LASER_OFFSET
 from tiago_nav_tools.evaluate import metrics as M
 from tiago_nav_tools.evaluate import report, run
 
@@ -114,3 +115,26 @@ def test_a_centre_not_fixed_is_judged_by_its_bound():
     assert not ok and f['bounded_outside'] == 1 and 'outside their reported bound' in f['problem']
     assert M.outside_bound((0, 0), (0, 0.1), [float('nan')] * 4)
     assert M.outside_bound((0, 0), (0, 0.1), [0.0, 0.0, 0.0, 0.0])
+
+
+def test_an_obstacle_a_walker_hides_is_not_in_view():
+    """The view is cast with the walkers' legs where they stood at the end: a walker standing
+    between the base and a cylinder hides it (not in view, no miss); away, the cylinder is in
+    view again, and missing it fails the run."""
+    lx = 11.0 + LASER_OFFSET * math.cos(math.radians(30.0))
+    ly = 0.5 + LASER_OFFSET * math.sin(math.radians(30.0))
+    a = math.atan2(BINS[0][1] - ly, BINS[0][0] - lx)
+    x, y = lx + 0.8 * math.cos(a), ly + 0.8 * math.sin(a)       # 0.8 m along the line to it
+    legs = [[x - 0.06 * math.sin(a), y + 0.06 * math.cos(a)],   # side by side across the line
+            [x + 0.06 * math.sin(a), y - 0.06 * math.cos(a)]]
+    hidden = raw()
+    hidden['walkers'][-1] = [20.0, [[x, y, 0.0, 0.0, 0.06, legs, 'yielding']]]
+    hidden['obstacles'] = hidden['obstacles'][1:]
+    hidden['obstacles_detail'] = hidden['obstacles_detail'][1:]
+    r = run.judge(SPEC, hidden)
+    assert r['outcome'] == 'succeeded', r['reason']
+    assert not [v for v in r['detection_view'] if v['x'] == BINS[0][0] and v['in_view']]
+    seen = raw()
+    seen['obstacles'] = seen['obstacles'][1:]
+    seen['obstacles_detail'] = seen['obstacles_detail'][1:]
+    assert run.judge(SPEC, seen)['outcome'] == 'detection_failure'

@@ -2,7 +2,8 @@
 harness and the tests judge obstacle detection by (docs/detection.md, docs/evaluation.md).
 
 A movable obstacle is **in view** from a base pose, for a laser profile, when in a noise-free
-cast of the laser from that pose (:meth:`tiago_nav.sim.scene.Scene.cast`) at least
+cast of the laser from that pose (:meth:`tiago_nav.sim.scene.Scene.cast`; the walkers' legs
+where :func:`place_walkers` puts them) at least
 :data:`MIN_BEAMS` *usable* beams hit it, whatever its edges: that many points are enough for
 detection to place a circle (a short arc is fitted with the scan's shared radius, see
 :mod:`tiago_nav.detection.pipeline`). A beam is usable when
@@ -81,6 +82,21 @@ def judge_view(ranges, ids, angles, movable_ids, profile='tiago', min_beams=MIN_
     return View(in_view, glimpsed, beams, usable_beams)
 
 
+def place_walkers(scene, walkers=None):
+    """Put the walkers' legs of ``scene`` (:class:`tiago_nav.sim.scene.Scene`) where one record
+    of the evaluator's walker log has them (``walkers``: per walker ``[x, y, vx, vy,
+    leg_radius, legs, state]``, ``legs`` the ``(2, 2)`` leg centres [m]); None: outside the
+    world's bounds, where no beam reaches (a scene places them at the origin until told). A
+    walker hides what stands behind it: an obstacle behind a walker's legs is not in view."""
+    xmin, ymin, _, _ = scene.world.bounds
+    for i in range(len(scene.walker_leg_ids)):
+        if walkers is not None and i < len(walkers):
+            legs = walkers[i][5]
+        else:
+            legs = [[xmin - 100.0 - 2.0 * i, ymin - 100.0], [xmin - 101.0 - 2.0 * i, ymin - 100.0]]
+        scene.set_walker_legs(i, legs)
+
+
 def view_from(scene, base_pose=None, profile='tiago', min_beams=MIN_BEAMS):
     """The :class:`View` of the movable obstacles of ``scene``
     (:class:`tiago_nav.sim.scene.Scene`) from ``base_pose`` ``(x, y, yaw)`` (default: the
@@ -103,4 +119,5 @@ def view(world, base_pose, profile='tiago', min_beams=MIN_BEAMS):
     """The :class:`View` of the ``world``'s movable obstacles from ``base_pose``
     ``(x, y, yaw)`` for the laser ``profile`` (a scene of its own, closed after)."""
     with Scene(world) as scene:
+        place_walkers(scene)
         return view_from(scene, base_pose, profile, min_beams)

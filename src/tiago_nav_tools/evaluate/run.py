@@ -315,6 +315,9 @@ def judge(spec, raw, min_beams=None):
         from tiago_nav.sim.scene import Scene
         obs = world.movable_obstacles
         with Scene(world) as scene:
+            # the walkers where they stood at the end, the newest of the scans at rest (a
+            # walker in front of an obstacle hides it)
+            inview.place_walkers(scene, walker_log[-1][1] if walker_log else None)
             v = inview.view_from(scene, tuple(final), spec['profile'],
                                  inview.MIN_BEAMS if min_beams is None else min_beams)
             # what the cast saw of each shape but a cylinder (faces, legs: where targets apply)
