@@ -248,6 +248,37 @@ def test_controller_stops_before_an_obstacle():
     assert abs(base.v) < 0.05                         # and has stopped
 
 
+@pytest.mark.parametrize('ahead', [1.2, 1.5, 1.8])
+def test_braking_for_an_obstacle_commands_only_speeds_the_base_can_reach(ahead):
+    # at full speed something appears ahead, near enough that full speed is unsafe: the
+    # controller slows down, and each command is one the base can reach from its measured
+    # speed within the cycle (its collision check assumes the base runs at the command; a
+    # base still faster than that stops later than the check assumed)
+    from tiago_nav.sim.diffdrive import BaseLimits, DiffDrive
+    from tiago_nav.nav.planner import densify
+    limits = BaseLimits()
+    base = DiffDrive((0.0, 0.0, 0.0), limits)
+    ctl = Controller(ControllerConfig())
+    ctl.set_path(densify([(0.0, 0.0), (20.0, 0.0)], 0.05))
+    dt = 0.1
+    wall = np.zeros((0, 2))
+    slowed = False
+    for _ in range(150):
+        if wall.size == 0 and base.v > 0.99 * limits.max_linear_velocity:
+            x = base.pose[0] + ctl.c.robot_radius + ahead
+            wall = np.column_stack((np.full(21, x), np.linspace(-0.5, 0.5, 21)))
+        before = base.v
+        v, w, _ = ctl.command(base.pose, (20.0, 0.0, 0.0), wall, dt)
+        assert v >= before - limits.max_linear_acceleration * dt - 1e-9, \
+            'commanded %.2f m/s from %.2f m/s in %.1f s' % (v, before, dt)
+        slowed |= wall.size > 0 and v < before - 1e-6
+        for _ in range(6):
+            base.step(v, w, dt / 6)
+        if wall.size:
+            assert wall[0, 0] - base.pose[0] > ctl.c.robot_radius      # never touches
+    assert slowed and abs(base.v) < 0.05                # it braked and has stopped
+
+
 def test_a_remembered_cell_counts_as_near_as_any_part_of_it():
     # a map cell remembered for a direction the laser cannot see (the base hides the fan's
     # ends) may hold its surface half a diagonal nearer than its centre: with that margin a

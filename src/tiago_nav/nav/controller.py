@@ -188,9 +188,12 @@ class Controller:
         w_t = max(-c.max_vel_theta, min(c.max_vel_theta, k * max(v, c.min_vel_x)))
         w = _ramp(w_t, self.w, c.acc_lim_theta, dt)
         if not self.safe(pose, v, w, points, dt, blind, margins):
-            # slower, then on the spot towards the plan (a round base cannot hit anything turning)
-            for vs in (0.5 * v, 0.25 * v, 0.1, 0.05):
-                vs = min(vs, v)
+            # slower, then on the spot towards the plan (a round base cannot hit anything
+            # turning); slower only as far as the base can brake within the cycle: the check
+            # assumes the base runs at the speed it is given, and self.v is the speed it runs at
+            floor = self.v - c.acc_lim_x * dt
+            for vs in sorted({min(max(s, floor), v) for s in (0.5 * v, 0.25 * v, 0.1, 0.05)},
+                             reverse=True):
                 if vs > 0.02 and self.safe(pose, vs, w, points, dt, blind, margins):
                     self.v, self.w = vs, w
                     return vs, w, 'follow'
