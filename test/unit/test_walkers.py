@@ -60,6 +60,22 @@ def test_walker_walks_at_its_speed_after_its_delay_and_stops_at_the_end():
         sim.close()
 
 
+def test_a_scene_shows_no_walker_until_it_is_placed():
+    # a bare scene (the evaluator's, inview.view's) holds the walkers' leg bodies from the
+    # start: none may stand anywhere a beam reaches before they are placed, not even at the
+    # world's origin the bodies are built about
+    from tiago_nav.sim.scene import Scene
+    world = World.from_dict(dict(ROOM, robot_start=[1.0, 0.0, 180.0],
+                                 walkers=[{'path': [[3, 3], [3, -3]], 'speed': 0.5}] * 2))
+    with Scene(world) as scene:
+        legs = set(b for pair in scene.walker_leg_ids for b in pair)
+        ranges, ids = scene.cast()
+        assert not legs & set(ids.tolist())
+        scene.set_walker_legs(1, [[0.0, 0.1], [0.0, -0.1]])
+        ranges, ids = scene.cast()
+        assert set(ids.tolist()) & legs == set(scene.walker_leg_ids[1])
+
+
 def test_laser_sees_a_walkers_two_legs_where_they_are():
     sim = make([{'path': [[2, 1], [2, -1]], 'speed': 0.5}])
     try:

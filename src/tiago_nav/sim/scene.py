@@ -147,6 +147,7 @@ class Scene:
             for _ in world.walkers:
                 self.walker_leg_ids.append(tuple(self._mesh_body(leg, (0.9, 0.7, 0.2, 1))
                                                  for _ in range(2)))
+            self.walkers_away()
         col = p.createCollisionShape(pybullet.GEOM_CYLINDER, radius=self.robot_radius,
                                      height=ROBOT_HEIGHT)
         vis = p.createVisualShape(pybullet.GEOM_CYLINDER, radius=self.robot_radius,
@@ -177,6 +178,15 @@ class Scene:
         if i not in self._legs_placed:
             self._legs_placed.add(i)
             self._place_legs((legs[0][0], legs[0][1], 0.0))
+
+    def walkers_away(self):
+        """Put every walker's legs outside the world's bounds, where no beam and no base reaches
+        (where they stand until :meth:`set_walker_legs` places them)."""
+        xmin, ymin = self.world.bounds[:2]
+        for i in range(len(self.walker_leg_ids)):
+            self._legs_due[i] = [(xmin - 100.0 - 2.0 * i, ymin - 100.0),
+                                 (xmin - 101.0 - 2.0 * i, ymin - 100.0)]
+        self._place_legs()
 
     def _place_legs(self, near=None):
         """Move the walkers' leg bodies to their last :meth:`set_walker_legs` (with ``near``

@@ -86,15 +86,12 @@ def place_walkers(scene, walkers=None):
     """Put the walkers' legs of ``scene`` (:class:`tiago_nav.sim.scene.Scene`) where one record
     of the evaluator's walker log has them (``walkers``: per walker ``[x, y, vx, vy,
     leg_radius, legs, state]``, ``legs`` the ``(2, 2)`` leg centres [m]); None: outside the
-    world's bounds, where no beam reaches (a scene places them at the origin until told). A
-    walker hides what stands behind it: an obstacle behind a walker's legs is not in view."""
-    xmin, ymin, _, _ = scene.world.bounds
-    for i in range(len(scene.walker_leg_ids)):
-        if walkers is not None and i < len(walkers):
-            legs = walkers[i][5]
-        else:
-            legs = [[xmin - 100.0 - 2.0 * i, ymin - 100.0], [xmin - 101.0 - 2.0 * i, ymin - 100.0]]
-        scene.set_walker_legs(i, legs)
+    world's bounds, where no beam reaches (:meth:`~tiago_nav.sim.scene.Scene.walkers_away`,
+    where a new scene has them). A walker hides what stands behind it: an obstacle behind a
+    walker's legs is not in view."""
+    scene.walkers_away()
+    for i, row in enumerate((walkers or [])[:len(scene.walker_leg_ids)]):
+        scene.set_walker_legs(i, row[5])
 
 
 def view_from(scene, base_pose=None, profile='tiago', min_beams=MIN_BEAMS):
@@ -119,5 +116,4 @@ def view(world, base_pose, profile='tiago', min_beams=MIN_BEAMS):
     """The :class:`View` of the ``world``'s movable obstacles from ``base_pose``
     ``(x, y, yaw)`` for the laser ``profile`` (a scene of its own, closed after)."""
     with Scene(world) as scene:
-        place_walkers(scene)
         return view_from(scene, base_pose, profile, min_beams)
