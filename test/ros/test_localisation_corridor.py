@@ -13,7 +13,6 @@ corridor and narrow across it, and the node must say once that the geometry is d
 Private params: ``world``, ``x``, ``y``, ``yaw`` (pose B, deg), ``max_error``, ``p95_error``,
 ``max_step`` [m].
 """
-import bisect
 import glob
 import math
 import os
@@ -31,12 +30,13 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from std_msgs.msg import UInt32
 
-from tiago_nav.geometry import wrap_angle
 from tiago_nav.msg import TiagoTaskGoal
 from tiago_nav.ros.actions import TaskClient
 from tiago_nav.ros.conversions import pose_from_msg
 from tiago_nav.sim.world import load_world
 from tiago_nav_tools.evaluate.matching import score, visible_truth
+
+from simtest import pose_at
 
 WAIT = 60.0            # wall bound on server waits [s]
 MISSION = 240.0        # bound on the mission [s wall] (a hang guard)
@@ -90,19 +90,9 @@ class LocalisationCorridorTest(unittest.TestCase):
             cls.estimates.append((msg.header.stamp.to_sec(), pose_from_msg(msg.pose.pose), cov))
 
     def truth_at(self, t):
-        """The true pose at ``t`` [s], interpolated between the ground-truth messages around it
-        (None outside them)."""
+        """The true pose at ``t`` [s] (:func:`simtest.pose_at`; None outside the messages)."""
         with self.lock:
-            ts, ps = list(self.truth_t), list(self.truth_p)
-        i = bisect.bisect_left(ts, t)
-        if i < len(ts) and abs(ts[i] - t) < 1e-6:
-            return ps[i]
-        if i == 0 or i >= len(ts):
-            return None
-        a, b = ps[i - 1], ps[i]
-        f = (t - ts[i - 1]) / (ts[i] - ts[i - 1])
-        return (a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]),
-                a[2] + f * wrap_angle(b[2] - a[2]))
+            return pose_at(list(self.truth_t), list(self.truth_p), t)
 
     def test_mission_from_inside_a_corridor(self):
         x, y, yaw = self.goal

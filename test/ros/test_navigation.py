@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Rostest of nodes/navigation (move_base) in the shipped world, with a plain
-SimpleActionClient of MoveBaseAction, checked against the world file's ground truth (tf
-map -> base_footprint is the simulator's true pose, /sim/collisions its contact count):
+SimpleActionClient of MoveBaseAction, checked against the world file's ground truth
+(/sim/ground_truth the true pose, tf map -> base_footprint the localisation's estimate,
+/sim/collisions the contact count):
 goals past the movable cylinders are reached within tolerance, a goal inside a wall and a goal in
 a free pocket no path reaches are ABORTED with a reason, a cancelled goal is PREEMPTED and the
 base stops, /move_base/make_plan answers, a goal with a NaN field or a zero quaternion is ABORTED at once
@@ -26,7 +27,7 @@ from tiago_nav.ros.actions import wait_server
 from tiago_nav.ros.conversions import pose_stamped
 from tiago_nav.sim.raster import rasterise_world
 
-from simtest import SimTestCase
+from simtest import LocalisationErrors, SimTestCase
 
 TIMEOUT = 30.0
 ROBOT_RADIUS = 0.27
@@ -47,6 +48,7 @@ class NavigationTest(SimTestCase):
     @classmethod
     def setUpClass(cls):
         super().setUpClass()
+        cls.localisation = LocalisationErrors()
         cls.collisions = None
         rospy.Subscriber('/sim/collisions', UInt32, cls._on_collisions)
         cls.odom = None
@@ -251,10 +253,19 @@ class NavigationTest(SimTestCase):
             gap = np.minimum(gap, np.hypot(xy[:, 0] - c.x, xy[:, 1] - c.y) - c.radius)
         # a lethal cell lies within the robot's radius of a marked cell, whose centre is within
         # half a cell's diagonal (0.035 m) of the hit, itself within the range noise (3 std,
-        # 0.03 m) and the localisation's error of the surface; a wall's raster cell centre is
-        # another 0.035 m off its face: 0.15 m over the radius holds them, a ghost is farther
-        self.assertLessEqual(float(gap.max()), ROBOT_RADIUS + 0.15,
-                             'a lethal cell %.2f m from anything in the world' % gap.max())
+        # 0.03 m) of the surface; a wall's raster cell centre is another 0.035 m off its face.
+        # The hit is placed with the localisation's pose: its error so far moves it by up to
+        # the position error plus the yaw error times obstacle_range. A ghost is farther.
+        pos, yaw, n = self.localisation.worst()
+        self.assertGreater(n, 50, 'too few /amcl_pose estimates matched with the ground truth')
+        reach = rospy.get_param('/move_base/obstacle_range')
+        bound = ROBOT_RADIUS + 0.1 + pos + yaw * reach
+        worst = int(np.argmax(gap))
+        self.assertLessEqual(float(gap[worst]), bound,
+                             'a lethal cell at (%.2f, %.2f) m is %.3f m from anything in the '
+                             'world, over %.3f m (the localisation was off by up to %.3f m '
+                             'and %.2f deg)' % (xy[worst, 0], xy[worst, 1], gap[worst], bound,
+                                                pos, math.degrees(yaw)))
         covered = [c for c in self.world.movable_obstacles
                    if cost[int((c.y - oy) / res), int((c.x - ox) / res)] == 100]
         self.assertGreaterEqual(len(covered), 4, 'unmapped cylinders in the costmap: %d' % len(covered))
