@@ -161,6 +161,25 @@ def test_a_walkers_planted_leg_is_never_a_static_object():
     assert [d.motion for d in out] == ['moving'] and math.isnan(out[0].velocity[0])
 
 
+def test_a_leg_sized_unknown_beside_a_walker_is_their_planted_leg_and_a_wide_one_is_not():
+    """The shapes detection may read a planted leg's run as ``unknown`` (neither round nor
+    straight, a trouser's fold; leg_tracker's demo recording, 41.8 s and 106.6 s in): one no
+    wider than a calf within a stride of a moving leg joins that walker, as a leg does. An
+    ``unknown`` wider than a calf there (a bin, a box's corner) stays a static object."""
+    inc = 0.002
+    swinging, before = leg_detection((2.3, 0.1)), leg_detection((2.0, 0.1))
+    changed = changed_on([swinging, before])
+    piece = leg_detection((2.0, -0.2), r=0.05, shape='unknown')
+    out = combine([piece], [swinging], [before], changed, 0.4, (0.0, 0.0, 0.0), -math.pi / 2,
+                  inc)
+    assert [(d.shape, d.motion) for d in out] == [('legs', 'moving')]
+    assert len(out[0].legs) == 2                  # the planted leg joined the walker
+    wide = leg_detection((2.0, -0.4), r=0.2, shape='unknown')
+    out = combine([wide], [leg_detection((2.3, 0.1))], [leg_detection((2.0, 0.1))], changed,
+                  0.4, (0.0, 0.0, 0.0), -math.pi / 2, inc)
+    assert sorted((d.shape, d.motion) for d in out) == [('legs', 'moving'), ('unknown', 'static')]
+
+
 def test_a_leg_far_from_what_moves_and_a_circle_stay_static():
     inc = 0.002
     swinging, before = leg_detection((2.3, 1.5)), leg_detection((2.0, 1.5))

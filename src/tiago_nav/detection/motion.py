@@ -102,6 +102,19 @@ def stayed(d, newest, oldest):
     return there(newest, True) and there(oldest, False)
 
 
+def leg_sized(d):
+    """Whether a detection may be a person's leg or a part of one: :func:`leg_like`, or an
+    ``unknown`` no wider than a calf (its points within ``2 * PERSON_LEG_RADIUS[1]`` of each
+    other: a leg whose run the shapes detection could not read, a trouser leg's fold)."""
+    if leg_like(d):
+        return True
+    if d.shape != 'unknown' or d.points is None or not len(d.points):
+        return False
+    p = np.asarray(d.points, dtype=float)
+    return float(np.max(np.hypot(*(p[:, None, :] - p[None]).reshape(-1, 2).T))) \
+        <= 2.0 * PERSON_LEG_RADIUS[1]
+
+
 def _legs_of(d):
     return np.asarray(d.legs if d.legs is not None else [d.center], dtype=float).reshape(-1, 2)
 
@@ -111,8 +124,8 @@ def combine(still, newest, oldest, changed, dt, laser_pose, angle_min, increment
     those on changed beams, ``'moving'`` with their :func:`velocity` from ``oldest`` (the
     oldest scan's), ``dt`` [s] earlier; of ``still`` (the per-beam median's), those on
     unchanged beams, ``motion`` ``'static'`` with velocity 0 (its std from the centre's over
-    ``dt``), except a leg (:func:`leg_like`) within a stride (:data:`PERSON_LEG_SPACING`) of a
-    moving one's leg: a walker's foot stands on the floor for most of a stride (the stance,
+    ``dt``), except a leg (:func:`leg_sized`: also an ``unknown`` no wider than a calf)
+    within a stride (:data:`PERSON_LEG_SPACING`) of a moving one's leg: a walker's foot stands on the floor for most of a stride (the stance,
     about 0.6 s of a 1 s stride, longer than a window of scans at rest), so that leg is the
     moving person's planted one. It joins that person (its legs, their middle as the centre)
     and is not reported as a static object. A leg with no moving one near it but points of
@@ -137,7 +150,7 @@ def combine(still, newest, oldest, changed, dt, laser_pose, angle_min, increment
                 never_a_person(d) and stayed(d, newest, oldest)):
             continue
         walker = None
-        if leg_like(d):
+        if leg_sized(d):
             legs = _legs_of(d)
             best = PERSON_LEG_SPACING
             for m in moving:
@@ -156,7 +169,7 @@ def combine(still, newest, oldest, changed, dt, laser_pose, angle_min, increment
                 walker.note = (walker.note + '; ' if walker.note else '') + (
                     'a planted leg that stood still over the scans at rest joined')
             continue
-        if leg_like(d) and len(swung) and float(np.min(np.hypot(
+        if leg_sized(d) and len(swung) and float(np.min(np.hypot(
                 *(_legs_of(d)[:, None, :] - swung[None]).reshape(-1, 2).T))) <= PERSON_LEG_SPACING:
             d.motion, d.velocity, d.velocity_std = 'moving', (math.nan, math.nan), math.nan
             d.note = (d.note + '; ' if d.note else '') + (
