@@ -27,9 +27,10 @@
    that region (where every cluster was marked).
 2. The demo (``legs_demo_stationary_simple_environment.bag``: 126 s, a laser standing still
    while people walk past): the service's own decisions (tiago_nav.detection.service, through a
-   sensors object that serves the bag's scans, the laser standing at the origin) on every 10th
-   scan, each combined with the 4 before it (``rest_scans`` 5, 0.4 s at 10 Hz), over the static
-   background built from the whole recording (as in 1). A reported object most of whose points
+   sensors object that serves the bag's scans, the laser standing at the origin) on every
+   scan (``--every``: a call every so many scans), each combined with the 4 before it
+   (``rest_scans`` 5, 0.4 s at 10 Hz), over the static background built from the whole
+   recording (as in 1). A reported object most of whose points
    lie at least 0.3 m in front of their own beam's background (or on a beam with none) is
    something that is not always there; one whose place was seen free (most of its beams past
    it, two scans in a row) both within 1 s before the call and within 1 s after it is a person
@@ -38,7 +39,7 @@
 
 Writes bench/results/legs_real.json and legs_real.png.
 
-Usage: bench/bench_legs_real.py [--data ../shared/data/real] [--every 10]
+Usage: bench/bench_legs_real.py [--data ../shared/data/real] [--every 1]
 """
 import argparse
 import json
@@ -294,7 +295,7 @@ def plot(per_bag, overall, speeds, path):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--data', default=os.path.join(ROOT, '..', 'shared', 'data', 'real'))
-    ap.add_argument('--every', type=int, default=10, help='demo: a call every this many scans')
+    ap.add_argument('--every', type=int, default=1, help='demo: a call every this many scans')
     args = ap.parse_args()
     if not os.path.isdir(args.data):
         sys.exit('no %s: the leg_tracker recordings are needed' % args.data)

@@ -94,7 +94,7 @@ ABOUT = {
         'empty map, one scan alone): recall and precision of the person `legs` objects against '
         'the marked leg clusters (within 0.15 m; target 85 %; bag 4 held out of the choices but '
         'the rule for whole flat runs); '
-        'on the demo, the service on every 10th scan with the 4 before it: people walking past '
+        'on the demo, the service on every scan with the 4 before it: people walking past '
         'are reported moving, never static ([detection.md](detection.md#people)).'),
     'covariance': (
         'Every detection of the `tiago` profile\'s successful missions in `suites/course.yaml` '
