@@ -108,15 +108,13 @@ def walker_gap_run(world, goal, config=PEOPLE, limit=120.0):
 
 def test_the_base_keeps_its_clearance_from_a_person_who_stopped_for_it():
     # lab_mixed: on the way to (9, 0) the robot meets a walker crossing at x = 7 who stops to
-    # let it pass; with the person rule (the default) it keeps 0.3 m, without it it drives by
-    # at 0.10 m from the legs
+    # let it pass; without the person rule (the default) it drives by at 0.10 m from the legs
     w = load_world(os.path.join(WORLDS, 'lab_mixed.yaml'))
-    r = walker_gap_run(w, (9.0, 0.0, 0.0), NavConfig())
+    r = walker_gap_run(w, (9.0, 0.0, 0.0))
     assert r['state'] == SUCCEEDED, r['reason']
     assert r['collisions'] == 0
     assert r['closest_walker'] >= 0.3
-    off = NavConfig(person_clearance=0.0)
-    assert walker_gap_run(w, (9.0, 0.0, 0.0), off)['closest_walker'] < 0.2
+    assert walker_gap_run(w, (9.0, 0.0, 0.0), NavConfig())['closest_walker'] < 0.2
 
 
 def corridor(walkers):
