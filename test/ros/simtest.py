@@ -81,9 +81,10 @@ class LocalisationErrors:
         self.lock = threading.Lock()
         self.truth_t, self.truth_p = [], []
         self.estimates = []
-        self._subs = [rospy.Subscriber('/sim/ground_truth', Odometry, self._on_truth, queue_size=1000),
-                      rospy.Subscriber('/amcl_pose', PoseWithCovarianceStamped, self._on_estimate,
-                                       queue_size=1000)]
+        self._subs = [
+            rospy.Subscriber('/sim/ground_truth', Odometry, self._on_truth, queue_size=1000),
+            rospy.Subscriber('/amcl_pose', PoseWithCovarianceStamped, self._on_estimate,
+                             queue_size=1000)]
 
     def _on_truth(self, msg):
         with self.lock:
