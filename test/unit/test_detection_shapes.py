@@ -4,6 +4,7 @@ face: a centre bounded, not fixed, whose covariance covers it), a table's legs o
 person's two legs one object, and what moves between the scans at rest is moving, with its
 velocity, never static."""
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -216,6 +217,18 @@ def flat_run_scan(cut=False):
     if cut:
         r[edge[-1] + 1:edge[-1] + 8] = 1.5
     return r, -(n // 2) * inc, inc
+
+
+def test_a_scan_view_reads_error_codes_as_nothing_and_keeps_the_rest():
+    """A finite range below range_min (a Hokuyo's error code) says nothing (NaN); NaN, inf,
+    -inf (too close: something nearer) and every range from range_min on stay as given, with
+    no warning (older numpy warns when NaN is compared)."""
+    ranges = np.array([np.nan, 0.01, 0.03, 2.0, np.inf, -np.inf, 30.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        view = shapes.ScanView(ranges, -0.1, 0.01, (0.0, 0.0, 0.0), 25.0, 0.03)
+    np.testing.assert_array_equal(view.r, [np.nan, np.nan, 0.03, 2.0, np.inf, -np.inf, 30.0])
+    np.testing.assert_array_equal(view.ranges, ranges)
 
 
 @pytest.mark.parametrize('cut', [False, True])

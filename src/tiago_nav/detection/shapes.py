@@ -653,7 +653,10 @@ class ScanView:
     def __init__(self, ranges, angle_min, increment, laser_pose, range_max, range_min=0.0):
         self.ranges = np.asarray(ranges, dtype=float)
         self.r = self.ranges.copy()
-        self.r[np.isfinite(self.r) & (self.r < range_min)] = np.nan
+        # (compared only where finite: NaN < x warns on older numpy)
+        low = np.less(self.r, range_min, out=np.zeros(len(self.r), dtype=bool),
+                      where=np.isfinite(self.r))
+        self.r[low] = np.nan
         self.angle_min, self.inc = float(angle_min), float(increment)
         self.pose = tuple(float(v) for v in laser_pose)
         self.range_max = float(range_max)
