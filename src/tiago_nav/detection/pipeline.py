@@ -501,7 +501,7 @@ class ObstacleDetector:
                 sp, sb = np.vstack((sp, bp[ok])), np.concatenate((sb, back[ok]))
                 order = np.argsort(sb, kind='stable')
                 sp, sb = sp[order], sb[order]
-            others = _shape_detections(sp, sb, view, out, p)
+            others = _shape_detections(sp, sb, view, out, p, prior)
             out = out + others      # (after the small circles that joined them left out)
         return out, correction
 
@@ -703,14 +703,16 @@ def _discontinuity(r, ang, inc, rmin, rmax, laser_pose, p):
     return out
 
 
-def _shape_detections(points, beams, view, circles, p):
+def _shape_detections(points, beams, view, circles, p, common=0.0):
     """The :class:`Detection` s of what is not round (:func:`tiago_nav.detection.shapes.describe`
     on ``points``, map frame, the beams ``beams`` of the :class:`shapes.ScanView` ``view``); the
     small ``circles`` (an arc no wider than a leg, :data:`shapes.LEG_MAX_WIDTH`) that join a
     table's, a chair's or a person's legs become part of that ``legs`` object, and so does one
     of a person's leg's size alone (:func:`tiago_nav.detection.shapes.person_sized`: a person
     whose other leg is hidden); they are removed from ``circles``, in place. The others stay
-    circles."""
+    circles, and so does one alone that was fitted with the scan's ``common`` radius [m]
+    (wider than a calf) and whose arc something nearer cuts (:func:`shapes.arc_cut`): its
+    width is then only what the nearer thing left in view of a cylinder like the others."""
     sensor = np.array(view.pose[:2])
     small, extra = [], []
     for d in circles:
@@ -719,7 +721,10 @@ def _shape_detections(points, beams, view, circles, p):
         est = shapes.leg(d.points, sensor, view.inc, p.range_noise, round_checked=True)
         if est is not None:
             small.append(d)
-            extra.append((shapes.Leg(est[0], est[1], None, est[2], est[3]), d.points))
+            round_cut = (common > shapes.PERSON_LEG_RADIUS[1] and d.radius == common
+                         and shapes.arc_cut(d.points, view))
+            extra.append((shapes.Leg(est[0], est[1], None, est[2], est[3], round_cut),
+                          d.points))
     found, _ = shapes.describe(points, beams, view, p.range_noise, p.gap, extra)
     for s in found:
         for k in s.used:

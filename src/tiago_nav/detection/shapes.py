@@ -310,6 +310,9 @@ class Leg:
     index: np.ndarray
     var: float
     low: float = None       # [m] the least radius the arc allows (its points' half span)
+    round_cut: bool = False  # something nearer cuts its arc (:func:`arc_cut`) and a circle
+                             # of the scan's common radius fits it: alone, it is the part of a
+                             # cylinder like the others left in view, not a person's leg
 
     @property
     def least(self):
@@ -603,8 +606,9 @@ def pair_people(legs):
     """People: pairs of person-sized legs (:func:`person_sized`, seen by at least
     :data:`MIN_PERSON_LEG_POINTS` beams) at most
     :data:`PERSON_LEG_SPACING` apart, nearest pairs first (the least radius an arc allows, its
-    points' half span, must be a calf's: a beam spacing far away widens a table's leg too). Returns ``(pairs, singles)``, index
-    lists into ``legs``."""
+    points' half span, must be a calf's: a beam spacing far away widens a table's leg too), and
+    the person-sized legs left alone but those of :attr:`Leg.round_cut`. Returns
+    ``(pairs, singles)``, index lists into ``legs``."""
     n = len(legs)
     # a person's leg for sure: even the least radius its arc allows is a calf's (far away a
     # beam spacing widens a table's leg as much)
@@ -618,7 +622,8 @@ def pair_people(legs):
                 pairs.append((d, ok[a], ok[b]))
     out = _nearest_pairs(pairs)
     used = {i for pair in out for i in pair}
-    return out, [i for i in ok if i not in used]
+    # a cylinder half hidden behind a nearer one leaves an arc a calf's width in view
+    return out, [i for i in ok if i not in used and not legs[i].round_cut]
 
 
 def person_shape(legs, group):
@@ -695,6 +700,15 @@ class ScanView:
         widest = max(np.diff([lo] + past + [hi]).max(initial=0), 1)
         return bool(said[0] and said[-1] and widest * max(dist - radius, 0.0) * abs(self.inc)
                     < 2.0 * leg)
+
+    def beam_of(self, xy):
+        """Index of the beam nearest the bearing of each ``(N, 2)`` point [m] (outside
+        ``[0, len(ranges))`` where the fan does not reach it)."""
+        x, y, yaw = self.pose
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        b = np.arctan2(xy[:, 1] - y, xy[:, 0] - x) - yaw
+        b = np.arctan2(np.sin(b), np.cos(b))
+        return np.round((b - self.angle_min) / self.inc).astype(int)
 
     def end_seen(self, beam, step, dist):
         """Whether the object's edge at beam ``beam`` is a silhouette edge: the next beam
@@ -924,6 +938,27 @@ def _isolated(index, beams, points, sensor, view):
     b = np.asarray(beams)[index]
     d = float(np.max(np.hypot(*(points[index] - sensor).T)))
     return view.end_seen(int(b.min()), -1, d) and view.end_seen(int(b.max()), 1, d)
+
+
+def arc_cut(points, view):
+    """Whether something nearer cuts an end of the arc of ``(N, 2)`` points [m] (in the frame
+    of the :class:`ScanView` ``view``): the next beam outward at either end that has a range
+    (past up to two a filter dropped) hit more than 0.05 m nearer than the arc's nearest point.
+    The arc may then be the part of something wider that is left in view."""
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    b = view.beam_of(p)
+    d = float(np.min(np.hypot(*(p - np.array(view.pose[:2])).T)))
+    for j0, step in ((int(b.min()) - 1, -1), (int(b.max()) + 1, 1)):
+        for j in (j0, j0 + step, j0 + 2 * step):
+            if not 0 <= j < len(view.r):
+                break
+            v = float(view.r[j])
+            if v != v:
+                continue
+            if v < d - 0.05:
+                return True
+            break
+    return False
 
 
 def unknown(points):
