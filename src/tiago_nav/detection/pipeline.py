@@ -116,8 +116,8 @@ class DetectionParams:
         False, 'also report what is not round: boxes (rectangle, an L-shape fit), tables\' and '
         'chairs\' legs grouped into one object and people\'s legs (legs), and unknown (see '
         'tiago_nav.detection.shapes; off by default: it reads a cylinder half hidden behind '
-        'another as a person\'s leg (the course suite\'s centre RMS 2.7 cm, not 1.5), and its '
-        'targets are not met: docs/detection.md#shapes)')
+        'another of another radius as a person\'s leg (the course suite\'s centre RMS 2.2 cm, '
+        'not 1.5), and its targets are not met: docs/detection.md#shapes)')
     # the discontinuity method
     jump: float = param(0.15, '[m] discontinuity method: range jump between segments', ge=0)
     depth: float = param(0.2, '[m] discontinuity method: closest point pushed back this far', ge=0)
