@@ -45,6 +45,7 @@ MIN_FACE_LENGTH = 0.08             # [m] ... spanning at least this
 MAX_DEPTH = 1.0                    # [m] a box seen on one face: its depth is within (0, this]
 LEG_MAX_WIDTH = 0.25               # [m] a cluster narrower than this may be one leg
 FREE_MARGIN = 0.15                 # [m] a beam this far behind a point went past it
+NEARER = 0.05                      # [m] a beam beside a run this much nearer hit what hides it
 FACE_INCIDENCE = math.radians(10.0)   # a box's face seen at this angle to the beams or more
 
 
@@ -920,17 +921,25 @@ def _stands_apart(index, beams, points, sensor, view, hidden=True):
     wall's end seen edge-on)."""
     b = np.asarray(beams)[index]
     d = float(np.min(np.hypot(*(points[index] - sensor).T)))
-    for j0, step in ((int(b.min()) - 1, -1), (int(b.max()) + 1, 1)):
-        for j in (j0, j0 + step):
+    return all(v is None or (hidden and v < d - NEARER) or v > d + FREE_MARGIN
+               for v in _beside(b, view, 2))
+
+
+def _beside(beams, view, look):
+    """The range [m] of the first beam outside the run of beam indices ``beams`` on each side
+    that has one, looking ``look`` beams out (past those a filter dropped); None on a side
+    where there is none, or the scan ends."""
+    out = []
+    for j0, step in ((int(np.min(beams)) - 1, -1), (int(np.max(beams)) + 1, 1)):
+        v = None
+        for j in range(j0, j0 + look * step, step):
             if not 0 <= j < len(view.r):
                 break
-            v = float(view.r[j])
-            if v != v:
-                continue
-            if not ((hidden and v < d - 0.05) or v > d + FREE_MARGIN):
-                return False
-            break
-    return True
+            if view.r[j] == view.r[j]:
+                v = float(view.r[j])
+                break
+        out.append(v)
+    return out
 
 
 def _isolated(index, beams, points, sensor, view):
@@ -943,22 +952,11 @@ def _isolated(index, beams, points, sensor, view):
 def arc_cut(points, view):
     """Whether something nearer cuts an end of the arc of ``(N, 2)`` points [m] (in the frame
     of the :class:`ScanView` ``view``): the next beam outward at either end that has a range
-    (past up to two a filter dropped) hit more than 0.05 m nearer than the arc's nearest point.
-    The arc may then be the part of something wider that is left in view."""
+    (past up to two a filter dropped) hit more than :data:`NEARER` nearer than the arc's nearest
+    point. The arc may then be the part of something wider that is left in view."""
     p = np.asarray(points, dtype=float).reshape(-1, 2)
-    b = view.beam_of(p)
     d = float(np.min(np.hypot(*(p - np.array(view.pose[:2])).T)))
-    for j0, step in ((int(b.min()) - 1, -1), (int(b.max()) + 1, 1)):
-        for j in (j0, j0 + step, j0 + 2 * step):
-            if not 0 <= j < len(view.r):
-                break
-            v = float(view.r[j])
-            if v != v:
-                continue
-            if v < d - 0.05:
-                return True
-            break
-    return False
+    return any(v is not None and v < d - NEARER for v in _beside(view.beam_of(p), view, 3))
 
 
 def unknown(points):
