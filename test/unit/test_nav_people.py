@@ -43,6 +43,35 @@ def test_free_space_is_seen_beyond_only_where_every_beam_near_the_point_passed()
     assert not free.seen_beyond(np.array([[4.0, 0.0]]), 0.1, max_gap=0.01)[0]
 
 
+def test_the_witnesses_together_say_what_each_says_alone():
+    # MovedMarks.seen_free weighs all witnesses at once: it must say exactly what asking each
+    # one (MapScan.seen_beyond) says, over scans of several sizes, beam spacings and
+    # directions with invalid, too-close and no-return beams, as the witnesses come and go
+    rng = np.random.default_rng(4)
+    marks = MovedMarks(grid(), memory=3.0, keep_every=1.0)
+    said = 0
+    for t in range(12):
+        n = int(rng.integers(40, 800))
+        inc = float(rng.choice([-1.0, 1.0]) * rng.uniform(0.002, 0.012))
+        r = np.repeat(rng.uniform(0.3, 6.0, n // 30 + 1), 30)[:n]     # surfaces 30 beams wide
+        r[rng.random(n) < 0.01] = np.nan
+        r[rng.random(n) < 0.01] = 0.01
+        r[rng.random(n) < 0.02] = np.inf
+        r[rng.random(n) < 0.005] = -np.inf
+        pose = (float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)), float(rng.uniform(-3, 3)))
+        scan = MapScan(pose, r, -inc * n / 2, inc, 0.05, 5.5, float(t))
+        for margin, gap in ((0.1, 0.02), (0.1, None), (0.05, 0.05)):
+            marks.margin, marks.max_gap = margin, gap
+            xy = rng.uniform(-4.0, 4.0, (300, 2))
+            want = np.zeros(len(xy), dtype=bool)
+            for w in marks.witnesses:
+                want |= w.seen_beyond(xy, margin, gap)
+            assert marks.seen_free(xy, float(t) + 0.5).tolist() == want.tolist()
+            said += int(want.sum())
+        marks.update(scan)
+    assert said > 100, said
+
+
 def grid(size=10.0):
     n = int(size / 0.05)
     return GridMap(np.zeros((n, n), dtype=np.int8), 0.05, (-size / 2, -size / 2))

@@ -148,35 +148,75 @@ class MapScan:
         n = len(self.ranges)
         if n == 0 or len(xy) == 0:
             return np.zeros(len(xy), dtype=bool)
-        x, y, yaw = self.laser_pose
-        inc = abs(self.angle_increment) or 1.0
-        dx, dy = xy[:, 0] - x, xy[:, 1] - y
-        d = np.hypot(dx, dy)
-        rel = np.mod((np.arctan2(dy, dx) - yaw - self.angle_min) * np.sign(self.angle_increment
-                                                                           or 1.0), 2 * np.pi)
+        d, rel = bearings(xy, self.laser_pose, self.angle_min, self.angle_increment or 1.0)
+        return seen_past(self.reach_ends, self.valid_ends, 0, n, d, rel,
+                         abs(self.angle_increment) or 1.0, margin, max_gap)
+
+    @cached_property
+    def reach_ends(self):
+        """:attr:`_reach` with a sentinel after the last beam (-inf: reduceat's last bound,
+        and no beam reaches past a point outside the fan)."""
+        return np.append(self._reach, -np.inf)
+
+    @cached_property
+    def valid_ends(self):
+        """Per beam 1 where it is not invalid, then a 0 sentinel (as :attr:`reach_ends`)."""
+        return np.append(self.kinds != INVALID, False).astype(int)
+
+
+def bearings(xy, laser_pose, angle_min, angle_increment):
+    """``(distance [m], angle [rad] from the first beam counted in the scan's direction of
+    rotation, in [0, 2 pi))`` of ``(N, 2)`` map points from a laser at ``laser_pose`` ``(x, y,
+    yaw)`` in ``map``. The pose's values and the angles may also be ``(W, 1)`` arrays, one row
+    per scan: then both are ``(W, N)``."""
+    x, y, yaw = laser_pose
+    dx, dy = xy[:, 0] - x, xy[:, 1] - y
+    rel = np.mod((np.arctan2(dy, dx) - yaw - angle_min) * np.sign(angle_increment), 2 * np.pi)
+    return np.hypot(dx, dy), rel
+
+
+def seen_past(reach, valid, offset, n, d, rel, inc, margin, max_gap=None):
+    """:meth:`MapScan.seen_beyond` over pairs of a scan and a point, several scans at once:
+    ``reach`` and ``valid``, flat, hold each scan's :attr:`MapScan.reach_ends` and
+    :attr:`MapScan.valid_ends` from index ``offset`` on; per pair (arrays of one shape, or
+    scalars) the scan's ``offset``, number of beams ``n`` and beam spacing ``inc`` [rad], and
+    the point's distance ``d`` [m] and angle ``rel`` [rad] from :func:`bearings`. Boolean per
+    pair."""
+    d, rel = np.asarray(d, dtype=float), np.asarray(rel, dtype=float)
+    shape = d.shape
+    offset, n, inc = (np.broadcast_to(v, shape).ravel() for v in (offset, n, inc))
+    d, rel = d.ravel(), rel.ravel()
+    out = np.zeros(d.size, dtype=bool)
+    # first the beam nearest the point's bearing, which every window below holds: where it
+    # stopped within the margin beyond the point (most points: the thing the point lies on
+    # stood there then too), nothing else needs looking at
+    ok = reach[offset + np.minimum(np.round(rel / inc).astype(int), n)] > d + margin
+    if max_gap is not None:
+        ok &= d * inc <= max_gap
+    cand = np.flatnonzero(ok)
+    if len(cand):
+        offset, n, inc, d, rel = offset[cand], n[cand], inc[cand], d[cand], rel[cand]
         half = np.arctan2(margin, np.maximum(d, 1e-9))
         lo = np.floor((rel - half) / inc).astype(int)
         hi = np.ceil((rel + half) / inc).astype(int) + 1
-        inside = (lo >= 0) & (hi <= n)
-        if max_gap is not None:
-            inside &= d * inc <= max_gap
-        out = np.zeros(len(xy), dtype=bool)
-        if inside.any():
-            reach = np.append(self._reach, -np.inf)    # a sentinel for reduceat's last bound
-            valid = np.append(self.kinds != INVALID, False).astype(int)
-            bounds = np.column_stack((lo[inside], hi[inside])).ravel()
+        inside = np.flatnonzero((lo >= 0) & (hi <= n))
+        if len(inside):
+            offset, n, inc, d, rel, half, lo, hi = (v[inside] for v in (offset, n, inc, d, rel,
+                                                                         half, lo, hi))
+            bounds = np.column_stack((offset + lo, offset + hi)).ravel()
             least = np.minimum.reduceat(reach, bounds)[::2]
             said = np.add.reduceat(valid, bounds)[::2]
             # the beams within half the margin of the point's bearing (three at least) must all
             # have said something: a thin object whose one beam came back invalid (a mixed
             # pixel), or an edge beside beams the robot's body hid, was not seen through
-            core = np.maximum(half[inside] / 2, 1.5 * inc)
-            c_lo = np.maximum(np.floor((rel[inside] - core) / inc).astype(int), 0)
-            c_hi = np.minimum(np.ceil((rel[inside] + core) / inc).astype(int) + 1, n)
-            core_said = np.add.reduceat(valid, np.column_stack((c_lo, c_hi)).ravel())[::2]
-            out[inside] = (least > d[inside] + margin) & (2 * said >= hi[inside] - lo[inside]) \
+            core = np.maximum(half / 2, 1.5 * inc)
+            c_lo = np.maximum(np.floor((rel - core) / inc).astype(int), 0)
+            c_hi = np.minimum(np.ceil((rel + core) / inc).astype(int) + 1, n)
+            core_said = np.add.reduceat(valid, np.column_stack((offset + c_lo,
+                                                                offset + c_hi)).ravel())[::2]
+            out[cand[inside]] = (least > d + margin) & (2 * said >= hi - lo) \
                 & (core_said == c_hi - c_lo)
-        return out
+    return out.reshape(shape)
 
 
 def inflate(occupied, resolution, robot_radius, inflation_radius, cost_scaling_factor):

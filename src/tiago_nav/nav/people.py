@@ -20,6 +20,8 @@ from collections import deque
 import numpy as np
 from scipy.spatial import cKDTree
 
+from tiago_nav.nav.costmap import bearings, seen_past
+
 
 class MovedMarks:
     """Per scan (:meth:`update`), which of its obstacle points are a person's.
@@ -45,6 +47,7 @@ class MovedMarks:
         self.until = np.full(grid.shape, -np.inf)     # [s] a cell is a person's until then
         self.latest = -np.inf                         # [s] the latest of them
         self.witnesses = deque()
+        self._stack = None                            # the witnesses' beams as arrays (seen_free)
 
     def update(self, scan):
         """``(M,)`` bool over ``scan.obstacles[0]`` (a
@@ -62,10 +65,7 @@ class MovedMarks:
             idx = np.flatnonzero(inb)
             idx = idx[g.distance_field()[rc[idx, 0], rc[idx, 1]] > self.map_margin]
             if len(idx):
-                moved = np.zeros(len(idx), dtype=bool)
-                for w in self.witnesses:
-                    if w.stamp < t:
-                        moved |= w.seen_beyond(pts[idx], self.margin, self.max_gap)
+                moved = self.seen_free(pts[idx], t)
                 moved[moved] = self._together(pts[idx][moved])
                 cells = rc[idx]
                 held = self.until[cells[:, 0], cells[:, 1]] >= t
@@ -74,6 +74,33 @@ class MovedMarks:
         if not self.witnesses or t - self.witnesses[-1].stamp >= self.keep_every:
             self.witnesses.append(scan)
         return person
+
+    def seen_free(self, xy, t):
+        """Boolean per ``(N, 2)`` map point: did a witness older than ``t`` [s] see free space
+        there (:meth:`~tiago_nav.nav.costmap.MapScan.seen_beyond` with :attr:`margin` and
+        :attr:`max_gap`)? All witnesses at once (:func:`~tiago_nav.nav.costmap.seen_past`):
+        their beams are stacked once per change of witnesses."""
+        ws = [w for w in self.witnesses if w.stamp < t and len(w.ranges)]
+        if not ws or not len(xy):
+            return np.zeros(len(xy), dtype=bool)
+        key = tuple(map(id, ws))                      # alive while the stack holds ws
+        if self._stack is None or self._stack[0] != key:
+            n = np.array([len(w.ranges) for w in ws])
+            width = n.max() + 1
+            reach = np.full((len(ws), width), -np.inf)
+            valid = np.zeros((len(ws), width), dtype=int)
+            for k, w in enumerate(ws):
+                reach[k, :n[k] + 1] = w.reach_ends
+                valid[k, :n[k] + 1] = w.valid_ends
+            pose = np.array([w.laser_pose for w in ws], dtype=float)
+            beams = np.array([(w.angle_min, w.angle_increment or 1.0) for w in ws])
+            offset = (np.arange(len(ws)) * width)[:, None]
+            self._stack = (key, ws, reach.ravel(), valid.ravel(), offset, n[:, None],
+                           (pose[:, :1], pose[:, 1:2], pose[:, 2:]), beams[:, :1], beams[:, 1:])
+        _, _, reach, valid, offset, n, pose, a0, inc = self._stack
+        d, rel = bearings(xy, pose, a0, inc)
+        return seen_past(reach, valid, offset, n, d, rel, np.abs(inc), self.margin,
+                         self.max_gap).any(axis=0)
 
     def held(self, cells, t):
         """Boolean per ``(N, 2)`` grid cell ``(row, col)``: a person's at time ``t`` [s]."""
