@@ -448,7 +448,7 @@ class ObstacleDetector:
                                 (max(radii) - min(radii)) / 2.0)
             elif len(good) == 1 and p.single_radius_std > 0:
                 soft = (radii[0], p.single_radius_std)
-        out = []
+        out, shared = [], []        # shared: the circles fitted with that common radius
         for c, cx, cy, rad, rms, std, passing, margin in cands:
             cov = None
             if method == 'centroid':
@@ -473,6 +473,7 @@ class ObstacleDetector:
                     cov = circle_covariance(
                         c, cx, cy, rad, fixed=p.obstacle_radius > 0,
                         radius_prior=None if p.obstacle_radius > 0 else (prior, known))
+                    shared.append(len(out))
             elif soft is not None and std > p.max_radius_std:
                 fx, fy, frad, frms = circle_fit(c, 0.0, sensor, passing, margin,
                                                 radius_prior=soft, noise=p.range_noise)
@@ -501,7 +502,7 @@ class ObstacleDetector:
                 sp, sb = np.vstack((sp, bp[ok])), np.concatenate((sb, back[ok]))
                 order = np.argsort(sb, kind='stable')
                 sp, sb = sp[order], sb[order]
-            others = _shape_detections(sp, sb, view, out, p, prior)
+            others = _shape_detections(sp, sb, view, out, p, prior, [out[k] for k in shared])
             out = out + others      # (after the small circles that joined them left out)
         return out, correction
 
@@ -703,7 +704,7 @@ def _discontinuity(r, ang, inc, rmin, rmax, laser_pose, p):
     return out
 
 
-def _shape_detections(points, beams, view, circles, p, common=0.0):
+def _shape_detections(points, beams, view, circles, p, common=0.0, shared=()):
     """The :class:`Detection` s of what is not round (:func:`tiago_nav.detection.shapes.describe`
     on ``points``, map frame, the beams ``beams`` of the :class:`shapes.ScanView` ``view``); the
     small ``circles`` (an arc no wider than a leg, :data:`shapes.LEG_MAX_WIDTH`) that join a
@@ -711,8 +712,9 @@ def _shape_detections(points, beams, view, circles, p, common=0.0):
     of a person's leg's size alone (:func:`tiago_nav.detection.shapes.person_sized`: a person
     whose other leg is hidden); they are removed from ``circles``, in place. The others stay
     circles, and so does one alone that was fitted with the scan's ``common`` radius [m]
-    (wider than a calf) and whose arc something nearer cuts (:func:`shapes.arc_cut`): its
-    width is then only what the nearer thing left in view of a cylinder like the others."""
+    (wider than a calf; ``shared``: the circles so fitted) and whose arc something nearer cuts
+    (:func:`shapes.arc_cut`): its width is then only what the nearer thing left in view of a
+    cylinder like the others."""
     sensor = np.array(view.pose[:2])
     small, extra = [], []
     for d in circles:
@@ -721,7 +723,7 @@ def _shape_detections(points, beams, view, circles, p, common=0.0):
         est = shapes.leg(d.points, sensor, view.inc, p.range_noise, round_checked=True)
         if est is not None:
             small.append(d)
-            round_cut = (common > shapes.PERSON_LEG_RADIUS[1] and d.radius == common
+            round_cut = (common > shapes.PERSON_LEG_RADIUS[1] and any(d is e for e in shared)
                          and shapes.arc_cut(d.points, view))
             extra.append((shapes.Leg(est[0], est[1], None, est[2], est[3], round_cut),
                           d.points))
