@@ -103,11 +103,8 @@ class MapScan:
         beam (the laser cannot vouch for it being free)? Points outside the fan: False."""
         if len(self.ranges) == 0 or len(xy) == 0:
             return np.zeros(len(xy), dtype=bool)
-        x, y, yaw = self.laser_pose
         inc = self.angle_increment or 1.0
-        # angle from the first beam, counted in the scan's direction of rotation, in [0, 2 pi)
-        rel = np.mod((np.arctan2(xy[:, 1] - y, xy[:, 0] - x) - yaw - self.angle_min) * np.sign(inc),
-                     2 * np.pi)
+        _, rel = bearings(xy, self.laser_pose, self.angle_min, inc)
         i = np.round(rel / abs(inc)).astype(int)
         inside = (i >= 0) & (i < len(self.ranges))
         out = np.zeros(len(xy), dtype=bool)
