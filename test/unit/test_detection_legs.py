@@ -81,6 +81,30 @@ def test_two_legs_side_by_side_in_one_run_are_split_into_a_person():
     assert len(people) == 1 and len(people[0].legs) == 2, [(d.shape, d.note) for d in found]
 
 
+@pytest.mark.parametrize('heading,dist,seed', [(75, 0.7, 1), (75, 1.2, 0), (105, 0.9, 1),
+                                               (60, 1.0, 0), (120, 1.5, 2)])
+def test_a_walker_seen_from_the_side_is_one_person_with_the_back_legs_sliver(heading, dist, seed):
+    # a walker standing 0.2 m wide, seen nearly side on: the front leg hides all but a sliver
+    # of the back one (too narrow for a calf on its own), among cylinders of one radius
+    h = math.radians(heading)
+    legs = [(dist - 0.1 * math.sin(h), 0.1 * math.cos(h), 0.06),
+            (dist + 0.1 * math.sin(h), -0.1 * math.cos(h), 0.06)]
+    angles = -math.pi / 2 + math.radians(0.25) * np.arange(720)
+    r = cast(legs + [(2.5, 1.5, 0.2), (2.5, -1.5, 0.2), (1.0, -2.0, 0.2)], angles, 0.01, seed)
+    det = ObstacleDetector(empty_grid(), DetectionParams(correct_pose=False, shapes=True))
+    found = det.detect(r, -math.pi / 2, math.radians(0.25), 0.02, 5.6, (0.0, 0.0, 0.0))
+    near = [d for d in found if math.hypot(d.center[0] - dist, d.center[1]) < 0.5]
+    assert [(d.shape, d.kind, len(d.legs)) for d in near] == [('legs', 'person', 2)], \
+        [(d.shape, d.radius, d.note) for d in near]
+    # the person's centre between the legs; the sliver's leg is placed at what is seen of it,
+    # up to a calf's radius in front of its centre
+    assert math.hypot(near[0].center[0] - dist, near[0].center[1]) < 0.05
+    for x, y, _ in legs:
+        assert min(math.hypot(x - lx, y - ly) for lx, ly in near[0].legs) < 0.08
+    # the cylinders stay circles
+    assert sorted(d.shape for d in found if d not in near) == ['circle'] * 3
+
+
 def test_a_board_or_a_wide_cylinder_is_no_pair_of_legs():
     angles = np.linspace(-0.1, 0.1, 60)
     # a flat board 0.4 m wide at 2 m: no notch

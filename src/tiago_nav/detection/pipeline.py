@@ -723,9 +723,10 @@ def _shape_detections(points, beams, view, circles, p, common=0.0, shared=()):
         est = shapes.leg(d.points, sensor, view.inc, p.range_noise, round_checked=True)
         if est is not None:
             small.append(d)
-            round_cut = (common > shapes.PERSON_LEG_RADIUS[1] and any(d is e for e in shared)
-                         and shapes.arc_cut(d.points, view))
-            extra.append((shapes.Leg(est[0], est[1], None, est[2], est[3], round_cut),
+            cut = shapes.arc_cut(d.points, view)
+            round_cut = (cut and common > shapes.PERSON_LEG_RADIUS[1]
+                         and any(d is e for e in shared))
+            extra.append((shapes.Leg(est[0], est[1], None, est[2], est[3], round_cut, cut),
                           d.points))
     found, _ = shapes.describe(points, beams, view, p.range_noise, p.gap, extra)
     for s in found:

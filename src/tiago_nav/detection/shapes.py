@@ -314,6 +314,8 @@ class Leg:
     round_cut: bool = False  # something nearer cuts its arc (:func:`arc_cut`) and a circle
                              # of the scan's common radius fits it: alone, it is the part of a
                              # cylinder like the others left in view, not a person's leg
+    cut: bool = False       # something nearer cuts its arc (:func:`arc_cut`): its width is
+                            # only the part left in view
 
     @property
     def least(self):
@@ -603,12 +605,15 @@ def _nearest_pairs(pairs):
     return out
 
 
-def pair_people(legs):
+def pair_people(legs, sensor=None):
     """People: pairs of person-sized legs (:func:`person_sized`, seen by at least
     :data:`MIN_PERSON_LEG_POINTS` beams) at most
     :data:`PERSON_LEG_SPACING` apart, nearest pairs first (the least radius an arc allows, its
     points' half span, must be a calf's: a beam spacing far away widens a table's leg too), and
-    the person-sized legs left alone but those of :attr:`Leg.round_cut`. Returns
+    the person-sized legs left alone but those of :attr:`Leg.round_cut`. With the ``sensor``'s
+    position [m], a leg too narrow for a calf whose arc something nearer cuts (:attr:`Leg.cut`)
+    pairs with a person-sized leg nearer to the sensor within the spacing: a walker's back leg
+    of which the front one leaves a sliver in view (it is never a person alone). Returns
     ``(pairs, singles)``, index lists into ``legs``."""
     n = len(legs)
     # a person's leg for sure: even the least radius its arc allows is a calf's (far away a
@@ -621,6 +626,16 @@ def pair_people(legs):
             d = float(np.hypot(*(legs[ok[a]].center - legs[ok[b]].center)))
             if d <= PERSON_LEG_SPACING:
                 pairs.append((d, ok[a], ok[b]))
+    if sensor is not None:
+        sliver = [i for i in range(n) if i not in ok and legs[i].cut
+                  and legs[i].radius <= PERSON_LEG_RADIUS[1]
+                  and (legs[i].index is None or len(legs[i].index) >= MIN_PERSON_LEG_POINTS)]
+        for i in sliver:
+            behind = float(np.hypot(*(legs[i].center - sensor)))
+            for j in ok:
+                d = float(np.hypot(*(legs[i].center - legs[j].center)))
+                if d <= PERSON_LEG_SPACING and float(np.hypot(*(legs[j].center - sensor))) < behind:
+                    pairs.append((d, j, i))
     out = _nearest_pairs(pairs)
     used = {i for pair in out for i in pair}
     # a cylinder half hidden behind a nearer one leaves an arc a calf's width in view
@@ -768,7 +783,8 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
                 if found is not None and not person_sized(found[1], found[3]):
                     found = None
             if found is not None:
-                legs.append(Leg(found[0], found[1], seg, found[2], found[3]))
+                legs.append(Leg(found[0], found[1], seg, found[2], found[3],
+                                cut=arc_cut(q, view)))
                 continue
         elif span <= PERSON_PAIR_WIDTH and _stands_apart(seg, beams, p, sensor, view):
             two = split_pair(q, sensor, view.inc, noise)
@@ -806,7 +822,7 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
         s.used = used_of(idx)
         out.append(s)
     rest = [i for i in range(len(legs)) if i not in grouped]
-    pairs, singles = pair_people([legs[i] for i in rest])
+    pairs, singles = pair_people([legs[i] for i in rest], sensor)
     done = set()
     for g in pairs + [[s] for s in singles]:
         idx = [rest[i] for i in g]
