@@ -81,12 +81,17 @@ class WarmReset(unittest.TestCase):
         self.assertEqual(len({(s['seed'], tuple(s['goal'])) for s in specs}), 3)
         self.assertEqual([s['use_corridor_law'] for s in specs], [True, False, True])
         warm = run_group(specs, self.out, verify_reset=1)
-        why = [(r['outcome'], r.get('reason'), r.get('reset_failed'), r.get('diverged'),
-                r.get('verify_error')) for r in warm]
+        # a diverged row carries the fresh run's outcome and reason: the warm run's (after the
+        # reset) are only in its reset_result, which the message must show to tell a warm run
+        # that stalled to its wall limit from one that merely differed
+        why = [{'outcome': r['outcome'], 'reason': r.get('reason'),
+                'reset_failed': r.get('reset_failed'), 'diverged': r.get('diverged'),
+                'reset_result': r.get('reset_result'), 'verify_error': r.get('verify_error')}
+               for r in warm]
         self.assertEqual([r.get('stack') for r in warm], ['fresh', 'reset', 'reset'], why)
         self.assertEqual([r.get('verified') for r in warm], [None, True, True], why)
         for s, w in zip(specs, warm):
-            self.assertEqual(w['outcome'], 'succeeded', w.get('reason'))
+            self.assertEqual(w['outcome'], 'succeeded', (w.get('reason'), why))
             self.assertEqual(w['collisions'], 0)
             self.assertGreater(w['phases']['mission']['wall_s'], 0)
             self.assertGreater(w['loc_samples'], 50)
@@ -104,8 +109,8 @@ class WarmReset(unittest.TestCase):
             f = R.read_json(os.path.join(self.out, 'verify', 'runs', s['id'], 'result.json'))
             self.assertEqual(f['outcome'], 'succeeded', f.get('reason'))
             self.assertNotEqual(f['port'], w['port'])
-            self.assertEqual(R.differences(w, f), [], 'row %s (seed %d, B %s)'
-                             % (s['id'], s['seed'], s['goal']))
+            self.assertEqual(R.differences(w, f), [], 'row %s (seed %d, B %s): %s'
+                             % (s['id'], s['seed'], s['goal'], why))
 
     def test_a_reset_fault_is_reported(self):
         suite = os.path.join(self.out, 'leak.yaml')
