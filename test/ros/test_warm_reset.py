@@ -18,9 +18,11 @@ reset (``TIAGO_NAV_TEST_RESET_LEAK=laser_noise``: its laser noise goes on from t
 generator instead of starting from the seed): the reset row must be counted as diverged in
 ``summary.json`` and ``summary.md``, keep that verdict (no retry: its first attempt) and make the
 command exit with status 3."""
+import glob
 import json
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -67,6 +69,23 @@ def rows():
             pick[(tuple(poses[2]), 3, True)]]
 
 
+def stack_logs(out, lines=30):
+    """The end of each warm stack's rosout log (topic lists left out) and supervisor log under
+    ``out``: where a warm run that stalled stood, for a failure message (the folder itself is
+    removed after the test unless TIAGO_NAV_KEEP is set)."""
+    text = []
+    for stack in sorted(glob.glob(os.path.join(out, 'stacks', '*'))):
+        for name in ('logs/latest/rosout.log', 'supervisor.log'):
+            try:
+                with open(os.path.join(stack, name)) as f:
+                    tail = f.readlines()[-lines:]
+            except OSError:
+                continue
+            text.append('--- %s/%s' % (os.path.basename(stack), name))
+            text += [re.sub(r' \[topics: [^]]*\]', '', ln.rstrip()) for ln in tail]
+    return '\n'.join(text)
+
+
 class WarmReset(unittest.TestCase):
     def setUp(self):
         self.out = tempfile.mkdtemp(prefix='tiago_nav_warm_reset_')
@@ -84,14 +103,19 @@ class WarmReset(unittest.TestCase):
         # a diverged row carries the fresh run's outcome and reason: the warm run's (after the
         # reset) are only in its reset_result, which the message must show to tell a warm run
         # that stalled to its wall limit from one that merely differed
-        why = [{'outcome': r['outcome'], 'reason': r.get('reason'),
-                'reset_failed': r.get('reset_failed'), 'diverged': r.get('diverged'),
-                'reset_result': r.get('reset_result'), 'verify_error': r.get('verify_error')}
-               for r in warm]
+        why = '\n'.join(json.dumps({
+            'id': r['run_id'], 'stack': r.get('stack'), 'outcome': r['outcome'],
+            'reason': r.get('reason'), 'run_wall_s': r.get('run_wall_s'),
+            'reset_failed': r.get('reset_failed'), 'diverged': r.get('diverged'),
+            'reset_result': r.get('reset_result'), 'verify_error': r.get('verify_error')})
+            for r in warm)
+        if any(r.get('diverged') or r.get('reset_failed') or r['outcome'] != 'succeeded'
+               for r in warm):
+            why += '\n' + stack_logs(self.out)
         self.assertEqual([r.get('stack') for r in warm], ['fresh', 'reset', 'reset'], why)
         self.assertEqual([r.get('verified') for r in warm], [None, True, True], why)
         for s, w in zip(specs, warm):
-            self.assertEqual(w['outcome'], 'succeeded', (w.get('reason'), why))
+            self.assertEqual(w['outcome'], 'succeeded', '%s\n%s' % (w.get('reason'), why))
             self.assertEqual(w['collisions'], 0)
             self.assertGreater(w['phases']['mission']['wall_s'], 0)
             self.assertGreater(w['loc_samples'], 50)
