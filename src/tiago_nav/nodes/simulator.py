@@ -233,6 +233,9 @@ class SimulatorNode:
         self._reset_to = None           # the Params of a reset :meth:`run` is asked to make
         self._reset_done = threading.Event()
         self._reset_error = None
+        # held while a reset is asked for and while :meth:`run` takes it: the step loop never
+        # takes a reset before the hold was interrupted for it (see :meth:`request_reset`)
+        self._reset_lock = threading.Lock()
 
     # --- inputs ---------------------------------------------------------------------------
     def on_cmd_vel(self, msg):
@@ -448,17 +451,23 @@ class SimulatorNode:
         """From another thread (the reset service): asks :meth:`run` to :meth:`reset` with
         ``params`` at its next step and waits up to ``timeout`` [s wall]. Returns None when
         done, else what went wrong (a sentence)."""
-        self._reset_done.clear()
-        self._reset_error = None
-        self._reset_to = params
-        if self.lockstep is not None:
-            self.lockstep.interrupt()
+        # asking and interrupting are one step for the step loop: one that took the reset in
+        # between (it runs free while nobody takes part, as after the nodes' stops) cleared
+        # the interrupt in its reset before it came, and the interrupt left over then ended
+        # the loop at its next hold, and the node (a warm stack's launch with it)
+        with self._reset_lock:
+            self._reset_done.clear()
+            self._reset_error = None
+            self._reset_to = params
+            if self.lockstep is not None:
+                self.lockstep.interrupt()
         if not self._reset_done.wait(timeout):
             return 'the simulator did not reset within %g s of wall time' % timeout
         return self._reset_error
 
     def _take_reset(self):
-        params, self._reset_to = self._reset_to, None
+        with self._reset_lock:          # (the hold's interrupt for it is out: the reset clears it)
+            params, self._reset_to = self._reset_to, None
         try:
             self.reset(params)
         except (ParamError, WorldError, ValueError) as e:
