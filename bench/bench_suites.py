@@ -32,6 +32,7 @@ import argparse
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -56,8 +57,20 @@ def run_suite(suite, out, workers):
     """``rosrun tiago_nav evaluate SUITE --out OUT --workers N``: wall seconds (raises when the
     evaluator says a run has no result)."""
     t0 = time.monotonic()
-    subprocess.run(['rosrun', 'tiago_nav', 'evaluate', suite, '--out', out, '--workers', str(workers)],
-                   cwd=ROOT, check=True)
+    cmd = ['rosrun', 'tiago_nav', 'evaluate', suite, '--out', out, '--workers', str(workers)]
+    p = subprocess.Popen(cmd, cwd=ROOT)
+    try:
+        rc = p.wait()
+    finally:    # this benchmark stopped (Ctrl-C, SIGTERM): the evaluator and its runs stop too
+        if p.poll() is None:
+            p.terminate()
+            try:
+                p.wait(60.0)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+    if rc:
+        raise subprocess.CalledProcessError(rc, cmd)
     return time.monotonic() - t0
 
 
@@ -156,6 +169,7 @@ def main():
                                    'folder, removed)')
     ap.add_argument('--out', default=os.path.join(RESULTS, 'suites.json'))
     args = ap.parse_args()
+    signal.signal(signal.SIGTERM, lambda signum, _frame: sys.exit(128 + signum))
     sources = dict(s.split('=', 1) for s in args.sources)
     tmp = args.keep or tempfile.mkdtemp(prefix='bench_suites_')
     out = {'target_rate': TARGET, 'suites': {}}
