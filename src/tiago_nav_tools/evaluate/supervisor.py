@@ -31,6 +31,7 @@ STARTED_MARK = '__tiago_nav_eval__'
 LOC_SAMPLES_PER_S = 10      # localisation error: one sample per 0.1 s of simulated time
 LOC_TAIL = 0.5              # [s sim] the last samples before the result, which tf may not reach
 END_WAIT = 10.0             # [s wall] the longest wait for the mission's last messages
+STILL_SAY = 10.0            # [s wall] simulated time standing still this long in a mission is logged
 LOC_POSE_TOPIC = '/amcl_pose'   # the localisation's estimate with its covariance
 
 
@@ -69,6 +70,37 @@ def mission_over(client, ended_since, now):
         return False, None
     ended_since = now if ended_since is None else ended_since
     return now - ended_since > END_WAIT, ended_since
+
+
+class ClockWatch:
+    """Watches simulated time during a mission against the wall clock: how long [s wall] it has
+    stood still, said once per stand-still of :data:`STILL_SAY` or more (in lockstep it stands
+    still while no node works, e.g. a goal nobody received), and whether the mission has used
+    up ``wall_limit`` [s wall]."""
+
+    def __init__(self, sim, wall, wall_limit):
+        self.start, self.limit = wall, wall_limit
+        self.sim, self.since = sim, wall
+        self.said = False
+
+    def update(self, sim, wall):
+        """Simulated time ``sim`` [s] at wall time ``wall`` [s]: a sentence to log when it has
+        just stood still for :data:`STILL_SAY` (else None)."""
+        if sim != self.sim:
+            self.sim, self.since, self.said = sim, wall, False
+            return None
+        if self.said or wall - self.since < STILL_SAY:
+            return None
+        self.said = True
+        return 'simulated time has stood still at %.3f s for %.0f s of wall time' % (sim, wall - self.since)
+
+    def over(self, wall):
+        """Has the mission used up its wall limit: None, or why it ends."""
+        if wall - self.start <= self.limit:
+            return None
+        still = wall - self.since
+        return 'no result within %g s of wall time (wall_time_limit; simulated time %.3f s%s)' % (
+            self.limit, self.sim, ', standing still for the last %.0f s' % still if still >= STILL_SAY else '')
 
 
 class Infra(Exception):
@@ -397,6 +429,7 @@ class Supervisor:
         import actionlib
         import rospy
         import tf2_ros
+        from actionlib import SimpleGoalState
         from actionlib_msgs.msg import GoalStatus
         from tiago_nav.msg import TiagoTaskAction, TiagoTaskActionFeedback, TiagoTaskGoal
         from tiago_nav.ros.actions import wait_server
@@ -430,16 +463,28 @@ class Supervisor:
             self.loc_cov, self.loc_cov_on = [], True
             self.truth_log, self.walker_log, self.people_on = [], [], True
         client.send_goal(TiagoTaskGoal(x=x, y=y, yaw_deg=yaw, use_corridor_law=self.spec['use_corridor_law']))
-        timed_out, ended_since = False, None
+        timed_out, ended_since, why = False, None, None
+        watch = ClockWatch(s0, w0, lim['wall_time_limit'])
         while True:
-            over, ended_since = mission_over(client, ended_since, time.monotonic())
+            now = time.monotonic()
+            over, ended_since = mission_over(client, ended_since, now)
             if over:
                 break
             self.check_alive_mission()
-            if rospy.get_time() - s0 > lim['sim_time_limit']:
+            t = rospy.get_time()
+            said = watch.update(t, now)
+            if said:
+                sys.stderr.write('supervisor: %s, the goal %s\n' % (said, client.get_goal_status_text()
+                                                                     or 'in state %d' % client.get_state()))
+                sys.stderr.flush()
+            why = watch.over(now)
+            if t - s0 > lim['sim_time_limit'] or why:
                 timed_out = True
                 client.cancel_all_goals()
-                client.wait_for_result(rospy.Duration(5.0))
+                # (in wall time: simulated time may be what stands still)
+                end = time.monotonic() + 5.0
+                while client.simple_state != SimpleGoalState.DONE and time.monotonic() < end:
+                    time.sleep(0.01)
                 break
             self.sample_localisation(tf)
             time.sleep(0.1)
@@ -499,6 +544,7 @@ class Supervisor:
         names = {v: k for k, v in vars(GoalStatus).items() if k.isupper() and isinstance(v, int)}
         return {'state': client.get_state(), 'state_name': names.get(client.get_state(), '?'),
                 'status_text': client.get_goal_status_text(), 'timed_out': timed_out,
+                **({'reason': why} if why else {}),
                 'message': result.message if result else '',
                 'obstacles': [[o.center.x, o.center.y, o.radius] for o in result.obstacles] if result else [],
                 'obstacles_detail': [message_fields(o) for o in result.obstacles] if result else [],
