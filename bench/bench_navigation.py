@@ -5,9 +5,10 @@ base with TIAGo's limits, 0.01 m laser noise) to N seeded random reachable goals
 world, one after the other from robot_start, in simulated time at 10 Hz control / 15 Hz scans.
 
 Ground truth (from the world file, not from the navigator): a goal is reachable when it lies in
-the robot's connected component of free configuration space (static walls AND movable cylinders
-grown by the robot radius); the shortest collision-free path length L is an 8-connected
-shortest path on that space shortened by line of sight (close to the any-angle optimum).
+the robot's connected component of free configuration space (static walls and every movable
+obstacle, a table's or chair's legs too, grown by the robot radius); the shortest
+collision-free path length L is an 8-connected shortest path on that space shortened by line
+of sight (close to the any-angle optimum).
 Per goal: success (SUCCEEDED within 0.15 m / 0.1 rad, checked on the true pose), collisions
 (simulator contact events), time ratio = time to goal / (L / 1.0 m/s), path length ratio =
 driven length / L, wall time. Writes bench/results/navigation.json and navigation.png.
@@ -35,7 +36,6 @@ sys.path.insert(0, os.path.join(ROOT, 'src'))
 RESULTS = os.path.join(ROOT, 'bench', 'results')
 
 from tiago_nav_tools.benchmarks import meta  # noqa: E402
-from tiago_nav.gridmap import distance_to_mask  # noqa: E402
 from tiago_nav.nav.costmap import MapScan  # noqa: E402
 from tiago_nav.nav.navigator import SUCCEEDED, NavConfig, Navigator  # noqa: E402
 from tiago_nav.nav.planner import grid_path, path_length, shortcut  # noqa: E402
@@ -45,21 +45,13 @@ from tiago_nav.sim.laser import LaserModel  # noqa: E402
 from tiago_nav.sim.raster import rasterise_world  # noqa: E402
 from tiago_nav.sim.simulator import SimConfig, Simulator  # noqa: E402
 from tiago_nav.sim.world import load_world  # noqa: E402
+from tiago_nav_tools.evaluate.metrics import obstacle_distance_field  # noqa: E402
 from tiago_nav_tools.testing.navigation import ClosedLoop  # noqa: E402
 
 WORLDS = ['ias_lab_room_full.yaml', 'open_hall.yaml']
 PEOPLE_WORLDS = ['office_walkers.yaml', 'lab_mixed.yaml']
 SPEED = 1.0
 CONTROL_DT = 0.1
-
-
-def cspace(world, grid):
-    """Distance [m] of every cell centre to the nearest static or movable geometry."""
-    occ = grid.occupied().copy()
-    cx, cy = grid.cell_centres()
-    for c in world.movable_obstacles:
-        occ |= c.distance(cx, cy) <= 0.0
-    return distance_to_mask(occ, grid.resolution)
 
 
 def shortest_length(grid, dist, a, b):
@@ -99,8 +91,8 @@ def lower_bound_time(pose, goal, ref):
 
 def run_world(name, n_goals, rng, config=None, laser=None):
     world = load_world(os.path.join(ROOT, 'worlds', name))
-    grid = rasterise_world(world)
-    dist = cspace(world, grid)
+    # exact distances to the movables: a chair's leg (1.5 cm) is thinner than a cell
+    grid, dist = obstacle_distance_field(world)
     start = world.start_pose
     labels, _ = ndimage.label(dist > ROBOT_RADIUS + 0.02)
     src = grid.world_to_cell([start[:2]])[0]
