@@ -113,6 +113,28 @@ def test_the_watch_thread_repairs_an_orphaned_subscription(fake_rospy, monkeypat
         s.unregister()
 
 
+def test_reconnect_hands_an_orphaned_subscriber_its_publishers_and_leaves_the_others(
+        fake_rospy, monkeypatch):
+    """Reconnect (actionlib's subscribers, which it does not own): after three checks in a row
+    without a connection while publishers are listed, this node's own publisherUpdate gets
+    their URIs; a connected subscriber, or one whose topic nobody publishes, is left alone."""
+    announced = []
+    monkeypatch.setattr(topics, 'announce', lambda topic, uris: announced.append((topic, uris)))
+    orphan, fine, unpublished = (FakeSubscriber(n, object, None) for n in ('/a/status', '/a/result', '/b'))
+    for s in (orphan, fine, unpublished):
+        s.resolved_name = s.name
+    fine.connections = 1
+    listed = {'/a/status': ['http://server:1/'], '/a/result': ['http://server:1/'], '/b': []}
+    r = topics.Reconnect([orphan, fine, unpublished], watch=False)
+    assert r.check(listed.get) == [] and r.check(listed.get) == []   # may still be connecting
+    assert r.check(listed.get) == ['/a/status']
+    assert announced == [('/a/status', ['http://server:1/'])] and r.reconnected == 1
+    orphan.connections = 1                              # rospy connected it
+    for _ in range(5):
+        assert r.check(listed.get) == []
+    assert not any(s.unregistered for s in (orphan, fine, unpublished))
+
+
 def test_connected_peers_count_only_handshaken_connections():
     from types import SimpleNamespace as NS
     from tiago_nav.ros.connections import connected_publishers, connected_subscribers

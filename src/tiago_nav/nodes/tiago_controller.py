@@ -42,6 +42,7 @@ from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepPa
 from tiago_nav.ros.markers import obstacle_markers
 from tiago_nav.ros.reset import NodeReset, adopt, on_shutdown, persistent
 from tiago_nav.ros.tcpros import concurrent_handshakes
+from tiago_nav.ros.topics import Reconnect, action_subscribers
 from tiago_nav.scan import scan_to_points, usable_ranges
 from tiago_nav.srv import DetectObstacles, DetectObstaclesRequest
 
@@ -104,14 +105,20 @@ class RosBackend:
         # before it (tiago_nav.lockstep.Settled): the newest ones may still be on their way
         self.settled = {'path': Settled(params.lockstep_period),
                         'corridor': Settled(params.lockstep_period)}
-        rospy.Subscriber(rospy.resolve_name(params.corridor_action) + '/feedback',
-                         CorridorActionFeedback, self._on_corridor_feedback, queue_size=None)
+        subs = [rospy.Subscriber(rospy.resolve_name(params.corridor_action) + '/feedback',
+                                 CorridorActionFeedback, self._on_corridor_feedback,
+                                 queue_size=None)]
         self.tf = tf2_ros.Buffer(rospy.Duration(10.0))
         self.tf_listener = tf2_ros.TransformListener(self.tf)
         self.cmd = rospy.Publisher(params.cmd_vel_topic, Twist, queue_size=1)
-        rospy.Subscriber(params.plan_topic, Path, self._on_path, queue_size=None)
+        subs.append(rospy.Subscriber(params.plan_topic, Path, self._on_path, queue_size=None))
         self._scan = (None, -math.inf)    # the newest scan and its arrival [s wall]
-        rospy.Subscriber(params.scan_topic, LaserScan, self._on_scan, queue_size=1)
+        subs.append(rospy.Subscriber(params.scan_topic, LaserScan, self._on_scan, queue_size=1))
+        # a subscriber that missed its publisher at start-up (tiago_nav.ros.topics) is connected
+        # again: actionlib's status subscriber among them, without which a server never counts
+        # as there
+        self.reconnect = Reconnect(subs + [self.tf_listener.tf_sub, self.tf_listener.tf_static_sub]
+                                   + [s for c in self.clients.values() for s in action_subscribers(c)])
         self.server = None            # the SimpleActionServer, set by the node
         # lockstep (docs/lockstep.md): the mission decides on its own cycles
         self.lockstep = LockstepParticipant(params.lockstep_period)

@@ -8,6 +8,8 @@ import rospy
 from actionlib import CommState
 from actionlib_msgs.msg import GoalStatus
 
+from tiago_nav.ros.topics import Reconnect, action_subscribers
+
 
 FEEDBACK_GRACE = 1.0     # [s wall] after a result, the longest wait for the feedback it names
 
@@ -111,10 +113,17 @@ def server_connected(client):
 
 
 def wait_server(client, timeout):
-    """Wait up to ``timeout`` wall seconds for a SimpleActionClient's server."""
+    """Wait up to ``timeout`` wall seconds for a SimpleActionClient's server. A client topic
+    that missed the server at start-up (:mod:`tiago_nav.ros.topics`: the status one, without
+    which a server never counts as there) is connected again meanwhile."""
     t0 = time.monotonic()
+    reconnect = Reconnect(action_subscribers(client), watch=False)
+    checked = t0
     while time.monotonic() - t0 < timeout and not rospy.is_shutdown():
         if server_connected(client):
             return True
+        if time.monotonic() - checked >= reconnect.period:
+            checked = time.monotonic()
+            reconnect.check()
         time.sleep(0.05)
     return False

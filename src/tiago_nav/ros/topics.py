@@ -9,10 +9,13 @@ after the ``publisherUpdate`` (with it), and the subscriber never connects. It i
 likely on a loaded machine where nodes start together, as in a launch file. A node that waits
 for a latched map then waits for ever. :class:`Subscription` notices this state: no connection
 while the master lists a publisher. It then subscribes again, and the new registration gets the
-current list.
+current list. Subscribers made by others (actionlib's clients: a proxy that waits for ever for
+its action server's status) are watched by :class:`Reconnect`, which hands rospy the master's
+list again through the node's own ``publisherUpdate``.
 """
 import threading
 import time
+from xmlrpc.client import ServerProxy
 
 import rosgraph
 import rospy
@@ -100,6 +103,87 @@ class Subscription:
                 wait = min(2 * wait, MAX_BACKOFF) if self.check() else self.period
             except Exception as e:          # noqa: BLE001 - a watchdog must not die
                 rospy.logwarn_throttle(10.0, '%s: checking %s: %s', rospy.get_name(), self.name, e)
+
+
+def publisher_uris(topic, own_name, master=None):
+    """The slave API URIs of the nodes the master lists as publishing ``topic`` (a resolved
+    name), ``own_name`` left out; [] when the master cannot be reached."""
+    master = master or rosgraph.Master(rospy.get_name())
+    uris = []
+    for node in listed_publishers(topic, master):
+        if node == own_name:
+            continue
+        try:
+            uris.append(master.lookupNode(node))
+        except (rosgraph.MasterError, OSError):
+            continue
+    return uris
+
+
+def announce(topic, uris):
+    """Tell this node's own slave API that ``uris`` publish ``topic``, as the master's
+    ``publisherUpdate`` does: rospy's registration thread then connects to each one it has no
+    connection with (and leaves the others)."""
+    ServerProxy(rospy.core.get_node_uri()).publisherUpdate('/master', topic, uris)
+
+
+def action_subscribers(client):
+    """The rospy Subscribers of an actionlib (Simple)ActionClient: status, result, feedback."""
+    ac = getattr(client, 'action_client', client)
+    return [ac.status_sub, ac.result_sub, ac.feedback_sub]
+
+
+class Reconnect:
+    """Watches rospy Subscribers made elsewhere (:func:`action_subscribers`) for the missed
+    publisher of the module's docstring. A wall-time thread checks every ``period`` seconds;
+    one with no connection while the master lists a publisher for ``grace`` checks in a row is
+    handed the master's list again (:func:`announce`), and rospy connects it. Unlike
+    :class:`Subscription` it never unregisters what it watches (actionlib owns it). With
+    ``watch`` False there is no thread: the owner calls :meth:`check` every ``period``."""
+
+    def __init__(self, subscribers, period=CHECK_PERIOD, grace=GRACE, watch=True):
+        self.subs = list(subscribers)
+        self.period, self.grace = period, grace
+        self.orphaned_checks = [0] * len(self.subs)
+        self.reconnected = 0
+        self._stop = threading.Event()
+        if watch:
+            threading.Thread(target=self._watch, name='reconnect', daemon=True).start()
+            track(self)     # a node's reset stops it (tiago_nav.ros.reset)
+
+    def check(self, publishers=None):
+        """One check of every subscriber; ``publishers`` (a function of the topic returning
+        publisher URIs) overrides the master (tests). The topics handed their publishers."""
+        done = []
+        for i, sub in enumerate(self.subs):
+            if sub.get_num_connections() > 0:
+                self.orphaned_checks[i] = 0
+                continue
+            uris = (publishers(sub.resolved_name) if publishers
+                    else publisher_uris(sub.resolved_name, rospy.get_name()))
+            if not uris:
+                self.orphaned_checks[i] = 0
+                continue
+            self.orphaned_checks[i] += 1
+            if self.orphaned_checks[i] < self.grace:
+                continue
+            self.orphaned_checks[i] = 0
+            rospy.logwarn('%s: no connection to %s, which the master lists as published by %s: '
+                          'connecting again', rospy.get_name(), sub.resolved_name, ', '.join(uris))
+            announce(sub.resolved_name, uris)
+            self.reconnected += 1
+            done.append(sub.resolved_name)
+        return done
+
+    def close(self):
+        self._stop.set()
+
+    def _watch(self):
+        while not self._stop.wait(self.period) and not rospy.is_shutdown():
+            try:
+                self.check()
+            except Exception as e:          # noqa: BLE001 - a watchdog must not die
+                rospy.logwarn_throttle(10.0, '%s: checking action topics: %s', rospy.get_name(), e)
 
 
 def wait_for_message(name, data_class, timeout):
