@@ -155,6 +155,20 @@ def test_three_legs_with_another_leg_on_their_side_are_no_piece():
     assert sorted(rest) == [3, 4]
 
 
+def test_legs_with_a_lone_hit_inside_their_rectangle_are_no_piece():
+    """Two legs of one chair and a far leg of the next one 1.4 m away stand at the corners of
+    a rectangle; the chairs' other legs, each hit by one beam (too few for a leg), stand inside
+    it: no piece. One hit inside (it may be a mixed pixel), or hits at a corner (a leg's own)
+    or outside, leave the piece."""
+    legs = [leg_at(0.0, 0.42), leg_at(0.0, 0.0), leg_at(1.4, 0.44)]
+    assert len(shapes.group_furniture(legs)[0]) == 1
+    inside = np.array([[0.42, 0.03], [0.85, 0.1]])
+    groups, rest = shapes.group_furniture(legs, hits=inside)
+    assert groups == [] and rest == [0, 1, 2]
+    beside = np.array([[0.02, 0.03], [0.7, -0.2], [0.7, 0.7], [0.85, 0.1]])
+    assert len(shapes.group_furniture(legs, hits=beside)[0]) == 1
+
+
 def test_a_fourth_corner_is_seen_empty_only_where_no_leg_could_stand():
     inc = math.radians(0.33)
     n = 101                                         # beams from -50 inc to +50 inc, laser at 0

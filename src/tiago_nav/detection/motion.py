@@ -91,15 +91,19 @@ def never_a_person(d):
     return d.shape == 'rectangle'
 
 
+def there(d, dets, still=False):
+    """Whether one of ``dets`` has the shape of ``d`` and its centre within :data:`CHANGE` of
+    ``d``'s (with ``still``: and was not judged moving)."""
+    return any(o.shape == d.shape and (not still or o.motion != 'moving') and math.hypot(
+        o.center[0] - d.center[0], o.center[1] - d.center[1]) <= CHANGE for o in dets)
+
+
 def stayed(d, newest, oldest):
     """Whether the median's detection ``d`` is in the ``newest`` and the ``oldest`` scans'
     detections alone, of its shape, within :data:`CHANGE` of its centre, and the newest one was
     not judged moving: it stood still while beams at its edges changed (a chair's thin leg hit
     by a beam in one scan and missed in the other, someone walking behind it)."""
-    def there(dets, still):
-        return any(o.shape == d.shape and (not still or o.motion != 'moving') and math.hypot(
-            o.center[0] - d.center[0], o.center[1] - d.center[1]) <= CHANGE for o in dets)
-    return there(newest, True) and there(oldest, False)
+    return there(d, newest, still=True) and there(d, oldest)
 
 
 def leg_sized(d):
@@ -121,8 +125,9 @@ def _legs_of(d):
 
 def combine(still, newest, oldest, changed, dt, laser_pose, angle_min, increment):
     """The detections of a window of scans at rest: of ``newest`` (the newest scan's alone),
-    those on changed beams, ``'moving'`` with their :func:`velocity` from ``oldest`` (the
-    oldest scan's), ``dt`` [s] earlier; of ``still`` (the per-beam median's), those on
+    those on changed beams (but what cannot be a person, :func:`never_a_person`, that
+    ``oldest`` placed within :data:`CHANGE`: it did not move), ``'moving'`` with their
+    :func:`velocity` from ``oldest`` (the oldest scan's), ``dt`` [s] earlier; of ``still`` (the per-beam median's), those on
     unchanged beams, ``motion`` ``'static'`` with velocity 0 (its std from the centre's over
     ``dt``), except a leg (:func:`leg_sized`: also an ``unknown`` no wider than a calf)
     within a stride (:data:`PERSON_LEG_SPACING`) of a moving one's leg: a walker's foot
@@ -142,7 +147,10 @@ def combine(still, newest, oldest, changed, dt, laser_pose, angle_min, increment
              for d in list(newest) + list(oldest) if d.points is not None and len(d.points)]
     swung = np.concatenate(swung) if swung else np.empty((0, 2))
     for d in newest:
-        if moved(d, changed, laser_pose, angle_min, increment):
+        # what cannot be a person and is where the oldest scan placed it did not move: its
+        # thin legs' edge beams changed (the median reports it)
+        if moved(d, changed, laser_pose, angle_min, increment) and not (
+                never_a_person(d) and there(d, oldest)):
             d.motion = 'moving'
             d.velocity, d.velocity_std = velocity(d, oldest, dt)
             moving.append(d)

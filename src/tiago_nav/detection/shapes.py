@@ -47,6 +47,10 @@ LEG_MAX_WIDTH = 0.25               # [m] a cluster narrower than this may be one
 FREE_MARGIN = 0.15                 # [m] a beam this far behind a point went past it
 NEARER = 0.05                      # [m] a beam beside a run this much nearer hit what hides it
 FACE_INCIDENCE = math.radians(10.0)   # a box's face seen at this angle to the beams or more
+INSIDE_HITS = 2                    # lone hits inside a leg rectangle that rule it out: one may
+                                   # be a mixed pixel (a beam grazing a thin leg in front returns
+                                   # a range anywhere behind it, in the median of the scans at
+                                   # rest too), two are other legs
 
 
 @dataclass
@@ -426,10 +430,14 @@ def person_sized(radius, least):
     return PERSON_LEG_RADIUS[0] <= least and radius <= PERSON_LEG_RADIUS[1]
 
 
-def group_furniture(legs, free=None):
+def group_furniture(legs, free=None, hits=None):
     """Legs of tables and chairs: sets of 3 or 4 legs at the corners of one rectangle.
 
-    ``legs``: list of :class:`Leg` (furniture-thin ones); ``free(xy, radius, leg) -> bool``:
+    ``legs``: list of :class:`Leg` (furniture-thin ones); ``hits``: ``(K, 2)`` points [m] a
+    beam hit alone (a thin leg too far or too thin for two beams): a piece has nothing inside
+    it at its legs' height but its legs, so legs with :data:`INSIDE_HITS` such hits inside
+    their rectangle (and not at a corner) are none (two chairs' legs whose other legs one beam
+    each hit between them); ``free(xy, radius, leg) -> bool``:
     whether the scan saw the disc of ``radius`` [m] about ``xy`` [m] empty of a leg of radius
     ``leg`` (:meth:`ScanView.free`), so that three legs whose fourth corner, within
     :data:`SIDE_TOL`, is seen empty of a leg like theirs are no table (None: never; a thin
@@ -478,7 +486,8 @@ def group_furniture(legs, free=None):
                 for cx, cy in ((0.0, 0.0), (lu, 0.0), (0.0, lv), (lu, lv)):
                     inside &= np.hypot(a1 - cx, a2 - cy) > SIDE_TOL
                 inside[group] = False
-                if np.any(inside):
+                if np.any(inside) or (hits is not None and _hit_inside(
+                        hits, c[j], e1, e2, lu, lv)):
                     continue
                 # its outline: the corners in turn, the unseen fourth where it would stand
                 far = c[group[3]] if len(group) == 4 else fourth
@@ -486,6 +495,18 @@ def group_furniture(legs, free=None):
     groups = _best_packing(cands, n)
     used = {i for g in groups for i in g}
     return groups, [i for i in range(n) if i not in used]
+
+
+def _hit_inside(hits, corner, e1, e2, lu, lv):
+    """Whether :data:`INSIDE_HITS` of ``(K, 2)`` points [m] lie inside the rectangle of sides
+    ``lu`` along ``e1`` and ``lv`` along ``e2`` (unit vectors) from ``corner`` [m], farther
+    than :data:`SIDE_TOL` from each of its corners (where its own legs stand)."""
+    rel = np.asarray(hits, dtype=float).reshape(-1, 2) - corner
+    a1, a2 = rel @ e1, rel @ e2
+    inside = (a1 > 0.0) & (a1 < lu) & (a2 > 0.0) & (a2 < lv)
+    for cx, cy in ((0.0, 0.0), (lu, 0.0), (0.0, lv), (lu, lv)):
+        inside &= np.hypot(a1 - cx, a2 - cy) > SIDE_TOL
+    return int(np.sum(inside)) >= INSIDE_HITS
 
 
 def _overlap(p, q, margin):
@@ -768,9 +789,12 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
                 runs.append(coarse)
                 continue
         runs.extend(fine)
+    lone = []                   # points a beam hit alone, the beams either side past them
     for seg in runs:
         q = p[seg]
         if len(q) < 2:
+            if _stands_apart(seg, beams, p, sensor, view, hidden=False):
+                lone.extend(seg)
             continue
         span = float(np.hypot(*(q.max(axis=0) - q.min(axis=0))))
         if span <= LEG_MAX_WIDTH and _stands_apart(seg, beams, p, sensor, view):
@@ -812,7 +836,9 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
         return [extra_pts[i][0] for i in idx if i in extra_pts]
 
     thin = [i for i, l in enumerate(legs) if l.radius <= FURNITURE_LEG_RADIUS]
-    groups, _ = group_furniture([legs[i] for i in thin], view.free)
+    taken = {int(k) for l in legs[:n_own] for k in l.index}
+    groups, _ = group_furniture([legs[i] for i in thin], view.free,
+                                p[[k for k in lone if k not in taken]])
     grouped = set()
     for g in groups:
         idx = [thin[i] for i in g]
