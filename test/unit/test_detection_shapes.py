@@ -169,6 +169,52 @@ def test_legs_with_a_lone_hit_inside_their_rectangle_are_no_piece():
     assert len(shapes.group_furniture(legs, hits=beside)[0]) == 1
 
 
+def test_a_faces_end_past_a_dropped_beam_is_bounded_by_the_beam_that_went_past():
+    """A box's face seen at grazing incidence (7-8 deg to the beams): its hits lie 4-5 cm
+    apart along it, and the veil filter dropped its last two. The edge lies within three
+    spacings of the last hit kept: with that said (``end_seen`` 3), the centre's bound holds
+    the true one; claimed within one, it does not."""
+    inc = math.radians(0.33)
+    x0, x1, y0, y1 = 2.0, 2.6, 0.3, 0.7             # the box; the laser at the origin
+    pts = []
+    for k in range(1, 200):
+        a = k * inc
+        x = y0 / math.tan(a)                        # the face y = y0, x in [x0, x1]
+        if x0 < x <= x1:
+            pts.append((x, y0))
+        elif x <= x0 and x0 * math.tan(a) <= y1:    # the face x = x0
+            pts.append((x0, x0 * math.tan(a)))
+    pts = np.array(pts[::-1])                       # in scan order: the grazing face last
+    kept = pts[:-2]                                 # its far end's hits dropped
+    truth = np.array([0.5 * (x0 + x1), 0.5 * (y0 + y1)])
+
+    def miss(end_beams):
+        shape, _ = shapes.fit_rectangle(kept, (0.0, 0.0), 0.005,
+                                        lambda i: end_beams if i == len(kept) - 1 else 1,
+                                        increment=inc)
+        err = truth - np.array(shape.center)
+        return float(err @ np.linalg.solve(shape.covariance, err))
+    assert miss(3) < 13.8 < miss(1)
+
+
+def test_an_edge_is_seen_by_the_first_beam_past_it_the_veil_filters_drop_counted():
+    inc = math.radians(0.33)
+    r = np.full(101, 6.0)
+    r[40:51] = 2.0                                  # an object's face ends at beam 50
+    r[51] = np.nan                                  # the veil filter dropped the next beam
+    raw = np.full(101, np.nan)
+    raw[51] = 6.0                                   # which went past
+    view = shapes.ScanView(r, -50 * inc, inc, (0.0, 0.0, 0.0), 25.0, raw=raw)
+    assert view.end_seen(50, 1, 2.0, veiled=True) == 1
+    assert view.end_seen(50, 1, 2.0) == 2           # without its raw range: looked past
+    raw[51] = 2.01                                  # a grazing hit of the face, dropped
+    view = shapes.ScanView(r, -50 * inc, inc, (0.0, 0.0, 0.0), 25.0, raw=raw)
+    assert view.end_seen(50, 1, 2.0, veiled=True) == 2
+    r[52:55] = 1.5                                  # something nearer hides the edge
+    view = shapes.ScanView(r, -50 * inc, inc, (0.0, 0.0, 0.0), 25.0, raw=raw)
+    assert view.end_seen(50, 1, 2.0, veiled=True) == 0
+
+
 def test_a_fourth_corner_is_seen_empty_only_where_no_leg_could_stand():
     inc = math.radians(0.33)
     n = 101                                         # beams from -50 inc to +50 inc, laser at 0

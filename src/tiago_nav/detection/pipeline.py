@@ -490,7 +490,8 @@ class ObstacleDetector:
                 cov = circle_covariance(c, cx, cy, rad)
             out.append(Detection((cx, cy), rad, len(c), c, cov))
         if p.shapes and method == 'circle_fit':
-            view = shapes.ScanView(r, angle_min, inc, laser_pose, rmax, rmin)
+            view = shapes.ScanView(r, angle_min, inc, laser_pose, rmax, rmin,
+                                   None if veiled is None else np.where(veiled, raw, np.nan))
             sp, sb = pts[~round_pts], beam[~round_pts]
             back = (shapes.veiled_leg_beams(sb, r, raw, veiled, p.range_noise)
                     if veiled is not None else np.empty(0, dtype=int))

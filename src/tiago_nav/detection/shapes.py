@@ -47,6 +47,8 @@ LEG_MAX_WIDTH = 0.25               # [m] a cluster narrower than this may be one
 FREE_MARGIN = 0.15                 # [m] a beam this far behind a point went past it
 NEARER = 0.05                      # [m] a beam beside a run this much nearer hit what hides it
 FACE_INCIDENCE = math.radians(10.0)   # a box's face seen at this angle to the beams or more
+MIN_GRAZE = math.sin(math.radians(5.0))  # the spacing of hits along a face is taken at this
+                                   # angle between beam and face at least
 INSIDE_HITS = 2                    # lone hits inside a leg rectangle that rule it out: one may
                                    # be a mixed pixel (a beam grazing a thin leg in front returns
                                    # a range anywhere behind it, in the median of the scans at
@@ -156,7 +158,8 @@ def _l_costs(p, thetas, sensor):
     return (d * d).sum(axis=0)
 
 
-def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH):
+def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH,
+                  increment=None):
     """A rectangle through ``(N, 2)`` points in scan order seen from ``sensor``: the L-shape
     fit (the orientation in [0, 90°) minimising :func:`_l_cost`, a 1° search refined to
     0.02°). Returns ``(Shape, rms)`` [m], or None with fewer than ``MIN_FACE_POINTS`` points.
@@ -167,10 +170,15 @@ def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH
     the centre half of each length in from the corner. One face: the centre lies behind its
     middle by half the unseen depth, anywhere in (0, ``max_depth`` / 2]: reported at the middle
     of that interval with its uniform variance, ``center_fixed`` False.
-    ``end_seen(point_index) -> bool`` says whether the beam just past a face's outer end went
-    past it (a silhouette edge): if not (something nearer hides it, or the scan ends there) the
-    face may go on, and the centre along it is not fixed either. None: every end is seen.
-    ``noise`` [m]: the least residual std assumed."""
+    ``end_seen(point_index) -> int`` says whether the beam just past a face's outer end went
+    past it (a silhouette edge), and how many beams out the first one that said so is
+    (:meth:`ScanView.end_seen`; the edge lies within that many beam spacings): if none did
+    (0: something nearer hides it, or the scan ends there) the face may go on, and the centre
+    along it is not fixed either. None: every end is seen by the next beam. ``increment``
+    [rad]: the beams' angular step; with it, the spacing at a face's end is the distance
+    between neighbouring beams' hits there (range × step / the sine of the angle between beam
+    and face: it grows where the beams graze the face), otherwise the median spacing of the
+    face's points. ``noise`` [m]: the least residual std assumed."""
     p = np.asarray(points, dtype=float).reshape(-1, 2)
     n = len(p)
     if n < MIN_FACE_POINTS:
@@ -208,17 +216,32 @@ def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH
     good_b = kb >= MIN_FACE_POINTS and span_b >= MIN_FACE_LENGTH
     res = np.where(on_a, c1 - a, c2 - b)[np.argsort(idx)]
     k_inf = correlation_inflation(res)
-    seen = end_seen if end_seen is not None else (lambda i: True)
+    seen = end_seen if end_seen is not None else (lambda i: 1)
+
+    pts = p
+
+    def beyond(i, along, spacing):
+        """[m] the stretch past the face's end point ``i`` (along unit ``along``) in which
+        its edge lies: the beams out to the first that went past, a spacing each."""
+        if increment is not None:
+            v = pts[i] - sensor
+            r = float(np.hypot(*v))
+            sin = abs(float(v[0] * along[1] - v[1] * along[0])) / max(r, 1e-9)
+            spacing = r * abs(increment) / max(sin, MIN_GRAZE)
+        return max(int(seen(i)), 1) * spacing
+
     if good_a and good_b:
-        # the corner, and each face from it to its farthest point (+ half a spacing)
+        # the corner, and each face from it to its farthest point (+ half the stretch past
+        # it in which its edge lies)
         ua, ub = np.abs(c2[on_a] - b), np.abs(c1[~on_a] - a)
-        la = float(ua.max()) + 0.5 * sp_a
-        lb = float(ub.max()) + 0.5 * sp_b
         end_a = int(ia[int(np.argmax(ua))])
         end_b = int(ib[int(np.argmax(ub))])
+        wa, wb = beyond(end_a, e2, sp_a), beyond(end_b, e1, sp_b)
+        la = float(ua.max()) + 0.5 * wa
+        lb = float(ub.max()) + 0.5 * wb
         # in the axes (e1, e2): the box spans a .. a + sgn1 lb, b .. b + sgn2 la
-        var1 = k_inf * sigma2 / ka + (sp_b ** 2) / 48.0
-        var2 = k_inf * sigma2 / kb + (sp_a ** 2) / 48.0
+        var1 = k_inf * sigma2 / ka + (wb ** 2) / 48.0
+        var2 = k_inf * sigma2 / kb + (wa ** 2) / 48.0
         fixed, notes = True, []
         if not seen(end_b):
             var1 += (max_depth / 2.0) ** 2 / 12.0
@@ -238,10 +261,10 @@ def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH
         cov = _axes_cov(e1, e2, var1 + (ostd * la / 2.0) ** 2, var2 + (ostd * lb / 2.0) ** 2)
         # length along the longer side
         if lb >= la:
-            extent, orient, estd = (lb, la), theta, (sp_b / math.sqrt(12), sp_a / math.sqrt(12))
+            extent, orient, estd = (lb, la), theta, (wb / math.sqrt(12), wa / math.sqrt(12))
         else:
-            extent, orient, estd = (la, lb), theta + math.pi / 2, (sp_a / math.sqrt(12),
-                                                                  sp_b / math.sqrt(12))
+            extent, orient, estd = (la, lb), theta + math.pi / 2, (wa / math.sqrt(12),
+                                                                  wb / math.sqrt(12))
         note = 'two faces seen' + ('; ' + '; '.join(notes) if notes else '')
         return Shape('rectangle', (float(centre[0]), float(centre[1])), cov, extent,
                      _half_turn(orient), ostd, estd, fixed, note, points=p), rms
@@ -267,16 +290,17 @@ def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH
     sigma2 = max(off @ off / max(n - 2, 1), noise * noise)
     order = np.sort(along)
     spacing = float(np.median(np.diff(order))) if n > 1 else 0.0
-    length = float(along.max() - along.min()) + spacing
-    if length < MIN_FACE_LENGTH:
-        return None
     where = np.flatnonzero(keep)
     lo, hi = int(where[np.argmin(along)]), int(where[np.argmax(along)])
-    var_along = spacing ** 2 / 48.0 + k_inf * sigma2 / n
+    w_lo, w_hi = beyond(lo, d, spacing), beyond(hi, d, spacing)
+    length = float(along.max() - along.min()) + 0.5 * (w_lo + w_hi)
+    if length < MIN_FACE_LENGTH:
+        return None
+    var_along = (w_lo ** 2 + w_hi ** 2) / 48.0 + k_inf * sigma2 / n
     fixed_along = seen(lo) and seen(hi)
     notes = ['one face seen: the centre lies (0, %.2f] m behind its middle (the depth is not '
              'seen; its std covers it)' % (max_depth / 2.0)]
-    centre_along = 0.5 * (along.max() + along.min())
+    centre_along = 0.5 * (along.max() + along.min()) + 0.25 * (w_hi - w_lo)
     if not fixed_along:
         var_along += (max_depth / 2.0) ** 2 / 12.0
         notes.append('an end is hidden: the face may go on')
@@ -287,7 +311,8 @@ def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH
     ostd = math.sqrt(k_inf * sigma2 / max(n * length * length / 12.0, 1e-12))
     return Shape('rectangle', (float(centre[0]), float(centre[1])), cov, (length, math.nan),
                  _half_turn(math.atan2(d[1], d[0])), ostd,
-                 (spacing / math.sqrt(12), math.nan), False, '; '.join(notes), points=p_all), rms
+                 (math.sqrt((w_lo ** 2 + w_hi ** 2) / 12.0), math.nan), False, '; '.join(notes),
+                 points=p_all), rms
 
 
 def _axes_cov(e1, e2, v1, v2):
@@ -690,25 +715,33 @@ class ScanView:
     yaw)`` in the points' frame, ``range_max`` [m] and ``range_min`` [m]: a finite range below
     it is invalid (REP 117; a Hokuyo writes its error codes there), it says nothing, as NaN
     (``-inf``, too close, is something nearer). ``r`` holds the ranges so read, ``ranges`` the
-    ones given (what :func:`segments` counts as a beam with no hit between two points)."""
+    ones given (what :func:`segments` counts as a beam with no hit between two points).
+    ``raw`` [m]: for the beams the veil filter dropped, their ranges before it (NaN
+    elsewhere; None: not known), read the same way (:meth:`end_seen` of a box's face)."""
 
-    def __init__(self, ranges, angle_min, increment, laser_pose, range_max, range_min=0.0):
+    def __init__(self, ranges, angle_min, increment, laser_pose, range_max, range_min=0.0,
+                 raw=None):
         self.ranges = np.asarray(ranges, dtype=float)
-        self.r = self.ranges.copy()
-        # (compared only where finite: NaN < x warns on older numpy)
-        low = np.less(self.r, range_min, out=np.zeros(len(self.r), dtype=bool),
-                      where=np.isfinite(self.r))
-        self.r[low] = np.nan
+        self.r = self._read(self.ranges, range_min)
+        self.raw = None if raw is None else self._read(np.asarray(raw, dtype=float), range_min)
         self.angle_min, self.inc = float(angle_min), float(increment)
         self.pose = tuple(float(v) for v in laser_pose)
         self.range_max = float(range_max)
 
-    def _past(self, j, dist):
+    @staticmethod
+    def _read(r, range_min):
+        r = r.copy()
+        # (compared only where finite: NaN < x warns on older numpy)
+        r[np.less(r, range_min, out=np.zeros(len(r), dtype=bool), where=np.isfinite(r))] = np.nan
+        return r
+
+    def _past(self, j, dist, r=None):
         """Whether beam ``j`` went past range ``dist`` (a return well behind it, or none); a
-        beam a filter dropped (NaN) says nothing: None."""
-        if not 0 <= j < len(self.r):
+        beam a filter dropped (NaN) says nothing: None. ``r``: the ranges to read (``self.r``)."""
+        r = self.r if r is None else r
+        if not 0 <= j < len(r):
             return False                 # outside the scan: not seen
-        v = float(self.r[j])
+        v = float(r[j])
         if v != v:
             return None
         return v == math.inf or (dist + FREE_MARGIN < v <= self.range_max) or v > self.range_max
@@ -747,14 +780,23 @@ class ScanView:
         b = np.arctan2(np.sin(b), np.cos(b))
         return np.round((b - self.angle_min) / self.inc).astype(int)
 
-    def end_seen(self, beam, step, dist):
+    def end_seen(self, beam, step, dist, veiled=False):
         """Whether the object's edge at beam ``beam`` is a silhouette edge: the next beam
-        outward (``step`` ±1; past one a filter dropped) went past range ``dist`` [m]."""
-        for j in (beam + step, beam + 2 * step, beam + 3 * step):
-            past = self._past(j, dist)
+        outward (``step`` ±1; past those a filter dropped, two at most) went past range
+        ``dist`` [m]. Returns how many beams out that one is (1, 2 or 3: the edge lies
+        within that many beam spacings of beam ``beam``), 0 when it did not go past
+        (something nearer hides the edge, or the scan ends). A beam a filter dropped is
+        looked past; with ``veiled``, one whose return before the veil filter (``raw``) went
+        past counts as past (the veil filter drops the first beam behind every silhouette
+        edge, and hits where beams graze a face: those are looked past)."""
+        for k in (1, 2, 3):
+            past = self._past(beam + k * step, dist)
+            if past is None and veiled and self.raw is not None and self._past(
+                    beam + k * step, dist, self.raw):
+                past = True
             if past is not None:
-                return past
-        return False
+                return k if past else 0
+        return 0
 
 
 def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
@@ -816,7 +858,8 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
                 for idx, found in two:
                     legs.append(Leg(found[0], found[1], seg[idx], found[2], found[3]))
                 continue
-        fit = fit_rectangle(q, sensor, noise, _ends(seg, p, beams, sensor, view))
+        fit = fit_rectangle(q, sensor, noise, _ends(seg, p, beams, sensor, view),
+                            increment=view.inc)
         if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
             fit[0].index = seg
             out.append(fit[0])
@@ -922,7 +965,7 @@ def _ends(seg, p, beams, sensor, view):
     def end_seen(i):
         b = int(beams[seg][i])
         d = float(np.hypot(*(p[seg][i] - sensor)))
-        return view.end_seen(b, -1 if (b - lo) <= (hi - b) else 1, d)
+        return view.end_seen(b, -1 if (b - lo) <= (hi - b) else 1, d, veiled=True)
     return end_seen
 
 
@@ -944,7 +987,8 @@ def _join_hidden(found, p, beams, sensor, view, noise):
             hits = between[np.isfinite(between)]
             if hi > lo + 1 and len(hits) and np.all(hits < near - 0.05):
                 idx = np.concatenate((a.index, s.index))
-                fit = fit_rectangle(p[idx], sensor, noise, _ends(idx, p, beams, sensor, view))
+                fit = fit_rectangle(p[idx], sensor, noise, _ends(idx, p, beams, sensor, view),
+                                    increment=view.inc)
                 if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
                     joined = fit[0]
                     joined.index = idx
