@@ -155,7 +155,7 @@ def test_three_legs_with_another_leg_on_their_side_are_no_piece():
     assert sorted(rest) == [3, 4]
 
 
-def test_legs_with_a_lone_hit_inside_their_rectangle_are_no_piece():
+def test_legs_with_lone_hits_inside_their_rectangle_are_no_piece():
     """Two legs of one chair and a far leg of the next one 1.4 m away stand at the corners of
     a rectangle; the chairs' other legs, each hit by one beam (too few for a leg), stand inside
     it: no piece. One hit inside (it may be a mixed pixel), or hits at a corner (a leg's own)

@@ -504,15 +504,10 @@ def group_furniture(legs, free=None, hits=None):
                 # no other leg stands inside it or on its sides, only at its corners (a table's
                 # legs with a chair's, or two chairs' legs together, are no piece)
                 e1, e2 = u / lu, v / lv
-                rel = c - c[j]
-                a1, a2 = rel @ e1, rel @ e2
-                inside = ((a1 > -SIDE_TOL) & (a1 < lu + SIDE_TOL)
-                          & (a2 > -SIDE_TOL) & (a2 < lv + SIDE_TOL))
-                for cx, cy in ((0.0, 0.0), (lu, 0.0), (0.0, lv), (lu, lv)):
-                    inside &= np.hypot(a1 - cx, a2 - cy) > SIDE_TOL
+                inside = _inside(c, c[j], e1, e2, lu, lv, SIDE_TOL)
                 inside[group] = False
-                if np.any(inside) or (hits is not None and _hit_inside(
-                        hits, c[j], e1, e2, lu, lv)):
+                if np.any(inside) or (hits is not None and np.count_nonzero(_inside(
+                        hits, c[j], e1, e2, lu, lv, 0.0)) >= INSIDE_HITS):
                     continue
                 # its outline: the corners in turn, the unseen fourth where it would stand
                 far = c[group[3]] if len(group) == 4 else fourth
@@ -522,16 +517,17 @@ def group_furniture(legs, free=None, hits=None):
     return groups, [i for i in range(n) if i not in used]
 
 
-def _hit_inside(hits, corner, e1, e2, lu, lv):
-    """Whether :data:`INSIDE_HITS` of ``(K, 2)`` points [m] lie inside the rectangle of sides
-    ``lu`` along ``e1`` and ``lv`` along ``e2`` (unit vectors) from ``corner`` [m], farther
-    than :data:`SIDE_TOL` from each of its corners (where its own legs stand)."""
-    rel = np.asarray(hits, dtype=float).reshape(-1, 2) - corner
+def _inside(points, corner, e1, e2, lu, lv, margin):
+    """``(K,)`` bool: which of ``(K, 2)`` points [m] lie inside the rectangle of sides ``lu``
+    along ``e1`` and ``lv`` along ``e2`` (unit vectors) from ``corner`` [m], grown by
+    ``margin`` [m] (on its sides), and farther than :data:`SIDE_TOL` from each of its corners
+    (where its own legs stand)."""
+    rel = np.asarray(points, dtype=float).reshape(-1, 2) - corner
     a1, a2 = rel @ e1, rel @ e2
-    inside = (a1 > 0.0) & (a1 < lu) & (a2 > 0.0) & (a2 < lv)
+    inside = (a1 > -margin) & (a1 < lu + margin) & (a2 > -margin) & (a2 < lv + margin)
     for cx, cy in ((0.0, 0.0), (lu, 0.0), (0.0, lv), (lu, lv)):
         inside &= np.hypot(a1 - cx, a2 - cy) > SIDE_TOL
-    return int(np.sum(inside)) >= INSIDE_HITS
+    return inside
 
 
 def _overlap(p, q, margin):
