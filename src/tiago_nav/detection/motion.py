@@ -127,12 +127,12 @@ def combine(still, newest, oldest, changed, dt, laser_pose, angle_min, increment
     """The detections of a window of scans at rest: of ``newest`` (the newest scan's alone),
     those on changed beams (but what cannot be a person, :func:`never_a_person`, that
     ``oldest`` placed within :data:`CHANGE`: it did not move), ``'moving'`` with their
-    :func:`velocity` from ``oldest`` (the oldest scan's), ``dt`` [s] earlier; of ``still`` (the per-beam median's), those on
-    unchanged beams, ``motion`` ``'static'`` with velocity 0 (its std from the centre's over
-    ``dt``), except a leg (:func:`leg_sized`: also an ``unknown`` no wider than a calf)
-    within a stride (:data:`PERSON_LEG_SPACING`) of a moving one's leg: a walker's foot
-    stands on the floor for most of a stride (the stance, about 0.6 s of a 1 s stride,
-    longer than a window of scans at rest), so that leg is the
+    :func:`velocity` from ``oldest`` (the oldest scan's), ``dt`` [s] earlier; of ``still``
+    (the per-beam median's), those on unchanged beams, ``motion`` ``'static'`` with velocity
+    0 (its std from the centre's over ``dt``), except a leg (:func:`leg_sized`: also an
+    ``unknown`` no wider than a calf) within a stride (:data:`PERSON_LEG_SPACING`) of a
+    moving one's leg: a walker's foot stands on the floor for most of a stride (the stance,
+    about 0.6 s of a 1 s stride, longer than a window of scans at rest), so that leg is the
     moving person's planted one. It joins that person (its legs, their middle as the centre)
     and is not reported as a static object. A leg with no moving one near it but points of
     ``newest`` or ``oldest`` on changed beams within a stride is a walker's planted leg whose

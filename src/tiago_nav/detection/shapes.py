@@ -217,8 +217,7 @@ def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH
     res = np.where(on_a, c1 - a, c2 - b)[np.argsort(idx)]
     k_inf = correlation_inflation(res)
     seen = end_seen if end_seen is not None else (lambda i: 1)
-
-    pts = p
+    pts = p                     # (all of them: the one-face branch below narrows ``p``)
 
     def beyond(i, along, spacing):
         """[m] the stretch past the face's end point ``i`` (along unit ``along``) in which
