@@ -874,9 +874,8 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
         return [extra_pts[i][0] for i in idx if i in extra_pts]
 
     thin = [i for i, l in enumerate(legs) if l.radius <= FURNITURE_LEG_RADIUS]
-    taken = {int(k) for l in legs[:n_own] for k in l.index}
     groups, _ = group_furniture([legs[i] for i in thin], view.free,
-                                p[[k for k in lone if k not in taken]])
+                                p[np.asarray(lone, dtype=int)])
     grouped = set()
     for g in groups:
         idx = [thin[i] for i in g]
