@@ -18,8 +18,25 @@ ROOT = os.path.dirname(HERE)
 RESULTS = os.path.join(ROOT, 'test-results')
 
 
+def why(element):
+    """The gist of a JUnit failure or error element, at most 300 characters, so that the summary
+    at the end of a log says what failed as well as where: pytest's ``message`` attribute, or
+    rosunit's exception type and the message its text holds before the traceback."""
+    text = element.get('message')
+    if not text:
+        lines = []
+        for line in (element.text or '').splitlines():
+            if line.lstrip().startswith('File "'):
+                break
+            lines.append(line.strip())
+        text = ' '.join(x for x in [element.get('type', '') + ':'] + lines if x).strip(': ')
+    text = ' '.join(text.split()) or 'no message'
+    return text if len(text) <= 300 else text[:297] + '...'
+
+
 def junit_counts(path):
-    """(passed, failed, skipped, names of failures) of one JUnit XML file."""
+    """(passed, failed, skipped, names of failures with why they failed) of one JUnit XML
+    file."""
     passed = failed = skipped = 0
     names = []
     try:
@@ -27,9 +44,11 @@ def junit_counts(path):
     except (ET.ParseError, OSError) as e:
         return 0, 1, 0, ['%s: unreadable results (%s)' % (os.path.basename(path), e)]
     for case in root.iter('testcase'):
-        if case.find('failure') is not None or case.find('error') is not None:
+        bad = case.find('failure')
+        bad = bad if bad is not None else case.find('error')
+        if bad is not None:
             failed += 1
-            names.append('%s.%s' % (case.get('classname', ''), case.get('name', '')))
+            names.append('%s.%s (%s)' % (case.get('classname', ''), case.get('name', ''), why(bad)))
         elif case.find('skipped') is not None:
             skipped += 1
         else:
