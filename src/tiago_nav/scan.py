@@ -164,9 +164,12 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
       tangent. A mixed pixel within ``shadow_min_jump`` of the near surface is kept (it is
       close to a real surface); the far surface's first point behind it is dropped instead.
       A point inside a chain (a grazing step going away on each side) is kept only if it lies
-      on the straight line through its two neighbours, within 3 ``range_std`` of range noise
-      (a wall is straight; a mixed pixel that follows a grazing step on a cylinder's flank,
-      between the cylinder and the wall behind it, is not). An invalid beam (NaN: a dropout,
+      on the straight line through its two neighbours and on the line through the two points
+      on one side of it, each within 3 ``range_std`` of range noise (a wall is straight; a
+      mixed pixel that follows a grazing step on a cylinder's flank, between the cylinder and
+      the wall behind it, is not; nor is one past the end of a wall seen at grazing incidence,
+      even where it falls on the line through its neighbours, which then lie on two surfaces).
+      An invalid beam (NaN: a dropout,
       common at a cylinder's tangent) says nothing: the beams either side of it (up to
       ``MAX_SKIP`` beams apart) are neighbours.
 
@@ -265,19 +268,38 @@ def _veils(r, angles, c, s, hit, adjacent, shadow_angle, shadow_min_jump, range_
     drop = out[:n] & ~np.concatenate((out[:1], out[:n - 1]))
     drop |= back[1:] & ~np.concatenate((back[2:], back[n:]))
     # inside a chain, a wall's points lie on a line: three points at angles a0, a1, a2 of a line
-    # satisfy sin(a2 - a1) / r0 + sin(a1 - a0) / r2 = sin(a2 - a0) / r1
+    # satisfy sin(a2 - a1) / r0 + sin(a1 - a0) / r2 = sin(a2 - a0) / r1. A point must lie on the
+    # line through its two neighbours, and that line must be a surface's: the point continues
+    # the line through the two points on one side of it too. A mixed pixel between the end of a
+    # wall seen at grazing incidence and what lies behind it can fall on the line through its
+    # neighbours, which then lie on two surfaces, but not on either surface's own line.
     inside = (out[:n] & out[1:]) | (back[:n] & back[1:])
     m = np.flatnonzero(inside[1:n - 1]) + 1
     if m.size:
-        def inv(k):
-            return np.where(hit[k], 1.0 / np.where(hit[k], r[k], 1.0), 0.0)
-        i0, i1, i2 = inv(m - 1), inv(m), inv(m + 1)
-        s21, s10 = np.sin(angles[m + 1] - angles[m]), np.sin(angles[m] - angles[m - 1])
-        s20 = np.sin(angles[m + 1] - angles[m - 1])
-        resid = i0 * s21 + i2 * s10 - i1 * s20
-        sigma = range_std * np.sqrt((i0 ** 2 * s21) ** 2 + (i2 ** 2 * s10) ** 2
-                                    + (i1 ** 2 * s20) ** 2)
-        drop[m] |= ~(np.abs(resid) <= 3.0 * np.abs(sigma))
+        def on_line(k):
+            """Whether the points k - 1, k, k + 1 (index arrays) lie on a line, within 3 sigma
+            of range noise; False where one of them is not a hit."""
+            i0, i1, i2 = (np.where(hit[j], 1.0 / np.where(hit[j], r[j], 1.0), 0.0)
+                          for j in (k - 1, k, k + 1))
+            s21, s10 = np.sin(angles[k + 1] - angles[k]), np.sin(angles[k] - angles[k - 1])
+            s20 = np.sin(angles[k + 1] - angles[k - 1])
+            resid = i0 * s21 + i2 * s10 - i1 * s20
+            sigma = range_std * np.sqrt((i0 ** 2 * s21) ** 2 + (i2 ** 2 * s10) ** 2
+                                        + (i1 ** 2 * s20) ** 2)
+            return hit[k - 1] & hit[k] & hit[k + 1] & (np.abs(resid) <= 3.0 * np.abs(sigma))
+
+        def neighbours(k):
+            """Whether beams k and k + 1 (an index array) count as neighbours."""
+            return np.broadcast_to(adjacent, (n - 1,))[k]
+
+        def beside(k, exists):
+            """on_line(k) where ``exists`` (k - 1 and k + 1 are beams) and both neighbour k."""
+            ok = np.zeros(k.size, dtype=bool)
+            j = k[exists]
+            ok[exists] = on_line(j) & neighbours(j - 1) & neighbours(j)
+            return ok
+
+        drop[m] |= ~(on_line(m) & (beside(m - 1, m >= 2) | beside(m + 1, m <= n - 3)))
     return drop
 
 

@@ -71,6 +71,32 @@ def test_a_wall_at_grazing_incidence_keeps_its_points():
     assert np.isnan(out[far]).sum() <= 1    # only where the chain of grazing steps begins
 
 
+def test_a_mixed_pixel_past_a_grazing_walls_end_is_dropped_even_on_its_neighbours_line():
+    # a wall 0.25 m to the left, seen at grazing incidence, ends 3 m ahead; past its end the
+    # beams reach a wall across the fan 5 m ahead. The beam straddling the end returns a mixed
+    # pixel, here where the line through its two neighbours (one on each wall) crosses it: on
+    # that line, yet far from both walls (the course's wall end at (9.7, 0) seen from (10.2,
+    # -3.2) made such a point, and move_base marked it)
+    inc = math.radians(0.33)
+    a = beam_angles(math.radians(1.0), inc, 200)
+    along = 0.25 / np.tan(a)                     # where each beam meets the side wall's line
+    side = along <= 3.0
+    r = np.where(side, 0.25 / np.sin(a), 5.0 / np.cos(a))
+    j = int(np.flatnonzero(side)[0]) - 1         # the last beam past the wall's end
+    s21, s10, s20 = (math.sin(a[j + 1] - a[j]), math.sin(a[j] - a[j - 1]),
+                     math.sin(a[j + 1] - a[j - 1]))
+    r[j] = s20 / (s21 / r[j - 1] + s10 / r[j + 1])
+    x, y = r[j] * math.cos(a[j]), r[j] * math.sin(a[j])
+    assert x > 3.0 and min(math.hypot(x - 3.0, y - 0.25), 5.0 - x) > 0.3   # from either wall
+    out = usable_ranges(r, a[0], inc, 0.05, 25.0, laser_pose=LASER)
+    assert np.isnan(out[j])
+    # the side wall's points along its last 2 m stay, but where its chain of grazing steps
+    # begins and its end beside the mixed pixel (which only the mixed pixel's line would keep)
+    wall = np.flatnonzero(side & (along > 1.0))
+    assert np.isfinite(out[wall]).sum() == len(wall) - 2
+    assert np.isfinite(out[j - 3:j]).all()       # and so does the far wall
+
+
 def test_rep117_values_keep_their_meaning_and_the_body_goes():
     r = wall_at(3.0)
     r[:5], r[5], r[6], r[-3:] = np.nan, -np.inf, 0.01, 0.15   # 0.01: out of limits (invalid)
