@@ -71,8 +71,11 @@ class NavigationTest(SimTestCase):
         self.assertEqual(self.collisions, 0, 'the robot touched something (/sim/collisions)')
 
     def send_and_wait(self, goal, timeout):
+        # the stamps move_base gave its feedback (when it sent them, in ROS time): not when they
+        # arrived, which on a loaded machine can be long after simulated time ran on
         feedback = []
-        self.client.send_goal(goal, feedback_cb=lambda f: feedback.append(rospy.Time.now().to_sec()))
+        self.client.send_goal(goal, feedback_cb=lambda f: feedback.append(
+            f.base_position.header.stamp.to_sec()))
         self.assertTrue(self.client.wait_for_result(rospy.Duration(timeout)), 'no result in %.0f s' % timeout)
         return self.client.get_state(), self.client.get_goal_status_text(), feedback
 
