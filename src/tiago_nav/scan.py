@@ -170,10 +170,9 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
       flank, between the cylinder and the wall behind it, is not; nor is one past the end of a
       wall seen at grazing incidence, even where it falls on the line through its neighbours,
       which then lie on two surfaces, or on the wall's line; the wall's last two points before
-      such a step go too).
-      An invalid beam (NaN: a dropout,
-      common at a cylinder's tangent) says nothing: the beams either side of it (up to
-      ``MAX_SKIP`` beams apart) are neighbours.
+      such a step go too). An invalid beam (NaN: a dropout, common at a cylinder's tangent)
+      says nothing: the beams either side of it (up to ``MAX_SKIP`` beams apart) are
+      neighbours.
 
     No return (+inf) and too close (-inf) are kept: they still mean what REP 117 says.
 
