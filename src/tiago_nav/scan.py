@@ -151,7 +151,10 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
       beams pointing backwards from the laser (in base_footprint): the laser sits at the front
       of the base and sees its body only behind it (TIAGo's self-hits are the fan's ends). A
       return ahead of the laser is never taken for the body, however close: an obstacle
-      ``margin`` from the front bumper must still stop the robot;
+      ``margin`` from the front bumper must still stop the robot. A hit beside a body return
+      (behind the laser) and within ``shadow_min_jump`` of it goes too: the veil rule below
+      would keep it as a near surface, but it is the body's mixed pixel or noise, and can lie
+      just past the margin (a wall that close is touching the body anyway);
     * veils (mixed pixels), by the rule of ROS laser_filters' ``ScanShadowsFilter``: two
       neighbouring hits form a *grazing step* when the segment between their points makes an
       angle below ``shadow_angle`` with the beam (the pair lies almost along the beam) and
@@ -169,9 +172,8 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
       mixed pixel that follows a grazing step on a cylinder's flank, between the cylinder and
       the wall behind it, is not; nor is one past the end of a wall seen at grazing incidence,
       even where it falls on the line through its neighbours, which then lie on two surfaces).
-      An invalid beam (NaN: a dropout,
-      common at a cylinder's tangent) says nothing: the beams either side of it (up to
-      ``MAX_SKIP`` beams apart) are neighbours.
+      An invalid beam (NaN: a dropout, common at a cylinder's tangent) says nothing: the beams
+      either side of it (up to ``MAX_SKIP`` beams apart) are neighbours.
 
     No return (+inf) and too close (-inf) are kept: they still mean what REP 117 says.
 
@@ -204,17 +206,20 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
                               laser_pose[1] + rn * geo.sin_base[near]) <= radius + margin
     # a beam with no valid measurement (NaN, e.g. a dropout at a cylinder's tangent) says
     # nothing: the beams either side of it (up to MAX_SKIP beams apart) are neighbours
-    valid = ~np.isnan(r)
-    if valid.all():
-        if n > 1:
-            drop |= _veils(r, geo.angles, geo.cos, geo.sin, hit, True, shadow_angle,
-                           shadow_min_jump, range_std)
-    else:
-        idx = np.flatnonzero(valid)
-        if idx.size > 1:
-            drop[idx] |= _veils(r[idx], geo.angles[idx], geo.cos[idx], geo.sin[idx], hit[idx],
-                                np.diff(idx) <= MAX_SKIP, shadow_angle, shadow_min_jump,
-                                range_std)
+    idx = np.flatnonzero(~np.isnan(r))
+    if idx.size > 1:
+        adjacent = np.diff(idx) <= MAX_SKIP
+        body = drop[idx]
+        drop[idx] |= _veils(r[idx], geo.angles[idx], geo.cos[idx], geo.sin[idx], hit[idx],
+                            adjacent, shadow_angle, shadow_min_jump, range_std)
+        if body.any():
+            # a hit behind the laser beside a body return and within shadow_min_jump of it
+            # makes no grazing step, so the veil rule takes it for the near surface: it is the
+            # body's mixed pixel (or noise), and may lie just past the margin
+            rv, behind = r[idx], hit[idx] & geo.behind[idx]
+            close = adjacent & (np.abs(np.diff(rv)) <= shadow_min_jump)
+            drop[idx[1:][close & body[:-1] & behind[1:]]] = True
+            drop[idx[:-1][close & body[1:] & behind[:-1]]] = True
     r[drop] = np.nan
     return r
 

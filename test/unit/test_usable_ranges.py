@@ -127,6 +127,34 @@ def test_a_return_ahead_of_the_laser_is_never_the_body():
     assert clean(r)[180] == 0.1
 
 
+def test_a_mixed_pixel_at_the_bodys_edge_is_the_body():
+    """The fan's last beams hit the robot's own body (TIAGo's self-hits); the beam beside the
+    first of them can return a mixed pixel between the body and what lies past it. Within
+    ``shadow_min_jump`` of the body's return it makes no grazing step, yet it can lie just
+    outside the body's margin: move_base marked one 0.32 m from the base centre (the live
+    case's ranges, a wall 0.41 m to the left), beyond the footprint it clears, and kept it
+    there after the robot left. It is the body's, not a surface's."""
+    from tiago_nav.sim.laser import body_ranges
+    n, inc = 666, math.radians(220.0) / 665
+    a = beam_angles(-math.radians(110.0), inc, n)
+    body = body_ranges(a, 0.2, 0.27, math.radians(103.5))
+    r = np.where(np.isfinite(body), body, np.inf)
+    wall = np.flatnonzero((a > 0) & ~np.isfinite(body))
+    r[wall] = 0.41 / np.sin(a[wall])               # the wall y = 0.41 m, to the left
+    j = int(wall[-1])                               # the last beam before the body's
+    r[j + 1] += 0.02                                # range noise: 2 sigma
+    r[j] = 0.303                                    # the mixed pixel, 4.5 cm past the body
+    x, y = 0.2 + r[j] * math.cos(a[j]), r[j] * math.sin(a[j])
+    assert 0.32 < math.hypot(x, y) and 0.41 - y > 0.1    # off the body and the wall
+    out = usable_ranges(r, a[0], inc, 0.05, 25.0, laser_pose=LASER)
+    assert np.isnan(out[j])
+    assert np.isnan(out[j + 1:]).all()              # the body
+    # the wall's hits within 5 m stay, but where its chain of grazing steps begins and the
+    # veil point beside the mixed pixel
+    kept = wall[(r[wall] < 5.0) & (wall < j)]
+    assert len(kept) > 200 and np.isfinite(out[kept]).sum() == len(kept) - 2
+
+
 # --- the consumers with the tiago laser -------------------------------------------------------
 
 @pytest.fixture(scope='module')
