@@ -167,11 +167,13 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
       tangent. A mixed pixel within ``shadow_min_jump`` of the near surface is kept (it is
       close to a real surface); the far surface's first point behind it is dropped instead.
       A point inside a chain (a grazing step going away on each side) is kept only if it lies
-      on the straight line through its two neighbours and on the line through the two points
-      on one side of it, each within 3 ``range_std`` of range noise (a wall is straight; a
-      mixed pixel that follows a grazing step on a cylinder's flank, between the cylinder and
-      the wall behind it, is not; nor is one past the end of a wall seen at grazing incidence,
-      even where it falls on the line through its neighbours, which then lie on two surfaces).
+      on the straight line through its two neighbours and on the lines through the two points
+      on each side of it (where both are hits next to it), each within 3 ``range_std`` of
+      range noise (a wall is straight; a mixed pixel that follows a grazing step on a
+      cylinder's flank, between the cylinder and the wall behind it, is not; nor is one past
+      the end of a wall seen at grazing incidence, even where it falls on the line through its
+      neighbours, which then lie on two surfaces, or on the wall's line, which runs along the
+      beams there; the wall's last two points before such a step go too).
       An invalid beam (NaN: a dropout, common at a cylinder's tangent) says nothing: the beams
       either side of it (up to ``MAX_SKIP`` beams apart) are neighbours.
 
@@ -274,10 +276,11 @@ def _veils(r, angles, c, s, hit, adjacent, shadow_angle, shadow_min_jump, range_
     drop |= back[1:] & ~np.concatenate((back[2:], back[n:]))
     # inside a chain, a wall's points lie on a line: three points at angles a0, a1, a2 of a line
     # satisfy sin(a2 - a1) / r0 + sin(a1 - a0) / r2 = sin(a2 - a0) / r1. A point must lie on the
-    # line through its two neighbours, and that line must be a surface's: the point continues
-    # the line through the two points on one side of it too. A mixed pixel between the end of a
-    # wall seen at grazing incidence and what lies behind it can fall on the line through its
-    # neighbours, which then lie on two surfaces, but not on either surface's own line.
+    # line through its two neighbours and on the lines through the two points on each side of
+    # it. A mixed pixel between the end of a wall seen at grazing incidence and what lies behind
+    # it can fall on the line through its neighbours, which then lie on two surfaces, or on the
+    # near surface's own line (at short range the test allows centimetres along the beam, and
+    # the wall's line runs along the beams), but not on both surfaces' lines.
     inside = (out[:n] & out[1:]) | (back[:n] & back[1:])
     m = np.flatnonzero(inside[1:n - 1]) + 1
     if m.size:
@@ -298,13 +301,15 @@ def _veils(r, angles, c, s, hit, adjacent, shadow_angle, shadow_min_jump, range_
             return np.broadcast_to(adjacent, (n - 1,))[k]
 
         def beside(k, exists):
-            """on_line(k) where ``exists`` (k - 1 and k + 1 are beams) and both neighbour k."""
-            ok = np.zeros(k.size, dtype=bool)
+            """on_line(k), or True where there is no such line: ``exists`` False (k - 1 or
+            k + 1 is past the scan's end), k - 1 or k + 1 not a hit or not k's neighbour."""
+            ok = np.ones(k.size, dtype=bool)
             j = k[exists]
-            ok[exists] = on_line(j) & neighbours(j - 1) & neighbours(j)
+            present = hit[j - 1] & hit[j + 1] & neighbours(j - 1) & neighbours(j)
+            ok[exists] = ~present | on_line(j)
             return ok
 
-        drop[m] |= ~(on_line(m) & (beside(m - 1, m >= 2) | beside(m + 1, m <= n - 3)))
+        drop[m] |= ~(on_line(m) & beside(m - 1, m >= 2) & beside(m + 1, m <= n - 3))
     return drop
 
 

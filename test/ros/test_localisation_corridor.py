@@ -131,11 +131,13 @@ class LocalisationCorridorTest(unittest.TestCase):
         self.assertLessEqual(steps.max(), self.max_step)
         # at the start only the corridor's walls are in view: /amcl_pose's covariance says the
         # position along the corridor (x) is unknown to the search window's width, the lateral
-        # one (y) to centimetres
-        _, _, cov, truth = first
+        # one (y) to within a cell of the map (0.05 m: where the map puts each wall is known to
+        # no better), and that claim holds the lateral error
+        _, pose, cov, truth = first
         self.assertLess(abs(truth[0] - self.world.start_pose[0]), 0.05, 'not the first estimate')
         self.assertGreater(math.sqrt(cov[0, 0]), 0.2, cov)
-        self.assertLess(math.sqrt(cov[1, 1]), 0.02, cov)
+        self.assertLess(math.sqrt(cov[1, 1]), 0.05, cov)
+        self.assertLessEqual(abs(pose[1] - truth[1]), 3.0 * math.sqrt(cov[1, 1]), cov)
         # said once, not per scan (registrations: one per 0.1 m driven and more at rest)
         logs = node_log('localisation')
         said = [m for m in logs if 'degenerate' in m]

@@ -91,10 +91,31 @@ def test_a_mixed_pixel_past_a_grazing_walls_end_is_dropped_even_on_its_neighbour
     out = usable_ranges(r, a[0], inc, 0.05, 25.0, laser_pose=LASER)
     assert np.isnan(out[j])
     # the side wall's points along its last 2 m stay, but where its chain of grazing steps
-    # begins and its end beside the mixed pixel (which only the mixed pixel's line would keep)
+    # begins and its last two points, beside the mixed pixel (no line of two points on that
+    # side vouches for them)
     wall = np.flatnonzero(side & (along > 1.0))
-    assert np.isfinite(out[wall]).sum() == len(wall) - 2
+    assert np.isnan(out[wall]).sum() == 3
+    assert np.isnan(out[j + 1:j + 3]).all()
     assert np.isfinite(out[j - 3:j]).all()       # and so does the far wall
+
+
+@pytest.mark.parametrize('ranges, mixed', [
+    # from (10.04, -3.19) facing west, along the wall x = 9.7 to its end at y = 0 and past it
+    # to a cylinder 4.5 m away: 3.534 continues the wall's line, 0.32 m past its end
+    ([4.496, 4.496, 4.513, 4.514, 4.133, 3.534, 3.126, 2.81, 2.796, 2.501, 2.499], 5),
+    # from (8.06, -0.76): the same wall's end (1.742), a cylinder's tangent (2.225) and the far
+    # wall (5.947); 3.208 lies on the line of the two near points (at 2 m the test allows
+    # centimetres along the beam), 0.54 m from anything
+    ([1.721, 1.732, 1.734, 1.742, 2.225, 3.208, 5.947, 5.954, 5.963, 5.99, 5.995], 5),
+])
+def test_a_mixed_pixel_on_one_sides_line_only_is_dropped(ranges, mixed):
+    """Two mixed pixels move_base marked in navigation.test, as the laser (the simulator's
+    tiago model) gave them: each inside a chain of grazing steps, on the line through its two
+    neighbours and on the line through the two points on its near side, not on the far side's."""
+    inc = math.radians(220.0) / 665
+    out = usable_ranges(np.array(ranges), 0.3, inc, 0.05, 25.0, laser_pose=LASER)
+    assert np.isnan(out[mixed])
+    assert np.isfinite(out[:4]).all() and np.isfinite(out[-2:]).all()   # the surfaces
 
 
 def test_rep117_values_keep_their_meaning_and_the_body_goes():
