@@ -152,9 +152,10 @@ def test_a_mixed_pixel_at_the_bodys_edge_is_the_body():
     """The fan's last beams hit the robot's own body (TIAGo's self-hits); the beam beside the
     first of them can return a mixed pixel between the body and what lies past it. Within
     ``shadow_min_jump`` of the body's return it makes no grazing step, yet it can lie just
-    outside the body's margin: move_base marked one 0.32 m from the base centre (the live
-    case's ranges, a wall 0.41 m to the left), beyond the footprint it clears, and kept it
-    there after the robot left. It is the body's, not a surface's."""
+    outside the body's margin: move_base marked one (0.303 m on the fan's last beam before the
+    self-hits, 0.32 m from the base centre), beyond the footprint it clears, and kept it there
+    after the robot left. It is the body's, not a surface's. Here the beams past the body see a
+    wall 0.41 m to the left."""
     from tiago_nav.sim.laser import body_ranges
     n, inc = 666, math.radians(220.0) / 665
     a = beam_angles(-math.radians(110.0), inc, n)
@@ -164,7 +165,7 @@ def test_a_mixed_pixel_at_the_bodys_edge_is_the_body():
     r[wall] = 0.41 / np.sin(a[wall])               # the wall y = 0.41 m, to the left
     j = int(wall[-1])                               # the last beam before the body's
     r[j + 1] += 0.02                                # range noise: 2 sigma
-    r[j] = 0.303                                    # the mixed pixel, 4.5 cm past the body
+    r[j] = 0.303                                    # the mixed pixel, 4.8 cm past the body's
     x, y = 0.2 + r[j] * math.cos(a[j]), r[j] * math.sin(a[j])
     assert 0.32 < math.hypot(x, y) and 0.41 - y > 0.1    # off the body and the wall
     out = usable_ranges(r, a[0], inc, 0.05, 25.0, laser_pose=LASER)
