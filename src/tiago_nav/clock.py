@@ -14,11 +14,67 @@ ROS time standing still is not by itself a verdict: on a loaded machine a live s
 fall seconds behind. A wait that sees ROS time stand still for ``stall`` wall seconds asks
 ``source_dead()`` (:class:`StallWatch`): a dead source ends the wait at once, naming the
 reason; a live one is waited for, asked again every ``stall`` seconds, the waiter's own
-patience counting in ROS time (a goal's timeout).
+patience counting in ROS time (a goal's timeout). A wait in wall time for something a source
+has promised (the scan a lockstep tick names) is judged the same way (:class:`Patience`).
 """
+import time
 
 NAP = 0.002          # [s wall] polling step of sleep_until
 STALL = 2.0          # [s wall] ROS time standing still this long: ask whether its source is dead
+HUNG = 30.0          # [s wall] a source whose process lives but that has kept nothing of its
+#                      promise this long is hung (stopped, deadlocked): the wait gives up
+
+
+class Patience:
+    """How long a wait in wall time for something a source has promised may last (the scan or
+    transform a lockstep tick names, another participant's answer), judged from facts, never
+    from time alone: ``step`` [s wall] at first; then ``dead()`` is asked, and while it says
+    the source lives (``''``) the wait goes on, asking again every ``step`` seconds, up to
+    ``bound`` [s wall] in all (a live source that has kept nothing of its promise that long is
+    hung: stopped, deadlocked). ``dead`` None makes it a plain timeout of ``step``; ``wall``
+    is a monotonic clock [s].
+
+    Single use: the wait begins at the first :meth:`over`. ``reason`` says why it ended
+    (``''`` while it lasts)."""
+
+    def __init__(self, step, bound=HUNG, dead=None, wall=time.monotonic):
+        if not (step >= 0 and bound >= step and (step > 0 or dead is None)):
+            raise ValueError('need 0 <= step <= bound (step > 0 with a source to ask), got step '
+                             '%r, bound %r' % (step, bound))
+        self.step, self.bound, self.dead, self.wall = float(step), float(bound), dead, wall
+        self.start = self.next = None
+        self.reason = ''
+
+    @classmethod
+    def of(cls, timeout):
+        """``timeout`` itself when it is a Patience, else a plain timeout of ``timeout`` [s]."""
+        return timeout if isinstance(timeout, Patience) else cls(timeout, timeout)
+
+    def over(self):
+        """True once the wait must end (``reason`` says why)."""
+        now = self.wall()
+        if self.start is None:
+            self.start, self.next = now, now + self.step
+        if self.reason or now < self.next:
+            return bool(self.reason)
+        waited = now - self.start
+        if self.dead is None:
+            self.reason = 'not within %g s of wall time' % self.step
+        elif waited >= self.bound:
+            self.reason = ('not within %.0f s of wall time, though its source lives (stopped? '
+                           'deadlocked?)' % waited)
+        else:
+            self.reason = self.dead()
+            while self.next <= now:         # the questions keep to the grid of ``step``
+                self.next += self.step
+        return bool(self.reason)
+
+    def left(self, longest):
+        """[s wall] how long to sleep before the next look: at most ``longest``, and not past the
+        next question."""
+        if self.next is None:
+            return longest
+        return min(longest, max(self.next - self.wall(), 0.0))
 
 
 def source_verdict(topic, listed, connected, exited=(), what='the simulator'):

@@ -6,8 +6,7 @@ step, asks it who is missing: simulated time never passes a participant's deadli
 answer is held. Deadlines lie on a fixed grid: the multiples of the participant's period counted
 from time 0, so two runs hold at the same instants whenever the participant joined.
 
-:class:`Gate` adds the waiting (a condition variable, a wall-clock timeout) for the simulator's
-step loop; :class:`ParticipantCore` is the cycle arithmetic of one participant, used by
+:class:`Gate` adds the waiting (a condition variable) for the simulator's step loop; :class:`ParticipantCore` is the cycle arithmetic of one participant, used by
 :class:`tiago_nav.ros.lockstep.LockstepParticipant`. Times are ROS times in seconds; a stamp is
 mapped to the physics step grid (``rate`` Hz) by :meth:`Schedule.step_of`.
 """
@@ -50,6 +49,7 @@ class _Member:
     period: int                 # [steps]
     answered: int               # [step] stamp of the last answer held
     waiting_since: float = None  # [s wall] when the simulator began to wait for it
+    asked: float = None         # [s wall] when it last asked whether it lives
     busy: bool = False          # its newest answer says it has work
 
     @property
@@ -68,8 +68,13 @@ class Schedule:
 
     Args:
         rate: physics rate [Hz]; periods must be whole numbers of steps.
-        timeout: [s wall] how long the simulator waits for a missing answer before it drops
-            that participant (it rejoins with its next answer).
+        timeout: [s wall] how long the simulator waits for a missing answer from a participant
+            that lives before it drops that participant as hung (it rejoins with its next
+            answer).
+        dead: ``dead(node)`` is ``''`` while the participant ``node`` lives (its process is
+            there: it may be slow), else why it is dead; asked once an answer has been missing
+            for ``ask`` [s wall], and again as often: a dead one is dropped at once. None:
+            everyone lives (only ``timeout`` drops).
         log: ``log(level, text)`` with level ``'info'`` or ``'warn'``; silent by default.
         wait_for_work: simulated time stands still while participants take part and none of
             them is busy (and the simulator's own ``work()`` says nothing moves): every goal
@@ -82,11 +87,12 @@ class Schedule:
     """
 
     def __init__(self, rate, timeout, log=None, wait_for_work=False, expected=(),
-                 expect_timeout=60.0):
-        if not (rate > 0 and timeout > 0 and expect_timeout > 0):
-            raise ValueError('rate, timeout and expect_timeout must be > 0, got %r, %r, %r'
-                             % (rate, timeout, expect_timeout))
+                 expect_timeout=60.0, dead=None, ask=1.0):
+        if not (rate > 0 and timeout > 0 and expect_timeout > 0 and ask > 0):
+            raise ValueError('rate, timeout, expect_timeout and ask must be > 0, got %r, %r, %r, '
+                             '%r' % (rate, timeout, expect_timeout, ask))
         self.rate, self.timeout = float(rate), float(timeout)
+        self.dead, self.ask = dead, float(ask)
         self.log = log or (lambda level, text: None)
         self.wait_for_work = bool(wait_for_work)
         self.expected = set(expected)
@@ -168,19 +174,26 @@ class Schedule:
 
     def hold(self, t, wall):
         """Who must answer before simulated time may step past ``t`` [s]: the sorted names of
-        participants whose deadline is at or before ``t``. One waited for longer than
-        ``timeout`` (wall time ``wall`` [s]) is dropped with a warning instead."""
+        participants whose deadline is at or before ``t``. One that is dead (``dead``, asked
+        every ``ask`` seconds of the wait) or, though alive, waited for longer than ``timeout``
+        (wall time ``wall`` [s]) is dropped with a warning instead."""
         waiting = []
         for name in sorted(self.due(t)):
             m = self.members[name]
             if m.waiting_since is None:
-                m.waiting_since = wall
+                m.waiting_since = m.asked = wall
+            why = ''
             if wall - m.waiting_since > self.timeout:
+                why = 'none within %.1f s of wall time, though it lives as far as can be told ' \
+                    '(stopped? deadlocked?)' % (wall - m.waiting_since)
+            elif self.dead is not None and wall - m.asked >= self.ask:
+                m.asked = wall
+                why = self.dead(name)
+            if why:
                 del self.members[name]
                 self.drops += 1
-                self.log('warn', 'lockstep: no answer from %s for its deadline %.3f s within '
-                         '%g s of wall time: going on without it until it answers again'
-                         % (name, m.deadline / self.rate, self.timeout))
+                self.log('warn', 'lockstep: no answer from %s for its deadline %.3f s: %s; going '
+                         'on without it until it answers again' % (name, m.deadline / self.rate, why))
             else:
                 waiting.append(name)
         return waiting
@@ -261,7 +274,7 @@ class Gate:
         schedule: the :class:`Schedule`.
         wall: a function returning monotonic wall time [s].
         shutdown: a function returning True once the process is stopping.
-        poll: [s wall] longest wait between two looks at timeouts and shutdown.
+        poll: [s wall] longest wait between two looks at the missing ones and shutdown.
         retick: [s wall] the tick is sent again after this long without an answer (one sent
             before a participant's subscription was connected is lost).
     """

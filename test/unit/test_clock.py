@@ -6,7 +6,7 @@ on it give up only when ROS time stands still *and* the source is dead, and wait
 again) while it lives, however long it lags."""
 import pytest
 
-from tiago_nav.clock import StallWatch, Ticker, source_verdict, sleep_until, wait_until
+from tiago_nav.clock import Patience, StallWatch, Ticker, source_verdict, sleep_until, wait_until
 from tiago_nav.motion import MotionMonitor, wait_until_still
 from tiago_nav_tools.testing.fakes import FakeClock
 
@@ -74,6 +74,66 @@ def test_a_source_that_dies_while_slow_is_found_at_the_next_question():
         clock.sleep(0.01)
     assert clock.wall() < 8.1
     assert watch.reason.startswith('ROS time stopped advancing at 0.000 s (for 8.')
+
+
+# --- a wall-clock wait for what a source promised -------------------------------------------
+class Wall:
+    """A wall clock the test moves, and a source whose verdict it sets."""
+
+    def __init__(self):
+        self.t, self.verdict, self.asked = 0.0, '', 0
+
+    def __call__(self):
+        return self.t
+
+    def dead(self):
+        self.asked += 1
+        return self.verdict
+
+
+def waited(patience, wall, until=1000.0, step=0.05):
+    """Wall seconds until ``patience`` is over (None: not within ``until``)."""
+    while wall.t <= until:
+        if patience.over():
+            return wall.t
+        wall.t += step
+    return None
+
+
+def test_patience_waits_for_a_live_source_until_it_is_hung():
+    wall = Wall()
+    p = Patience(2.0, 30.0, wall.dead, wall)
+    assert waited(p, wall) == pytest.approx(30.0, abs=0.06)
+    assert 'though its source lives' in p.reason
+    assert 14 <= wall.asked <= 15           # every 2 s, never before the first 2
+
+
+def test_patience_ends_at_the_first_question_after_its_source_died():
+    wall = Wall()
+    p = Patience(2.0, 30.0, wall.dead, wall)
+    assert waited(p, wall, until=6.9) is None
+    wall.verdict = 'the process of /simulator is gone'
+    assert waited(p, wall) == pytest.approx(8.0, abs=0.06)
+    assert p.reason == 'the process of /simulator is gone' and p.over()
+
+
+def test_patience_of_a_number_is_a_plain_timeout_that_asks_nobody():
+    wall = Wall()
+    p = Patience.of(2.0)
+    p.wall = wall
+    assert waited(p, wall) == pytest.approx(2.0, abs=0.06) and wall.asked == 0
+    assert Patience.of(p) is p
+    with pytest.raises(ValueError):
+        Patience(2.0, 1.0)
+
+
+def test_patience_sleeps_no_longer_than_its_next_question():
+    wall = Wall()
+    p = Patience(2.0, 30.0, wall.dead, wall)
+    assert p.left(0.1) == 0.1               # not begun
+    p.over()
+    wall.t = 1.95
+    assert p.left(0.1) == pytest.approx(0.05)
 
 
 def test_ticker_says_why_it_stopped():

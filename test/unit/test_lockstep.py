@@ -1,6 +1,7 @@
 """The lockstep protocol without ROS: the schedule holds simulated time at every unanswered
-deadline, applies each command at its cycle's stamp, drops a silent participant after the
-wall-clock timeout and takes it back, and a closed loop through it gives the same poses whatever
+deadline, applies each command at its cycle's stamp, waits for a slow participant while it
+lives, drops a dead one once that is known and a hung one after the wall-clock timeout and
+takes it back, and a closed loop through it gives the same poses whatever
 the participants' latency."""
 import math
 import random
@@ -123,6 +124,61 @@ def test_the_timeout_counts_from_the_start_of_each_wait():
         s.receive(Ack('/a', t, 0.1), wall=k + 0.9)
         assert s.hold(t, wall=k + 0.9) == []
     assert s.drops == 0
+
+
+class Verdicts:
+    """The simulator's question, does the participant live? Answered from a table of facts
+    (node -> reason it is dead, absent while it lives), each question recorded."""
+
+    def __init__(self):
+        self.facts, self.asked = {}, []
+
+    def __call__(self, node):
+        self.asked.append(node)
+        return self.facts.get(node, '')
+
+
+def test_a_slow_participant_that_lives_is_waited_for_however_long_it_takes():
+    """A starved process answers after 20 s of wall time: the simulator asks every second
+    whether it lives, waits on, and takes its answer; no drop, no warning."""
+    verdicts = Verdicts()
+    log = Log()
+    s = Schedule(RATE, 30.0, log, dead=verdicts, ask=1.0)
+    s.receive(Ack('/a', 0.0, 0.1), wall=0.0)
+    t = t_of(6)
+    for k in range(201):                    # 0 to 20 s of wall time, every 0.1 s
+        assert s.hold(t, wall=10.0 + 0.1 * k) == ['/a']
+    assert 19 <= len(verdicts.asked) <= 20 and set(verdicts.asked) == {'/a'}
+    assert s.receive(Ack('/a', t, 0.1), wall=30.1)
+    assert s.hold(t, wall=30.1) == []
+    assert s.drops == 0 and not log.warnings()
+
+
+def test_a_dead_participant_is_dropped_at_the_first_question_naming_why():
+    verdicts = Verdicts()
+    s = Schedule(RATE, 30.0, Log(), dead=verdicts, ask=1.0)
+    log = s.log
+    s.receive(Ack('/a', 0.0, 0.1), wall=0.0)
+    s.receive(Ack('/b', 0.0, 0.1), wall=0.0)
+    t = t_of(6)
+    assert s.hold(t, wall=10.0) == ['/a', '/b']
+    verdicts.facts['/a'] = 'the process of /a is gone'
+    assert s.hold(t, wall=10.9) == ['/a', '/b']       # not asked yet
+    assert s.hold(t, wall=11.0) == ['/b']
+    assert not s.is_participant('/a') and s.is_participant('/b') and s.drops == 1
+    [warning] = log.warnings()
+    assert '/a' in warning and 'the process of /a is gone' in warning and 'going on without it' in warning
+
+
+def test_a_live_participant_that_never_answers_is_dropped_as_hung_after_the_timeout():
+    verdicts = Verdicts()
+    s = Schedule(RATE, 30.0, Log(), dead=verdicts, ask=1.0)
+    s.receive(Ack('/a', 0.0, 0.1), wall=0.0)
+    t = t_of(6)
+    assert s.hold(t, wall=10.0) == ['/a']
+    assert s.hold(t, wall=39.9) == ['/a']
+    assert s.hold(t, wall=40.1) == []
+    assert s.drops == 1 and 'stopped? deadlocked?' in s.log.warnings()[0]
 
 
 def test_leave_drops_at_once_and_applies_its_last_command():

@@ -460,3 +460,53 @@ def test_a_direct_publishers_write_to_a_frozen_subscriber_times_out():
     assert wall.monotonic() - t0 < 5.0
     for s in (ours, theirs, set_before, other):
         s.close()
+
+
+def test_the_host_judges_a_participant_by_the_connection_its_answers_came_on(monkeypatch):
+    """A participant lives while the connection that brought its answers is open (nobody is
+    asked); once it has closed (rospy keeps it, without its socket, while it tries again) the
+    node behind it, named by the connection's callerid and not by the answers' ``node`` field,
+    is asked whether its process is there."""
+    from tiago_nav.msg import LockstepAck
+    from tiago_nav.ros import lockstep as roslockstep
+
+    class Conn:
+        def __init__(self, callerid):
+            self.header, self.socket = {'callerid': callerid}, object()
+
+    conn = Conn('/tester')
+    sub = type('Sub', (), {'impl': type('Impl', (), {'connections': [conn]})()})()
+    monkeypatch.setattr(roslockstep, 'direct_publisher', lambda topic, cls, **kw: None)
+    monkeypatch.setattr(rospy, 'Subscriber', lambda *a, **kw: sub)
+    asked = []
+    monkeypatch.setattr(roslockstep, 'node_dead', lambda node: asked.append(node) or
+                        'the process of %s is gone' % node)
+    host = roslockstep.LockstepHost(60.0)
+    ack = LockstepAck(node='/late', stamp=rospy.Time(0), period=rospy.Duration.from_sec(0.1))
+    ack._connection_header = {'callerid': '/tester'}
+    host.on_ack(ack)
+    assert host.schedule.is_participant('/late')
+    assert host.dead('/late') == '' and asked == []
+    conn.socket = None
+    assert host.dead('/late') == 'the process of /tester is gone' and asked == ['/tester']
+
+
+def test_tf_sources_are_the_broadcasters_of_the_moving_links_of_a_chain():
+    """``map → odom`` is the localisation's, ``odom → base_footprint`` the simulator's; a static
+    link's publisher need not live on, and a link above the chain's common frame is no part."""
+    import tf2_ros
+    from geometry_msgs.msg import TransformStamped
+
+    from tiago_nav.ros.clock import tf_sources
+
+    buf = tf2_ros.BufferCore()   # (a Buffer asks the master for its service)
+    for parent, child, who, stamp in (('world', 'map', '/map_server', 1), ('map', 'odom', '/localisation', 1),
+                                      ('odom', 'base_footprint', '/simulator', 1),
+                                      ('base_footprint', 'base_laser_link', '/robot_state_publisher', 0)):
+        t = TransformStamped()
+        t.header.frame_id, t.child_frame_id, t.header.stamp = parent, child, rospy.Time(stamp)
+        t.transform.rotation.w = 1.0
+        (buf.set_transform_static if stamp == 0 else buf.set_transform)(t, who)
+    assert tf_sources(buf, 'map', 'base_laser_link') == {'/localisation', '/simulator'}
+    assert tf_sources(buf, 'odom', 'base_footprint') == {'/simulator'}
+    assert tf_sources(buf, '/map', 'map') == set()

@@ -34,7 +34,7 @@ from tiago_nav.corridor.server import (ABORTED, PREEMPTED, SUCCEEDED, CorridorSe
 from tiago_nav.msg import CorridorAction, CorridorFeedback, CorridorResult
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import pose_from_transform, pose_stamped, scan_from_msg
-from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant,
+from tiago_nav.ros.lockstep import (ClaimingActionServer, LockstepParticipant, held, held_tf,
                                     ScanCache, goal_since, lookup_at)
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros import reconfigure
@@ -54,7 +54,8 @@ class RosIO:
 
     With a ``participant`` in lockstep, during a cycle held by the simulator: the cycle's scan
     (stamped the tick's ``scan_stamp``), transforms at exactly their stamp and "the latest" pose
-    at the tick's ``odom_stamp``, each waited for up to :data:`CYCLE_WAIT` wall seconds; each
+    at the tick's ``odom_stamp``, each waited for while its source lives
+    (:func:`~tiago_nav.ros.lockstep.held`); each
     command is the cycle's answer, and a goal's cycles are claimed for it."""
 
     def __init__(self, params, participant=None):
@@ -83,7 +84,7 @@ class RosIO:
 
     def latest_scan(self):
         if self.cache is not None:
-            msg = self.cache.wait_for_scan(self.participant.scan_stamp, CYCLE_WAIT) \
+            msg = self.cache.wait_for_scan(self.participant.scan_stamp, held()) \
                 if self._held() else self.cache.latest()
             return None if msg is None else scan_from_msg(msg)
         with self.lock:
@@ -97,7 +98,7 @@ class RosIO:
             t = rospy.Time(0) if stamp is None else rospy.Time.from_sec(stamp)
         try:
             if held:
-                tf = lookup_at(self.tf, parent, child, t, CYCLE_WAIT)
+                tf = lookup_at(self.tf, parent, child, t, held_tf(self.tf, parent, child))
             else:
                 tf = self.tf.lookup_transform(parent, child, t, rospy.Duration(0.0))
         except tf2_ros.TransformException as e:

@@ -53,7 +53,7 @@ from tiago_nav.params import ParamError, nested, param, validate
 from tiago_nav.ros import params as rosparams
 from tiago_nav.ros.clock import RosClock, reaches_past
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, STARTUP_WAIT, LockstepParticipant, direct_publisher,
-                                    lookup_at)
+                                    held, held_tf, lookup_at)
 from tiago_nav.ros.params import start_pose
 from tiago_nav.ros.reset import NodeReset, track
 from tiago_nav.ros.conversions import (COV_INDEX, covariance_6x6, gridmap_in_grid_frame, pose_from_msg, pose_from_transform,
@@ -304,11 +304,11 @@ class LocalisationNode:
         last: a re-send would only cost every tf listener a message)."""
         upto = tick.scan_stamp
         if upto is not None and not upto.is_zero():
-            deadline = time.monotonic() + CYCLE_WAIT    # wall time: ROS time stands still here
+            patience = held()           # wall time: ROS time stands still here
             with self.intake:
                 while (self.last_scan_stamp is None or self.last_scan_stamp < upto) \
-                        and time.monotonic() < deadline and not rospy.is_shutdown():
-                    self.intake.wait(0.1)
+                        and not patience.over() and not rospy.is_shutdown():
+                    self.intake.wait(patience.left(0.1))
         with self.lock:
             covered = reaches_past(self.sent, tick.stamp)
         if not covered:
@@ -327,12 +327,14 @@ class LocalisationNode:
         first scan is taken in, :data:`STARTUP_WAIT` (simulated time stands still at its start
         until this node has joined, so a scan skipped then would never be followed by another;
         the URDF's fixed frames and the map may come after the first scan), then
-        :data:`CYCLE_WAIT`."""
+        :data:`CYCLE_WAIT` (a transform is then waited for while its sources live:
+        :meth:`_lookup`)."""
         return STARTUP_WAIT if self.map_to_odom is None else CYCLE_WAIT
 
     def _lookup(self, target, source, stamp):
         if self.lockstep.enabled:
-            return lookup_at(self.tf, target, source, stamp, self._startup_wait())
+            return lookup_at(self.tf, target, source, stamp, STARTUP_WAIT if self.map_to_odom is None
+                             else held_tf(self.tf, target, source))
         return self.tf.lookup_transform(target, source, stamp, rospy.Duration(self.p.tf_timeout))
 
     def _on_scan(self, msg):

@@ -41,9 +41,9 @@ from tiago_nav.params import ParamChanges, nested, param, validate
 from tiago_nav.ros.clock import RosClock
 from tiago_nav.ros.conversions import (goal_from_pose, gridmap_from_msg, gridmap_to_msg,
                                        pose_from_transform, pose_stamped)
-from tiago_nav.ros.lockstep import (CYCLE_WAIT, STARTUP_WAIT, USE_LOCKSTEP,
+from tiago_nav.ros.lockstep import (STARTUP_WAIT, USE_LOCKSTEP,
                                     ClaimingActionServer, LockstepParticipant, direct_publisher,
-                                    goal_since, lookup_at, wait_for_transform)
+                                    goal_since, held, held_tf, lookup_at, wait_for_transform)
 from tiago_nav.ros.params import read_or_exit
 from tiago_nav.ros import reconfigure
 from tiago_nav.ros.tcpros import concurrent_handshakes
@@ -261,7 +261,8 @@ class MoveBase:
                 # timing); waiting only for a stamp newer than what tf holds (older ones, e.g.
                 # before the localisation's first correction, take the newest)
                 if stamp > m2o.header.stamp:
-                    m2o = lookup_at(self.tf, self.map_frame, odom, stamp, CYCLE_WAIT)
+                    m2o = lookup_at(self.tf, self.map_frame, odom, stamp,
+                                    held_tf(self.tf, self.map_frame, odom))
                 elif self.tf.can_transform(self.map_frame, odom, stamp):
                     m2o = self.tf.lookup_transform(self.map_frame, odom, stamp)
             o2s = self.tf.lookup_transform(odom, source, stamp)
@@ -287,20 +288,21 @@ class MoveBase:
             self.take_in(self.lockstep.scan_stamp)
 
     def take_in(self, upto):
-        """Wait (up to :data:`CYCLE_WAIT` wall seconds) until the scan stamped ``upto``
-        (rospy.Time) and every one before it have been taken in. The scans are taken in as they
-        arrive, in order: in lockstep none after ``upto`` exists before this cycle's answer."""
+        """Wait (while the simulator lives: :func:`~tiago_nav.ros.lockstep.held`) until the scan
+        stamped ``upto`` (rospy.Time) and every one before it have been taken in. The scans are
+        taken in as they arrive, in order: in lockstep none after ``upto`` exists before this
+        cycle's answer."""
         if upto is None or upto.is_zero():
             return
-        end = self.clock.wall() + CYCLE_WAIT
+        patience = held()
         with self.intake:
             while self.last_scan_stamp is None or self.last_scan_stamp < upto:
-                left = end - self.clock.wall()
-                if left <= 0 or self.clock.shutdown():
-                    self.scan_problem = 'the scan stamped %.3f s did not arrive' % upto.to_sec()
+                if patience.over() or self.clock.shutdown():
+                    self.scan_problem = 'the scan stamped %.3f s did not arrive: %s' % (
+                        upto.to_sec(), patience.reason or 'shutting down')
                     rospy.logwarn_throttle(5.0, 'move_base: %s' % self.scan_problem)
                     return
-                self.intake.wait(min(left, 0.1))
+                self.intake.wait(patience.left(0.1))
 
     def on_scan(self, scan):
         try:
@@ -367,14 +369,15 @@ class MoveBase:
 
     def pose(self, stamp=None):
         """``((x, y, yaw), stamp)`` of the base in map: odometry at ``stamp`` (rospy.Time,
-        waiting up to :data:`CYCLE_WAIT` wall seconds) or the newest odometry (None), after
+        waiting while its source lives) or the newest odometry (None), after
         the newest map -> odom (:meth:`_in_map`); or :class:`PoseUnavailable`."""
         base = self.p.robot_base_frame
         try:
             if stamp is None:
                 stamp = self.tf.lookup_transform(self.p.odom_frame, base, rospy.Time(0)).header.stamp
             else:
-                lookup_at(self.tf, self.p.odom_frame, base, stamp, CYCLE_WAIT)
+                lookup_at(self.tf, self.p.odom_frame, base, stamp,
+                          held_tf(self.tf, self.p.odom_frame, base))
             return self._in_map(base, stamp)
         except tf2_ros.TransformException as e:
             raise no_transform(PoseUnavailable, self.map_frame, self.p.robot_base_frame,

@@ -102,8 +102,11 @@ class Params:
                                    'for tests', nonempty=True)
     lockstep: bool = param(False, "hold simulated time at each lockstep participant's deadline "
                            'until it answers (needs /use_sim_time)')
-    lockstep_timeout: float = param(1.0, '[s wall] wait this long for a missing lockstep answer, '
-                                    'then go on without that participant', gt=0)
+    lockstep_timeout: float = param(30.0, '[s wall] wait this long for a missing lockstep answer '
+                                    'from a participant whose process lives (a stopped or '
+                                    'deadlocked one; a slow one answers sooner), then go on '
+                                    'without it; one that died is dropped as soon as that is '
+                                    'known', gt=0)
     wait_for_work: bool = param(True, 'in lockstep at real_time_factor 0: simulated time stands '
                                 'still while participants take part, none has work (a goal) '
                                 'and the base is still, so that every goal starts at the same '

@@ -27,6 +27,7 @@ from visualization_msgs.msg import MarkerArray
 from tiago_nav import mission
 from tiago_nav.mission import DetectionError, Goal, MissionConfig, MissionRunner, Poll, StageError
 from tiago_nav.mission.entrance import corridor_ahead
+from tiago_nav.clock import Patience
 from tiago_nav.lockstep import Settled
 from tiago_nav.mission.runner import (Cancelled, no_corridor_scan, no_service, service_failed,
                                       service_silent, service_verdict)
@@ -38,7 +39,7 @@ from tiago_nav.ros.actions import server_connected
 from tiago_nav.ros.clock import RosClock, node_exited
 from tiago_nav.ros.conversions import pose_from_transform, pose_stamped
 from tiago_nav.ros.lockstep import (CYCLE_WAIT, ClaimingActionServer, LockstepParticipant, Peers,
-                                    ScanCache, goal_since, lookup_at)
+                                    ScanCache, goal_since, held, held_by, held_tf, lookup_at)
 from tiago_nav.ros.markers import obstacle_markers
 from tiago_nav.ros.reset import NodeReset, adopt, on_shutdown, persistent
 from tiago_nav.ros.tcpros import concurrent_handshakes
@@ -220,14 +221,14 @@ class RosBackend:
         if not self.lockstep.lockstep or stage is None:
             return
         node = self._server_node(stage)
-        ack = self.peers.covering(node, self.lockstep.stamp, CYCLE_WAIT) if node else None
+        ack = self.peers.covering(node, self.lockstep.stamp, held_by(node)) if node else None
         if ack is None:
             return                     # not a participant: its action state decides
         self._ran_at[stage] = ack.has_command
         if not ack.has_command:        # its goal had ended: its result is on the way
-            end = time.monotonic() + CYCLE_WAIT
+            patience = held_by(node)
             client = self.clients[stage]
-            while client.get_state() in _ACTIVE and time.monotonic() < end \
+            while client.get_state() in _ACTIVE and not patience.over() \
                     and not rospy.is_shutdown():
                 time.sleep(0.001)
 
@@ -238,8 +239,9 @@ class RosBackend:
             return
         if self._sent is not None:
             client = self.clients[self._sent]
-            end = time.monotonic() + CYCLE_WAIT
-            while client.get_state() == GoalStatus.PENDING and time.monotonic() < end \
+            node = self._server_node(self._sent)
+            patience = held_by(node) if node else Patience.of(CYCLE_WAIT)
+            while client.get_state() == GoalStatus.PENDING and not patience.over() \
                     and not rospy.is_shutdown():
                 time.sleep(0.001)
             self._sent = None
@@ -269,7 +271,8 @@ class RosBackend:
         try:
             if self._cycle is not None:
                 t = lookup_at(self.tf, self.global_frame, self.robot_frame,
-                              self._cycle.odom_stamp, CYCLE_WAIT)
+                              self._cycle.odom_stamp,
+                              held_tf(self.tf, self.global_frame, self.robot_frame))
             else:
                 t = self.tf.lookup_transform(self.global_frame, self.robot_frame, rospy.Time(0))
         except tf2_ros.TransformException:
@@ -353,14 +356,16 @@ class RosBackend:
         at its stamp; :class:`StageError` of the corridor stage when they do not come."""
         self._begin_cycle()
         stamp = self.lockstep.scan_stamp
-        scan = self.scans.wait_for_scan(stamp, CYCLE_WAIT) if stamp else self.scans.latest()
+        scan = self.scans.wait_for_scan(stamp, held()) if stamp else self.scans.latest()
         if scan is None:
             raise StageError('corridor', 'no laser scan on %s for the cycle at %.3f s: cannot tell '
                              'whether a corridor leads toward pose B'
                              % (rospy.resolve_name(self.p.scan_topic), rospy.get_time()))
         try:
             robot = pose_from_transform(lookup_at(self.tf, self.global_frame, self.robot_frame,
-                                                  scan.header.stamp, CYCLE_WAIT).transform)
+                                                  scan.header.stamp,
+                                                  held_tf(self.tf, self.global_frame,
+                                                          self.robot_frame)).transform)
             laser = self._pose(self.robot_frame, scan.header.frame_id, rospy.Time(0))
         except _TF_ERRORS as e:
             raise StageError('corridor', 'no transform to place the scan and judge the corridor: '

@@ -5,10 +5,12 @@ import time
 import xmlrpc.client
 
 import rosgraph
+import yaml
 import rospy
 from rospy.impl.registration import get_topic_manager
 
 from tiago_nav.clock import source_verdict
+from tiago_nav.ros.connections import live_publishers
 
 CLOCK_TOPIC = '/clock'
 PROBE_TIMEOUT = 1.0     # [s wall] one question to a node's XML-RPC server (is its process there?)
@@ -37,12 +39,9 @@ def topic_facts(topic=CLOCK_TOPIC, master=None):
     """``(listed, connected, exited)`` for :func:`tiago_nav.clock.source_verdict` of a topic this
     process subscribes to (``topic``, resolved): the master's
     publishers of ``topic`` (None when it cannot be reached), those this process has a live
-    connection from (a completed handshake), and the listed ones without a connection whose
-    process is gone. (rospy keeps a dropped connection in its list, without a socket, while it
-    tries to connect again: only one with a socket counts.)"""
-    impl = get_topic_manager().get_subscriber_impl(topic)
-    connected = {c.header.get('callerid') for c in list(getattr(impl, 'connections', None) or ())
-                 if getattr(c, 'header', None) is not None and getattr(c, 'socket', None) is not None}
+    connection from (:func:`~tiago_nav.ros.connections.live_publishers`), and the listed ones
+    without a connection whose process is gone."""
+    connected = live_publishers(get_topic_manager().get_subscriber_impl(topic))
     caller = rospy.get_name()
     master = master or rosgraph.Master(caller)
     try:
@@ -94,6 +93,54 @@ def topic_dead(topic, what='the simulator'):
     """``''`` while a publisher of ``topic`` (resolved) that this process subscribes to lives and
     is connected, else the reason (:func:`tiago_nav.clock.source_verdict`)."""
     return source_verdict(topic, *topic_facts(topic), what=what)
+
+
+def node_dead(node, master=None):
+    """``''`` while the process of ``node`` (a node name) is there or cannot be told from a busy
+    one; else why it is dead: not registered with the ROS master any more (it shut down), or
+    its process gone (:func:`node_exited`: a crash leaves its registration behind). A live
+    process may still be slow or hung: that is for the waiter's bound (:class:`~tiago_nav.clock.
+    Patience`) to judge."""
+    caller = rospy.get_name()
+    master = master or rosgraph.Master(caller)
+    try:
+        uri = master.lookupNode(node)
+    except rosgraph.MasterError:
+        return '%s is not registered with the ROS master any more (it shut down)' % node
+    except OSError:
+        return ''           # the master is not the source: whether it lives is not known here
+    return 'the process of %s is gone' % node if node_exited(uri, caller) else ''
+
+
+def nodes_dead(nodes, master=None):
+    """:func:`node_dead` of each of ``nodes``: the first reason found, ``''`` while all live."""
+    for node in nodes:
+        why = node_dead(node, master)
+        if why:
+            return why
+    return ''
+
+
+def tf_sources(buffer, target, source):
+    """The nodes whose moving transforms make up the chain ``target`` <- ``source`` in a
+    ``tf2_ros.Buffer``, as far as it knows that chain (each frame's broadcaster; static
+    transforms, which hold whether their publisher lives on, left out)."""
+    try:
+        frames = yaml.safe_load(buffer.all_frames_as_yaml()) or {}
+    except yaml.YAMLError:
+        return set()
+
+    def up(frame):
+        path = []
+        while frame in frames and frame not in path:
+            path.append(frame)
+            frame = frames[frame].get('parent')
+        return path
+    a, b = up(source.lstrip('/')), up(target.lstrip('/'))
+    shared = set(a) & set(b)
+    return {frames[f].get('broadcaster') for f in a + b
+            if f not in shared and frames[f].get('most_recent_transform')
+            and frames[f].get('broadcaster') not in (None, 'default_authority')}
 
 
 def reaches_past(sent, stamp):

@@ -4,7 +4,8 @@ the resets (:mod:`tiago_nav.ros.reset`) and the lockstep (:mod:`tiago_nav.ros.lo
 
 
 def _connections(topic):
-    impl = getattr(topic, 'impl', None)
+    """A rospy Publisher's or Subscriber's connections (or those of its ``impl``, given)."""
+    impl = getattr(topic, 'impl', topic)
     return list(getattr(impl, 'connections', None) or ())
 
 
@@ -15,6 +16,13 @@ def connected_publishers(subscriber):
     the publisher's reply header (with its ``callerid``) once the handshake is done."""
     return {c.header.get('callerid') for c in _connections(subscriber)
             if getattr(c, 'header', None) is not None}
+
+
+def live_publishers(subscriber):
+    """:func:`connected_publishers` whose connection is open: rospy keeps a dropped connection
+    (a publisher that died) in its list, without its socket, while it tries to connect again."""
+    return {c.header.get('callerid') for c in _connections(subscriber)
+            if getattr(c, 'header', None) is not None and getattr(c, 'socket', None) is not None}
 
 
 def connected_subscribers(publisher):

@@ -20,21 +20,26 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 
 from tiago_nav import motion
-from tiago_nav.clock import NAP, STALL, StallWatch, Ticker
+from tiago_nav.clock import HUNG, NAP, STALL, Patience, StallWatch, Ticker
 from tiago_nav.lockstep import EPS, Ack, Gate, ParticipantCore, Schedule, Tick
 from tiago_nav.msg import LockstepAck, LockstepTick
-from tiago_nav.ros.clock import RosClock
+from tiago_nav.ros.clock import RosClock, node_dead, nodes_dead, tf_sources
 from tiago_nav.ros.reset import keep_status_timer, on_shutdown, persistent, track
-from tiago_nav.ros.connections import connected_publishers, connected_subscribers
+from tiago_nav.ros.connections import connected_publishers, connected_subscribers, live_publishers
 from tiago_nav.ros.topics import Subscription
 
 ACK_TOPIC = '/sim/lockstep/ack'
 TICK_TOPIC = '/sim/lockstep/tick'
 USE_LOCKSTEP = '/use_lockstep'      # bool: the participants take part (set by sim.launch)
-TIMEOUT = 1.0     # [s wall] the simulator's default wait for a missing answer (it then drops
-                  # the participant, which may rejoin; no goal fails for it)
-CYCLE_WAIT = 2.0  # [s wall] in a held cycle, the longest wait for its scan, tf or pose: the
-                  # simulator has published them, so only a starved process waits at all
+TIMEOUT = HUNG    # [s wall] the simulator's default wait for a missing answer from a participant
+                  # whose process lives (it then drops the participant, which may rejoin; no
+                  # goal fails for it); one that died is dropped once that is known
+ASK = 1.0         # [s wall] a missing answer: after this long the simulator asks whether its
+                  # participant lives, and again as often while it waits
+CYCLE_WAIT = 2.0  # [s wall] in a held cycle, a wait for its scan, tf, pose or a peer's answer
+                  # asks after this long whether their source lives, and waits on while it
+                  # does (up to HUNG): the source has published them, so only a starved
+                  # process waits at all (:func:`held`)
 STARTUP_WAIT = 30.0  # [s wall] before a node has joined, the longest wait for the data it needs
                     # (simulated time stands still at its start until the expected have joined)
 GOAL_LEAD = 1.0  # [s] a goal stamped up to this far ahead of a server's ROS time is on its clock
@@ -114,6 +119,27 @@ class ClockSource:
         rospy.rostime._set_rostime(msg.clock)
 
 
+def held(dead=None):
+    """A :class:`tiago_nav.clock.Patience` for data a held cycle waits for: :data:`CYCLE_WAIT`
+    wall seconds, then on while ``dead()`` says its source lives, up to :data:`HUNG`.
+    ``dead`` defaults to the simulator's verdict (``/clock``'s publisher: the scans and the
+    odometry are its)."""
+    return Patience(CYCLE_WAIT, HUNG, dead or RosClock().source_dead)
+
+
+def held_tf(buffer, target, source):
+    """:func:`held` for the transform ``target`` <- ``source`` of a ``tf2_ros.Buffer``: on while
+    the simulator and the broadcasters of that chain (the localisation's ``map → odom``) live."""
+    return held(lambda: RosClock().source_dead()
+                or nodes_dead(sorted(tf_sources(buffer, target, source))))
+
+
+def held_by(node):
+    """:func:`held` for what the node named ``node`` must send (its answer, its goal's
+    result): on while its process lives."""
+    return held(lambda: node_dead(node))
+
+
 def _on_grid(stamp, seconds):
     """``stamp`` (rospy.Time) + ``seconds`` rounded to whole nanoseconds (a stamp on the
     physics grid stays on it)."""
@@ -135,7 +161,10 @@ class LockstepHost:
 
     Args:
         rate: physics rate [Hz].
-        timeout: [s wall] wait for a missing answer before dropping its participant.
+        timeout: [s wall] wait for a missing answer from a participant whose process lives
+            before dropping it as hung; one that died (its answers' connection closed and its
+            process gone, or unregistered) is dropped once that is known (asked every
+            :data:`ASK` seconds of the wait: :meth:`dead`).
         clock_pub: the simulator's /clock publisher: a tick is preceded by /clock for the
             held time when that was not the last /clock sent, and a repeated tick by /clock
             again, so that a participant whose /clock subscription connected after that time
@@ -147,7 +176,9 @@ class LockstepHost:
                  expect_timeout=60.0):
         self.clock_pub = clock_pub
         self.clock_stamp = None     # the newest /clock sent (rospy.Time)
-        self._settings = (rate, timeout, _log, wait_for_work, tuple(expected), expect_timeout)
+        self.callers = {}           # participant -> the node whose connection brought its answers
+        self._settings = (rate, timeout, _log, wait_for_work, tuple(expected), expect_timeout,
+                          self.dead, ASK)
         self.interrupted = threading.Event()    # makes a waiting :meth:`hold` return None
         self.gate = Gate(Schedule(*self._settings), time.monotonic,
                          lambda: rospy.is_shutdown() or self.interrupted.is_set())
@@ -177,7 +208,18 @@ class LockstepHost:
         self.clock_stamp = None
 
     def on_ack(self, msg):
+        header = getattr(msg, '_connection_header', None) or {}
+        self.callers[msg.node] = header.get('callerid', msg.node)
         self.gate.receive(ack_from_msg(msg))
+
+    def dead(self, node):
+        """``''`` while the participant ``node`` lives: the connection its answers came on is
+        open (a process that dies closes it), or else its node's process is there
+        (:func:`tiago_nav.ros.clock.node_dead`); else why it is dead."""
+        caller = self.callers.get(node, node)
+        if caller in live_publishers(self.sub):
+            return ''
+        return node_dead(caller)
 
     def has_participants(self):
         """True while anyone takes part (the ticks then carry time forward)."""
@@ -235,8 +277,8 @@ class ScanCache:
 
     def scans_after(self, after, upto, timeout):
         """Every cached scan stamped in (``after``, ``upto``] (rospy.Time; ``after`` None: no
-        lower bound), oldest first, once the one stamped ``upto`` has arrived (waiting up to
-        ``timeout`` [s wall]); None if it does not come."""
+        lower bound), oldest first, once the one stamped ``upto`` has arrived (waiting as
+        :meth:`wait_for_scan` does); None if it does not come."""
         if self.wait_for_scan(upto, timeout) is None:
             return None
         with self.cond:
@@ -244,18 +286,18 @@ class ScanCache:
                     if (after is None or s.header.stamp > after) and s.header.stamp <= upto]
 
     def wait_for_scan(self, stamp, timeout):
-        """The scan stamped exactly ``stamp`` (rospy.Time), waiting up to ``timeout`` [s wall]
-        for it; None if it does not come (or has left the cache)."""
-        end = time.monotonic() + timeout
+        """The scan stamped exactly ``stamp`` (rospy.Time), waiting for it up to ``timeout``
+        [s wall] or as a :class:`~tiago_nav.clock.Patience` allows (:func:`held`); None if it
+        does not come (or has left the cache)."""
+        patience = Patience.of(timeout)
         with self.cond:
             while True:
                 for s in self.scans:
                     if s.header.stamp == stamp:
                         return s
-                left = end - time.monotonic()
-                if left <= 0 or rospy.is_shutdown():
+                if patience.over() or rospy.is_shutdown():
                     return None
-                self.cond.wait(min(left, 0.1))
+                self.cond.wait(patience.left(0.1))
 
 
 def goal_since(goal_stamp, now):
@@ -284,12 +326,13 @@ def gone(buffer, target, source, stamp):
 
 
 def wait_for_transform(buffer, target, source, stamp, timeout):
-    """Wait up to ``timeout`` [s wall] until tf can give ``target`` <- ``source`` at exactly
-    ``stamp`` (tf2's own timeout runs in ROS time, which stands still while the simulator
-    holds); not at all when it is :func:`gone`. True when it can."""
-    end = time.monotonic() + timeout
+    """Wait up to ``timeout`` [s wall], or as a :class:`~tiago_nav.clock.Patience` allows
+    (:func:`held_tf`), until tf can give ``target`` <- ``source`` at exactly ``stamp`` (tf2's
+    own timeout runs in ROS time, which stands still while the simulator holds); not at all
+    when it is :func:`gone`. True when it can."""
+    patience = Patience.of(timeout)
     while not buffer.can_transform(target, source, stamp):
-        if time.monotonic() >= end or rospy.is_shutdown() or gone(buffer, target, source, stamp):
+        if patience.over() or rospy.is_shutdown() or gone(buffer, target, source, stamp):
             return False
         time.sleep(NAP)
     return True
@@ -656,10 +699,11 @@ class Peers:
     def covering(self, node, stamp, timeout):
         """``node``'s newest answer once it covers ``node``'s last deadline at or before
         ``stamp`` (rospy.Time; a participant acts only at its deadlines, so that answer says
-        what it did up to ``stamp``), waiting up to ``timeout`` [s wall] for it. None when
-        ``node`` does not take part (never answered, or left) or the answer does not come."""
+        what it did up to ``stamp``), waiting for it up to ``timeout`` [s wall] or as a
+        :class:`~tiago_nav.clock.Patience` allows (:func:`held_by`). None when ``node`` does
+        not take part (never answered, or left) or the answer does not come."""
         t = stamp.to_sec()
-        end = time.monotonic() + timeout
+        patience = Patience.of(timeout)
         with self.cond:
             self.awaited.add(node)
             try:
@@ -671,10 +715,9 @@ class Peers:
                     due = math.floor(t / period + EPS) * period if period > 0 else t
                     if a.stamp.to_sec() >= due - EPS:
                         return a
-                    left = end - time.monotonic()
-                    if left <= 0 or rospy.is_shutdown():
+                    if patience.over() or rospy.is_shutdown():
                         return None
-                    self.cond.wait(min(left, 0.1))
+                    self.cond.wait(patience.left(0.1))
             finally:
                 self.awaited.discard(node)
 
