@@ -27,10 +27,8 @@ import sys
 import threading
 import time
 import unittest
-import xmlrpc.client
 
 import actionlib
-import rosgraph
 import rospy
 import rostest
 import tf2_ros
@@ -44,6 +42,7 @@ from tiago_nav.msg import (CorridorAction, TiagoTaskAction, TiagoTaskActionFeedb
                            TiagoTaskActionResult, TiagoTaskFeedback as FB)
 from tiago_nav.ros.actions import wait_server
 from tiago_nav.sim.world import load_world
+from tiago_nav_tools.testing import harness
 
 from test_mission import MissionTest
 
@@ -55,10 +54,7 @@ STOP_SIM = 3.0       # [s simulated] after the result, the base is at rest withi
 
 def node_pid(name):
     """The pid of the running node ``name`` (asked over its XML-RPC API)."""
-    uri = rosgraph.Master('/test_fault_kill').lookupNode(name)
-    code, _, pid = xmlrpc.client.ServerProxy(uri).getPid('/test_fault_kill')
-    assert code == 1, 'cannot get the pid of %s' % name
-    return pid
+    return harness.node_pid(name, '/test_fault_kill')
 
 
 class Watch:

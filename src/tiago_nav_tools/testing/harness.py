@@ -23,6 +23,48 @@ MISSION_NODES = ('/simulator', '/move_base', '/corridor_controller', '/obstacle_
                  '/tiago_controller')
 
 
+def node_pid(name, caller='/mission_harness'):
+    """The pid of the running node ``name``, asked over its XML-RPC API (as ``caller``)."""
+    import rosgraph
+    import xmlrpc.client
+    uri = rosgraph.Master(caller).lookupNode(name)
+    code, _, pid = xmlrpc.client.ServerProxy(uri).getPid(caller)
+    if code != 1:
+        raise RuntimeError('cannot get the pid of %s' % name)
+    return pid
+
+
+class Starver(threading.Thread):
+    """Starves a running stack as a loaded machine does, only harder and the same way in every
+    run: stops each of the processes ``pids`` in turn (SIGSTOP) for ``stop`` wall seconds, then
+    lets it go on (SIGCONT), ``gap`` wall seconds apart, until :meth:`finish`. ``stops``
+    counts them."""
+
+    def __init__(self, pids, stop, gap=0.2):
+        super().__init__(name='starver', daemon=True)
+        self.pids, self.stop, self.gap = list(pids), float(stop), float(gap)
+        self.done = threading.Event()
+        self.stops = 0
+
+    def run(self):
+        while not self.done.wait(self.gap):
+            pid = self.pids[self.stops % len(self.pids)]
+            try:
+                os.kill(pid, signal.SIGSTOP)
+            except ProcessLookupError:
+                return
+            self.stops += 1
+            try:
+                self.done.wait(self.stop)
+            finally:
+                os.kill(pid, signal.SIGCONT)
+
+    def finish(self):
+        """Ends the starving once the process stopped now goes on again."""
+        self.done.set()
+        self.join()
+
+
 def free_port():
     """A TCP port on localhost that is free now (for a private ROS master)."""
     with socket.socket() as s:

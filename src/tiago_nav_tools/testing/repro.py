@@ -3,7 +3,9 @@
 clients (no lockstep participation) after a wall delay; everything a user can read of them is
 recorded: each result's fields,
 the feedback published (state, sentence, stamp), the final true pose (/sim/ground_truth) and
-the stamp of each result.
+the stamp of each result. With ``--starve S`` every node of the stack is stopped in turn for S
+wall seconds while the goals run (:class:`~tiago_nav_tools.testing.harness.Starver`): a
+machine starved far beyond any load, which must change nothing a user reads.
 
 A process can join one ROS master only, so each run is a child process:
 ``python3 -m tiago_nav_tools.testing.repro --delay 1.5 [--world W] [--launch-args "..."]`` prints
@@ -25,6 +27,8 @@ COURSE_GOAL = (11.0, 0.0, -45.0, True)
 SECOND_GOAL = (12.5, -1.6, 90.0, False)    # after the first mission, from pose B
 NAV_GOAL = (11.5, -2.6, 180.0)             # a move_base goal sent directly, after both
 CORRIDOR_GOAL = 3.0     # [m] max_distance of a corridor_controller goal sent directly (--corridor)
+STARVED = ('/simulator', '/localisation', '/move_base', '/corridor_controller', '/tiago_controller',
+           '/obstacle_detection')       # the nodes --starve stops, in this order
 
 
 def _yaw(q):
@@ -73,12 +77,13 @@ def goal_feedback(published, client, result, wait=10.0):
     return [rec for g, rec in list(published) if g == goal_id]
 
 
-def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0, corridor=None):
+def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0, corridor=None, starve=0.0):
     """One launch of ``world``; after ``delay`` wall seconds a corridor_controller goal of
     ``max_distance=corridor`` [m] (None: none) is sent with a plain SimpleActionClient, then
     each of ``goals`` ``(x, y, yaw_deg, use_corridor_law)`` to tiago_controller (one after the
     other, each ``delay`` after the last ended), then ``nav_goal`` ``(x, y, yaw_deg)`` (or None)
-    to move_base. Returns the record (see the module)."""
+    to move_base; with ``starve`` [s wall] > 0, each node of :data:`STARVED` is stopped in
+    turn for that long meanwhile. Returns the record (see the module)."""
     import actionlib
     import rospy
     from actionlib_msgs.msg import GoalStatus
@@ -87,12 +92,17 @@ def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0, corridor=N
     from tiago_nav.msg import (CorridorAction, CorridorGoal, TiagoTaskAction,
                                TiagoTaskActionFeedback, TiagoTaskGoal)
     from tiago_nav.ros.conversions import pose_stamped
-    from tiago_nav_tools.testing.harness import Harness
+    from tiago_nav_tools.testing.harness import Harness, Starver, node_pid
 
     h = Harness(world, real_time_factor=0.0, observe=False, extra_args=list(launch_args))
-    rec = {'world': world, 'delay_s': delay, 'launch_args': list(launch_args), 'tasks': []}
+    rec = {'world': world, 'delay_s': delay, 'launch_args': list(launch_args), 'tasks': [],
+           'starve_s': starve}
+    starver = None
     try:
         h.connect(timeout=120.0)
+        if starve > 0:
+            starver = Starver([node_pid(n) for n in STARVED], starve)
+            starver.start()
         truth = {}
         rospy.Subscriber('/sim/ground_truth', Odometry, lambda m: truth.__setitem__('m', m),
                          queue_size=1)
@@ -148,6 +158,9 @@ def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0, corridor=N
         end = time.monotonic() + 10.0
         while time.monotonic() < end and not ('m' in truth and _at_rest(truth['m'])):
             time.sleep(0.01)
+        if starver is not None:
+            starver.finish()
+            rec['stops'] = starver.stops
         rec['truth'] = _pose(truth['m'].pose.pose) if 'm' in truth else None
         rec['truth_stamp'] = truth['m'].header.stamp.to_sec() if 'm' in truth else None
         rec['collisions'] = h.collisions
@@ -156,12 +169,14 @@ def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0, corridor=N
     except Exception as e:      # noqa: BLE001  (a broken run is a failed run, with its reason)
         rec.update(succeeded=False, error='%s: %s' % (type(e).__name__, e))
     finally:
+        if starver is not None:
+            starver.finish()
         h.close()
     return rec
 
 
 def run_child(delay, world=COURSE_WORLD, launch_args=(), goals='course,second', nav=True,
-              timeout=400.0, corridor=False):
+              timeout=400.0, corridor=False, starve=0.0):
     """:func:`run` in a child process (its own ROS node); its record, or one with ``error``."""
     cmd = [sys.executable, '-m', 'tiago_nav_tools.testing.repro', '--delay', repr(delay), '--world',
            world, '--launch-args', ' '.join(launch_args), '--goals', goals]
@@ -169,6 +184,8 @@ def run_child(delay, world=COURSE_WORLD, launch_args=(), goals='course,second', 
         cmd.append('--no-nav')
     if corridor:
         cmd.append('--corridor')
+    if starve:
+        cmd += ['--starve', repr(starve)]
     try:
         out = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, timeout=timeout).stdout
     except subprocess.TimeoutExpired:
@@ -181,7 +198,7 @@ def differences(a, b, tol=1e-7):
     """Where two records differ (list of strings; empty when they agree): every number to
     ``tol`` [m, rad, s], everything else exactly. Wall times, delays and the launch log are
     not compared."""
-    skip = {'wall_s', 'delay_s'}
+    skip = {'wall_s', 'delay_s', 'starve_s', 'stops'}
     out = []
 
     def walk(x, y, path):
@@ -217,6 +234,9 @@ def main(argv=None):
     ap.add_argument('--no-nav', action='store_true', help='no move_base goal at the end')
     ap.add_argument('--corridor', action='store_true',
                     help='first a corridor_controller goal (max_distance %g m)' % CORRIDOR_GOAL)
+    ap.add_argument('--starve', type=float, default=0.0,
+                    help='[s wall] stop each node of the stack in turn this long while the goals '
+                    'run (0: no)')
     args = ap.parse_args(argv)
     goals = []
     for g in filter(None, args.goals.split(',')):
@@ -226,7 +246,8 @@ def main(argv=None):
             x, y, yaw, c = g.split(':')
             goals.append((float(x), float(y), float(yaw), c == '1'))
     rec = run(os.path.abspath(args.world), goals, None if args.no_nav else NAV_GOAL, args.delay,
-              args.launch_args.split(), corridor=CORRIDOR_GOAL if args.corridor else None)
+              args.launch_args.split(), corridor=CORRIDOR_GOAL if args.corridor else None,
+              starve=args.starve)
     print('RESULT ' + json.dumps(rec), flush=True)
     return 0 if rec.get('succeeded') else 1
 
