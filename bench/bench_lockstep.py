@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Lockstep benchmark: the course mission (and a few navigation goals after it) at
-``real_time_factor:=0``, with and without lockstep, on an idle machine and with a busy loop on
-each core.
+``real_time_factor:=0``, with and without lockstep, on an idle machine, with a busy loop on
+each core, or starved (each node of the stack, the simulator included, stopped in turn for 3 s
+of wall time while the goals run: :class:`tiago_nav_tools.testing.harness.Starver`).
 
 Each run is a fresh demo.launch (same world, same seed) whose goal a plain actionlib
 SimpleActionClient sends after a random wall delay (0 to ``--max-delay`` s), as a user's script
@@ -10,10 +11,11 @@ ratio, the final pose (ground truth and odometry, to the last bit), the spread o
 final pose and obstacle centres, the CPU time the launch's processes used during the mission, in
 all and per process (divided by the cores: the least wall time the mission could take on this
 machine) and, with lockstep, the simulator's figures for the lag between a command's cycle and
-its application (its log line ``lockstep: N commands, lag max ...``).
+its application and the participants it dropped (its log line ``lockstep: N commands, lag
+max ...``).
 Writes bench/results/lockstep.json and lockstep.png.
 
-Usage: bench/bench_lockstep.py [--n 20] [--nav 2] [--modes on,off] [--loads idle,busy]
+Usage: bench/bench_lockstep.py [--n 20] [--nav 2] [--modes on,off] [--loads idle,busy,starved]
                                [--task mission|nav] [--max-delay 3] [--out bench/results/lockstep.json]
 """
 import argparse
@@ -30,6 +32,7 @@ RESULTS = os.path.join(ROOT, 'bench', 'results')
 WORLD = os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml')
 COURSE = (11.0, 0.0, -45.0)
 TARGET_WALL = 3.0
+STARVE = 3.0        # [s wall] --loads starved: each node stopped this long in turn
 LAG_LINE = re.compile(r'lockstep: (\d+) commands, lag max ([\d.]+) s, p95 ([\d.]+) s, (\d+) drops')
 
 
@@ -108,10 +111,11 @@ def settle_pose(last, timeout=10.0):
     return out
 
 
-def run_one(lockstep, nav_goals, seed, task, launch_args=(), delay=0.0):
+def run_one(lockstep, nav_goals, seed, task, launch_args=(), delay=0.0, starve=0.0):
     """Child process: one launch, then after ``delay`` wall seconds the course mission
     (``task`` 'mission') or one move_base goal to pose B ('nav'), from a plain client, then
-    ``nav_goals`` move_base goals; prints ``RESULT <json>`` last."""
+    ``nav_goals`` move_base goals, with ``starve`` > 0 each node of the stack stopped in turn
+    for that long [s wall] meanwhile; prints ``RESULT <json>`` last."""
     import actionlib
     import numpy as np
     import rospy
@@ -119,14 +123,19 @@ def run_one(lockstep, nav_goals, seed, task, launch_args=(), delay=0.0):
     from nav_msgs.msg import Odometry
     from tiago_nav.sim.world import load_world
     from tiago_nav_tools.evaluate.matching import sample_goals
-    from tiago_nav_tools.testing.harness import Harness
+    from tiago_nav_tools.testing.harness import Harness, Starver, node_pid
+    from tiago_nav_tools.testing.repro import STARVED
 
     h = Harness(WORLD, real_time_factor=0.0, observe=False,
                 extra_args=['lockstep:=%s' % ('true' if lockstep else 'false')] + list(launch_args))
     rec = {'lockstep': lockstep, 'task': task}
     last = {}
+    starver = None
     try:
         h.connect(timeout=120.0)
+        if starve > 0:
+            starver = Starver([node_pid(n) for n in STARVED], starve)
+            starver.start()
         client = None
         if task == 'nav' or nav_goals:      # a move_base client only where it sends goals
             client = actionlib.SimpleActionClient('move_base', MoveBaseAction)
@@ -151,6 +160,9 @@ def run_one(lockstep, nav_goals, seed, task, launch_args=(), delay=0.0):
     except Exception as e:      # noqa: BLE001  (a broken run is a failed run, with its reason)
         rec.update(succeeded=rec.get('succeeded', False), error='%s: %s' % (type(e).__name__, e))
     finally:
+        if starver is not None:
+            starver.finish()
+            rec['stops'] = starver.stops
         h.close()
     with open(h.log_path) as f:
         found = LAG_LINE.findall(f.read())
@@ -299,8 +311,10 @@ def main():
     ap.add_argument('--seed', type=int, default=7, help='seed of the navigation goals')
     ap.add_argument('--modes', default='on,off', help='lockstep on and/or off')
     ap.add_argument('--loads', default='idle,busy',
-                    help='idle and/or busy (a busy loop per core), or loaded (no busy loops of '
-                         'its own: the machine is loaded by other work, whose load is recorded)')
+                    help='idle, busy (a busy loop per core), starved (each node stopped in '
+                         'turn for %g s while the goals run) or loaded (no busy loops of its '
+                         'own: the machine is loaded by other work, whose load is recorded)'
+                         % STARVE)
     ap.add_argument('--task', default='mission', choices=('mission', 'nav'),
                     help='the course mission, or one move_base goal to its pose B')
     ap.add_argument('--out', default=os.path.join(RESULTS, 'lockstep.json'))
@@ -310,10 +324,11 @@ def main():
                     help='[s wall] each run sends its goal after a random delay up to this')
     ap.add_argument('--run', choices=('on', 'off'), help=argparse.SUPPRESS)
     ap.add_argument('--delay', type=float, default=0.0, help=argparse.SUPPRESS)
+    ap.add_argument('--starve', type=float, default=0.0, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.run:
         run_one(args.run == 'on', args.nav, args.seed, args.task, args.launch_args.split(),
-                args.delay)
+                args.delay, args.starve)
         return 0
     import numpy as np
     delays = np.random.default_rng(args.seed).uniform(0.0, args.max_delay, size=10 ** 4)
@@ -332,7 +347,8 @@ def main():
                     out = subprocess.run([sys.executable, os.path.abspath(__file__), '--run', mode,
                                           '--nav', str(args.nav), '--seed', str(args.seed),
                                           '--task', args.task, '--launch-args', args.launch_args,
-                                          '--delay', repr(delay)],
+                                          '--delay', repr(delay),
+                                          '--starve', repr(STARVE if load == 'starved' else 0.0)],
                                          stdout=subprocess.PIPE, text=True).stdout
                     rec = next((json.loads(l[7:]) for l in out.splitlines()
                                 if l.startswith('RESULT ')), {'succeeded': False, 'error': 'no result'})

@@ -52,6 +52,8 @@ BENCHMARKS = (
          '--out bench/results/lockstep_idle.json', ['lockstep_idle.json']),
         ('bench/bench_lockstep.py --n 20 --nav 0 --modes on --loads busy '
          '--out bench/results/lockstep_loaded.json', ['lockstep_loaded.json']),
+        ('bench/bench_lockstep.py --n 10 --nav 0 --modes on --loads starved '
+         '--out bench/results/lockstep_starved.json', ['lockstep_starved.json']),
         ('bench/bench_lockstep.py --n 3 --nav 1 --out bench/results/lockstep.json',
          ['lockstep.json']),
         ('bench/bench_lockstep.py --task nav --n 3 --nav 0 --modes on '
@@ -261,11 +263,12 @@ ABOUT = {
         'Each run is a fresh `demo.launch` at `real_time_factor:=0` (same world, same seed); a '
         'plain `SimpleActionClient` sends the course mission (`--task nav`: one move_base goal '
         'to pose B) after a random 0-3 s wall delay, then `--nav` seeded move_base goals. Per '
-        'condition (lockstep on or off, the machine idle or with a busy loop per core): '
-        'successes, collisions, wall and CPU time per mission, and the spread over the runs of '
-        'the true final pose, the reported final pose and the obstacle centres. Targets: the '
-        'same result in every run; idle in lockstep, at most 3 s of wall time per course '
-        'mission.'),
+        'condition (lockstep on or off, the machine idle, with a busy loop per core, or starved: '
+        'each node of the stack, the simulator too, stopped in turn for 3 s of wall time while '
+        'the goals run): successes, collisions, wall and CPU time per mission, the spread over '
+        'the runs of the true final pose, the reported final pose and the obstacle centres, and '
+        'how many participants the simulator dropped. Targets: the same result in every run; '
+        'idle in lockstep, at most 3 s of wall time per course mission.'),
     'localisation': (
         'In process: the simulator library drives the course route (start room, corridor, a '
         'loop in the big room and back; the nine cylinders present and unmapped) with injected '
@@ -717,14 +720,15 @@ def render_lockstep(d):
              s.get('wall_s_mean'), s.get('wall_s_max'), s.get('cpu_s_mean'),
              s.get('final_pose_spread_m'), s.get('distinct_final_odometry'),
              s.get('loadavg_1min_mean'))
-            + (s.get('result_pose_spread_m'), s.get('centre_spread_m'))
+            + (s.get('result_pose_spread_m'), s.get('centre_spread_m'), s.get('drops'))
             for c in d.get('conditions', []) for s in [c.get('summary', {})]]
     return ['%s: %s runs per condition, %s navigation goals after each, seed %s.'
             % (d.get('task'), _f(d.get('n')), _f(d.get('nav_goals_per_run')), _f(d.get('seed'))),
             ''] + _table(('condition', 'runs', 'succeeded', 'collisions', 'wall mean [s]',
                           'wall max [s]', 'CPU mean [s]', 'true final pose spread [m]',
                           'distinct final odometry', 'load (1 min)',
-                          'reported final pose spread [m]', 'obstacle centre spread [m]'), rows)
+                          'reported final pose spread [m]', 'obstacle centre spread [m]',
+                          'participants dropped'), rows)
 
 
 def render_localisation(d):
