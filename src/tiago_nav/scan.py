@@ -212,13 +212,14 @@ def usable_ranges(ranges, angle_min, angle_increment, range_min, range_max,
     if idx.size > 1:
         adjacent = np.diff(idx) <= MAX_SKIP
         body = drop[idx]
-        drop[idx] |= _veils(r[idx], geo.angles[idx], geo.cos[idx], geo.sin[idx], hit[idx],
+        rv, hv = r[idx], hit[idx]
+        drop[idx] |= _veils(rv, geo.angles[idx], geo.cos[idx], geo.sin[idx], hv,
                             adjacent, shadow_angle, shadow_min_jump, range_std)
         if body.any():
             # a hit behind the laser beside a body return and within shadow_min_jump of it
             # makes no grazing step, so the veil rule takes it for the near surface: it is the
             # body's mixed pixel (or noise), and may lie just past the margin
-            rv, behind = r[idx], hit[idx] & geo.behind[idx]
+            behind = hv & geo.behind[idx]
             close = adjacent & (np.abs(np.diff(rv)) <= shadow_min_jump)
             drop[idx[1:][close & body[:-1] & behind[1:]]] = True
             drop[idx[:-1][close & body[1:] & behind[:-1]]] = True
