@@ -510,3 +510,28 @@ def test_tf_sources_are_the_broadcasters_of_the_moving_links_of_a_chain():
     assert tf_sources(buf, 'map', 'base_laser_link') == {'/localisation', '/simulator'}
     assert tf_sources(buf, 'odom', 'base_footprint') == {'/simulator'}
     assert tf_sources(buf, '/map', 'map') == set()
+
+
+def test_a_held_wait_goes_on_while_its_source_lives_and_ends_once_it_is_dead():
+    """ScanCache.wait_for_scan with a Patience: a scan that comes after several questions is
+    taken while its source lives (a plain timeout of one question's length would have given
+    up); a dead source ends the wait at the first question, naming why."""
+    import collections
+    import threading
+    import time
+
+    from tiago_nav.clock import Patience
+    from tiago_nav.ros import lockstep as roslockstep
+
+    cache = roslockstep.ScanCache.__new__(roslockstep.ScanCache)      # no subscription
+    cache.cond, cache.scans = threading.Condition(), collections.deque(maxlen=8)
+    scan = type('Scan', (), {'header': type('H', (), {'stamp': rospy.Time(5)})()})()
+    asked = []
+    live = Patience(0.1, 10.0, lambda: asked.append('live') or '')
+    threading.Timer(0.5, cache.on_scan, (scan,)).start()
+    assert cache.wait_for_scan(rospy.Time(5), live) is scan
+    assert len(asked) >= 3 and live.reason == ''
+    dead = Patience(0.1, 10.0, lambda: 'the process of /simulator is gone')
+    t0 = time.monotonic()
+    assert cache.wait_for_scan(rospy.Time(6), dead) is None
+    assert time.monotonic() - t0 < 1.0 and dead.reason == 'the process of /simulator is gone'
