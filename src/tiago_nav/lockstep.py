@@ -6,7 +6,8 @@ step, asks it who is missing: simulated time never passes a participant's deadli
 answer is held. Deadlines lie on a fixed grid: the multiples of the participant's period counted
 from time 0, so two runs hold at the same instants whenever the participant joined.
 
-:class:`Gate` adds the waiting (a condition variable) for the simulator's step loop; :class:`ParticipantCore` is the cycle arithmetic of one participant, used by
+:class:`Gate` adds the waiting (a condition variable) for the simulator's step loop;
+:class:`ParticipantCore` is the cycle arithmetic of one participant, used by
 :class:`tiago_nav.ros.lockstep.LockstepParticipant`. Times are ROS times in seconds; a stamp is
 mapped to the physics step grid (``rate`` Hz) by :meth:`Schedule.step_of`.
 """

@@ -5,8 +5,8 @@ import time
 import xmlrpc.client
 
 import rosgraph
-import yaml
 import rospy
+import yaml
 from rospy.impl.registration import get_topic_manager
 
 from tiago_nav.clock import source_verdict
