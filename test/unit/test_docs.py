@@ -281,7 +281,7 @@ def test_every_benchmark_json_renders_rows():
 def test_unknown_benchmark_is_refused():
     with pytest.raises(ValueError):
         benchmarks.commands(['nope'])
-    assert len(benchmarks.commands(['lockstep'])) == 4
+    assert len(benchmarks.commands(['lockstep'])) == 5      # idle, loaded, starved, both modes, nav
     assert len(benchmarks.commands(['all'])) == sum(len(r) for _, _, r in benchmarks.BENCHMARKS)
 
 
