@@ -123,8 +123,7 @@ def run_one(lockstep, nav_goals, seed, task, launch_args=(), delay=0.0, starve=0
     from nav_msgs.msg import Odometry
     from tiago_nav.sim.world import load_world
     from tiago_nav_tools.evaluate.matching import sample_goals
-    from tiago_nav_tools.testing.harness import Harness, Starver, node_pid
-    from tiago_nav_tools.testing.repro import STARVED
+    from tiago_nav_tools.testing.harness import Harness, Starver
 
     h = Harness(WORLD, real_time_factor=0.0, observe=False,
                 extra_args=['lockstep:=%s' % ('true' if lockstep else 'false')] + list(launch_args))
@@ -134,8 +133,7 @@ def run_one(lockstep, nav_goals, seed, task, launch_args=(), delay=0.0, starve=0
     try:
         h.connect(timeout=120.0)
         if starve > 0:
-            starver = Starver([node_pid(n) for n in STARVED], starve)
-            starver.start()
+            starver = Starver.of_nodes(starve)
         client = None
         if task == 'nav' or nav_goals:      # a move_base client only where it sends goals
             client = actionlib.SimpleActionClient('move_base', MoveBaseAction)

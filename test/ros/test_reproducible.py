@@ -17,7 +17,8 @@ import unittest
 import rostest
 from actionlib_msgs.msg import GoalStatus
 
-from tiago_nav_tools.testing.repro import STARVED, differences, run_child
+from tiago_nav_tools.testing.harness import STARVED
+from tiago_nav_tools.testing.repro import differences, run_child
 
 
 STARVE = 3.0        # [s wall] each node of the third launch is stopped this long in turn

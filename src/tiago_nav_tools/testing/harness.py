@@ -21,6 +21,8 @@ from tiago_nav.geometry import compose, transform_points
 
 MISSION_NODES = ('/simulator', '/move_base', '/corridor_controller', '/obstacle_detection',
                  '/tiago_controller')
+STARVED = ('/simulator', '/localisation', '/move_base', '/corridor_controller', '/tiago_controller',
+           '/obstacle_detection')       # the nodes :meth:`Starver.of_nodes` stops, in this order
 
 
 def node_pid(name, caller='/mission_harness'):
@@ -46,6 +48,13 @@ class Starver(threading.Thread):
         self.done = threading.Event()
         self.stops = 0
 
+    @classmethod
+    def of_nodes(cls, stop, nodes=STARVED):
+        """A started Starver of the running nodes ``nodes`` (names), ``stop`` [s wall] each."""
+        starver = cls([node_pid(n) for n in nodes], stop)
+        starver.start()
+        return starver
+
     def run(self):
         while not self.done.wait(self.gap):
             pid = self.pids[self.stops % len(self.pids)]
@@ -57,7 +66,10 @@ class Starver(threading.Thread):
             try:
                 self.done.wait(self.stop)
             finally:
-                os.kill(pid, signal.SIGCONT)
+                try:
+                    os.kill(pid, signal.SIGCONT)
+                except ProcessLookupError:
+                    return          # it died while stopped (the launch is closing)
 
     def finish(self):
         """Ends the starving once the process stopped now goes on again."""

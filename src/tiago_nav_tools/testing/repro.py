@@ -27,8 +27,6 @@ COURSE_GOAL = (11.0, 0.0, -45.0, True)
 SECOND_GOAL = (12.5, -1.6, 90.0, False)    # after the first mission, from pose B
 NAV_GOAL = (11.5, -2.6, 180.0)             # a move_base goal sent directly, after both
 CORRIDOR_GOAL = 3.0     # [m] max_distance of a corridor_controller goal sent directly (--corridor)
-STARVED = ('/simulator', '/localisation', '/move_base', '/corridor_controller', '/tiago_controller',
-           '/obstacle_detection')       # the nodes --starve stops, in this order
 
 
 def _yaw(q):
@@ -82,8 +80,9 @@ def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0, corridor=N
     ``max_distance=corridor`` [m] (None: none) is sent with a plain SimpleActionClient, then
     each of ``goals`` ``(x, y, yaw_deg, use_corridor_law)`` to tiago_controller (one after the
     other, each ``delay`` after the last ended), then ``nav_goal`` ``(x, y, yaw_deg)`` (or None)
-    to move_base; with ``starve`` [s wall] > 0, each node of :data:`STARVED` is stopped in
-    turn for that long meanwhile. Returns the record (see the module)."""
+    to move_base; with ``starve`` [s wall] > 0, each node of the stack
+    (:data:`~tiago_nav_tools.testing.harness.STARVED`) is stopped in turn for that long
+    meanwhile. Returns the record (see the module)."""
     import actionlib
     import rospy
     from actionlib_msgs.msg import GoalStatus
@@ -92,7 +91,7 @@ def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0, corridor=N
     from tiago_nav.msg import (CorridorAction, CorridorGoal, TiagoTaskAction,
                                TiagoTaskActionFeedback, TiagoTaskGoal)
     from tiago_nav.ros.conversions import pose_stamped
-    from tiago_nav_tools.testing.harness import Harness, Starver, node_pid
+    from tiago_nav_tools.testing.harness import Harness, Starver
 
     h = Harness(world, real_time_factor=0.0, observe=False, extra_args=list(launch_args))
     rec = {'world': world, 'delay_s': delay, 'launch_args': list(launch_args), 'tasks': [],
@@ -101,8 +100,7 @@ def run(world, goals, nav_goal, delay, launch_args=(), timeout=240.0, corridor=N
     try:
         h.connect(timeout=120.0)
         if starve > 0:
-            starver = Starver([node_pid(n) for n in STARVED], starve)
-            starver.start()
+            starver = Starver.of_nodes(starve)
         truth = {}
         rospy.Subscriber('/sim/ground_truth', Odometry, lambda m: truth.__setitem__('m', m),
                          queue_size=1)
