@@ -344,6 +344,8 @@ class Leg:
                              # cylinder like the others left in view, not a person's leg
     cut: bool = False       # something nearer cuts its arc (:func:`arc_cut`): its width is
                             # only the part left in view
+    single: bool = False    # one beam hit it alone: a thin leg whose other beam an edge blended
+                            # (a mixed pixel) or missed; it joins a table or chair, never alone
 
     @property
     def least(self):
@@ -470,9 +472,13 @@ def group_furniture(legs, free=None, hits=None):
     but at its corners). Candidates are corners ``j`` with two neighbours at
     :data:`FURNITURE_SIDE` distances and a right angle within :data:`RIGHT_ANGLE_TOL`; a fourth leg within :data:`SIDE_TOL` of the completed corner joins.
     No leg in two groups: of the sets of groups, the one that explains the most legs
-    (:func:`_best_packing`). Returns ``(groups, rest)``: lists of index lists into ``legs``."""
+    (:func:`_best_packing`). A leg one beam hit (:attr:`Leg.single`) completes a group of
+    legs seen whole, one a group at most, and counts as a hit, not a leg, where it stands
+    inside another group's rectangle. Returns ``(groups, rest)``: lists of index lists into
+    ``legs``."""
     n = len(legs)
     c = np.array([l.center for l in legs]).reshape(-1, 2)
+    single = np.array([l.single for l in legs], dtype=bool)
     cands = []
     for j in range(n):
         for i in range(n):
@@ -492,7 +498,10 @@ def group_furniture(legs, free=None, hits=None):
                 dist4[[i, j, k]] = np.inf
                 m = int(np.argmin(dist4)) if n > 3 else -1
                 group = [j, i, k]
-                if m >= 0 and dist4[m] <= SIDE_TOL:
+                singles = sum(legs[g].single for g in group)
+                if singles > 1:
+                    continue                            # two legs of one beam each: too little
+                if m >= 0 and dist4[m] <= SIDE_TOL and not (singles and legs[m].single):
                     group.append(m)
                 elif free is not None and free(fourth, SIDE_TOL, min(l.radius for l in (
                         legs[i], legs[j], legs[k]))):
@@ -505,6 +514,7 @@ def group_furniture(legs, free=None, hits=None):
                 e1, e2 = u / lu, v / lv
                 inside = _inside(c, c[j], e1, e2, lu, lv, SIDE_TOL)
                 inside[group] = False
+                inside[single] = False                  # one beam's hits count as hits
                 if np.any(inside) or (hits is not None and np.count_nonzero(_inside(
                         hits, c[j], e1, e2, lu, lv, 0.0)) >= INSIDE_HITS):
                     continue
@@ -802,7 +812,10 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
     (:func:`leg`). Legs at the corners of a rectangle are one table or chair
     (:func:`group_furniture`), person-sized legs within a stride one person
     (:func:`pair_people`); what is left is reported alone (``legs`` not fixed: a table's or
-    chair's other legs hidden, a person's other leg hidden). Returns ``(shapes, legs_left)``:
+    chair's other legs hidden, a person's other leg hidden). A point a beam hit alone, the
+    beams either side past it, may be a thin leg whose other beam a mixed pixel took: it may
+    complete a table or chair (:attr:`Leg.single`; placed by :func:`_single_in`), never
+    stands for one or a person alone. Returns ``(shapes, legs_left)``:
     :class:`Shape` s and, for the caller to pair with its own small circles, nothing more
     (``legs_left`` is the :class:`Leg` list of every leg found, for the benchmarks).
     ``extra``: ``(Leg, points)`` pairs found elsewhere (small circles the caller fitted) that
@@ -867,6 +880,10 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
         extra_pts[len(legs)] = (k, np.asarray(q, dtype=float))
         legs.append(l)
 
+    for i in lone:              # one beam each: a thin leg whose other beam an edge blended
+        found = leg(p[[i]], sensor, view.inc, noise)
+        legs.append(Leg(found[0], found[1], np.array([i]), found[2], found[3], single=True))
+
     def pts_of(i):
         return extra_pts[i][1] if i in extra_pts else p[legs[i].index]
 
@@ -880,6 +897,10 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
     for g in groups:
         idx = [thin[i] for i in g]
         grouped.update(idx)
+        for i in idx:
+            if legs[i].single:
+                legs[i] = _single_in(legs[i], p[legs[i].index[0]], sensor, noise,
+                                     [legs[o].radius for o in idx if not legs[o].single])
         s = furniture_shape(legs, idx)
         s.points = np.concatenate([pts_of(i) for i in idx])
         s.used = used_of(idx)
@@ -905,6 +926,17 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
         s.points = np.concatenate([p[legs[i].index] for i in idx])
         out.append(s)
     return out, legs[:n_own]
+
+
+def _single_in(one, hit, sensor, noise, radii):
+    """A one-beam :class:`Leg` ``one`` (its ``hit`` [m]) placed in a piece whose other legs
+    have ``radii`` [m]: one piece has one kind of leg, so its centre is their mean radius
+    behind the hit along the beam from ``sensor``; the beam hit anywhere across the leg, so
+    its centre is that radius's uniform spread across it (variance r²/3) off, plus the range
+    ``noise`` [m]."""
+    r = float(np.mean(radii))
+    ray = (hit - sensor) / float(np.hypot(*(hit - sensor)))
+    return Leg(hit + r * ray, r, one.index, noise * noise + r * r / 3.0, 0.0, single=True)
 
 
 def pair_furniture(legs):
