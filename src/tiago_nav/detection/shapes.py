@@ -167,7 +167,10 @@ def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH
     Two faces (each at least :data:`MIN_FACE_POINTS` points over :data:`MIN_FACE_LENGTH`): the
     corner is where their lines meet, each face's length is from the corner to its farthest
     point plus half a beam spacing (the true edge lies between that point and the next beam),
-    the centre half of each length in from the corner. One face: the centre lies behind its
+    the centre half of each length in from the corner. A face's end point is placed on its
+    face's line where its beam meets it, weighed with the point's own place by their
+    variances (a laser errs in range: where the beams graze the face, a range error, or a
+    footprint straddling the step to the next beam's hit, moves the point along the face). One face: the centre lies behind its
     middle by half the unseen depth, anywhere in (0, ``max_depth`` / 2]: reported at the middle
     of that interval with its uniform variance, ``center_fixed`` False.
     ``end_seen(point_index) -> int`` says whether the beam just past a face's outer end went
@@ -229,6 +232,28 @@ def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH
             spacing = r * abs(increment) / max(sin, MIN_GRAZE)
         return max(int(seen(i)), 1) * spacing
 
+    def end_on_line(i, normal, at, axis, k_face):
+        """Where face end point ``i`` lies along ``axis`` (unit) on its face's line (the
+        points with ``p @ normal == at``), and the variance [m²] of that. A laser's error is
+        in range, along the beam: the end is where the end beam meets the line (its error
+        the line's offset's, over the sine of the angle between beam and face), or the
+        point's own place along the face (its range error's share along the face: the noise
+        and, where the beams graze the face, up to the step in range to the next beam's hit,
+        which a beam's footprint straddles); the two weighed by their variances."""
+        v = pts[i] - sensor
+        r = float(np.hypot(*v))
+        ray = v / max(r, 1e-9)
+        sin, cos = abs(float(ray @ normal)), abs(float(ray @ axis))
+        own = float(pts[i] @ axis)
+        step = r * abs(increment) * cos / max(sin, MIN_GRAZE) if increment is not None else 0.0
+        var_own = (noise * noise + step * step / 3.0) * cos * cos
+        if sin < MIN_GRAZE:
+            return own, var_own
+        met = float((sensor + (at - float(sensor @ normal)) / float(ray @ normal) * ray) @ axis)
+        var_met = k_inf * sigma2 / k_face / (sin * sin)
+        w = var_met / (var_met + var_own)
+        return w * own + (1.0 - w) * met, var_own * var_met / (var_own + var_met)
+
     if good_a and good_b:
         # the corner, and each face from it to its farthest point (+ half the stretch past
         # it in which its edge lies)
@@ -236,11 +261,13 @@ def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH
         end_a = int(ia[int(np.argmax(ua))])
         end_b = int(ib[int(np.argmax(ub))])
         wa, wb = beyond(end_a, e2, sp_a), beyond(end_b, e1, sp_b)
-        la = float(ua.max()) + 0.5 * wa
-        lb = float(ub.max()) + 0.5 * wb
+        at_a, var_ea = end_on_line(end_a, e1, a, e2, ka)
+        at_b, var_eb = end_on_line(end_b, e2, b, e1, kb)
+        la = abs(at_a - b) + 0.5 * wa
+        lb = abs(at_b - a) + 0.5 * wb
         # in the axes (e1, e2): the box spans a .. a + sgn1 lb, b .. b + sgn2 la
-        var1 = k_inf * sigma2 / ka + (wb ** 2) / 48.0
-        var2 = k_inf * sigma2 / kb + (wa ** 2) / 48.0
+        var1 = k_inf * sigma2 / ka + (wb ** 2 / 12.0 + var_eb) / 4.0
+        var2 = k_inf * sigma2 / kb + (wa ** 2 / 12.0 + var_ea) / 4.0
         fixed, notes = True, []
         if not seen(end_b):
             var1 += (max_depth / 2.0) ** 2 / 12.0
@@ -292,14 +319,18 @@ def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH
     where = np.flatnonzero(keep)
     lo, hi = int(where[np.argmin(along)]), int(where[np.argmax(along)])
     w_lo, w_hi = beyond(lo, d, spacing), beyond(hi, d, spacing)
-    length = float(along.max() - along.min()) + 0.5 * (w_lo + w_hi)
+    base = float(mean @ d)
+    at_lo, var_lo = end_on_line(lo, nrm, float(mean @ nrm), d, n)
+    at_hi, var_hi = end_on_line(hi, nrm, float(mean @ nrm), d, n)
+    at_lo, at_hi = min(at_lo, at_hi) - base, max(at_lo, at_hi) - base
+    length = at_hi - at_lo + 0.5 * (w_lo + w_hi)
     if length < MIN_FACE_LENGTH:
         return None
-    var_along = (w_lo ** 2 + w_hi ** 2) / 48.0 + k_inf * sigma2 / n
+    var_along = (w_lo ** 2 + w_hi ** 2) / 48.0 + (var_lo + var_hi) / 4.0 + k_inf * sigma2 / n
     fixed_along = seen(lo) and seen(hi)
     notes = ['one face seen: the centre lies (0, %.2f] m behind its middle (the depth is not '
              'seen; its std covers it)' % (max_depth / 2.0)]
-    centre_along = 0.5 * (along.max() + along.min()) + 0.25 * (w_hi - w_lo)
+    centre_along = 0.5 * (at_hi + at_lo) + 0.25 * (w_hi - w_lo)
     if not fixed_along:
         var_along += (max_depth / 2.0) ** 2 / 12.0
         notes.append('an end is hidden: the face may go on')
@@ -785,7 +816,7 @@ class ScanView:
         b = np.arctan2(np.sin(b), np.cos(b))
         return np.round((b - self.angle_min) / self.inc).astype(int)
 
-    def end_seen(self, beam, step, dist, veiled=False):
+    def end_seen(self, beam, step, dist, veiled=False, noise=0.01):
         """Whether the object's edge at beam ``beam`` is a silhouette edge: the next beam
         outward (``step`` ±1; past those a filter dropped, two at most) went past range
         ``dist`` [m]. Returns how many beams out that one is (1, 2 or 3: the edge lies
@@ -793,12 +824,16 @@ class ScanView:
         (something nearer hides the edge, or the scan ends). A beam a filter dropped is
         looked past; with ``veiled``, one whose return before the veil filter (``raw``) went
         past counts as past (the veil filter drops the first beam behind every silhouette
-        edge, and hits where beams graze a face: those are looked past)."""
+        edge, and hits where beams graze a face: those are looked past). Such a beam whose
+        return lies more than 3 ``noise`` [m] before the next beam's (a mixed pixel: its
+        footprint straddles the edge, part on the object) puts the edge up to one beam
+        further: ``k + 1``."""
         for k in (1, 2, 3):
-            past = self._past(beam + k * step, dist)
-            if past is None and veiled and self.raw is not None and self._past(
-                    beam + k * step, dist, self.raw):
-                past = True
+            j = beam + k * step
+            past = self._past(j, dist)
+            if past is None and veiled and self.raw is not None and self._past(j, dist, self.raw):
+                nxt = self.r[j + step] if 0 <= j + step < len(self.r) else math.nan
+                return k + 1 if math.isfinite(nxt) and self.raw[j] < nxt - 3.0 * noise else k
             if past is not None:
                 return k if past else 0
         return 0
@@ -866,8 +901,7 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
                 for idx, found in two:
                     legs.append(Leg(found[0], found[1], seg[idx], found[2], found[3]))
                 continue
-        fit = fit_rectangle(q, sensor, noise, _ends(seg, p, beams, sensor, view),
-                            increment=view.inc)
+        fit = _fit_run(q, beams[seg], view, noise)
         if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
             fit[0].index = seg
             out.append(fit[0])
@@ -983,16 +1017,17 @@ def lone_furniture_shape(legs, group):
                  legs=c, leg_radius=r, kind='furniture')
 
 
-def _ends(seg, p, beams, sensor, view):
-    """``end_seen`` of :func:`fit_rectangle` for the points ``p[seg]``: whether the beam just
-    outside the run, on the side of the point's own end, went past it."""
-    lo, hi = int(beams[seg].min()), int(beams[seg].max())
+def _fit_run(q, b, view, noise):
+    """:func:`fit_rectangle` of the ``(N, 2)`` points ``q`` [m] of beams ``b`` (scan order) of
+    the :class:`ScanView` ``view``, each face's end judged by the beam past it."""
+    sensor = np.array(view.pose[:2])
+    lo, hi = int(np.min(b)), int(np.max(b))
 
     def end_seen(i):
-        b = int(beams[seg][i])
-        d = float(np.hypot(*(p[seg][i] - sensor)))
-        return view.end_seen(b, -1 if (b - lo) <= (hi - b) else 1, d, veiled=True)
-    return end_seen
+        j = int(b[i])
+        d = float(np.hypot(*(q[i] - sensor)))
+        return view.end_seen(j, -1 if (j - lo) <= (hi - j) else 1, d, veiled=True, noise=noise)
+    return fit_rectangle(q, sensor, noise, end_seen, increment=view.inc)
 
 
 def _join_hidden(found, p, beams, sensor, view, noise):
@@ -1013,8 +1048,7 @@ def _join_hidden(found, p, beams, sensor, view, noise):
             hits = between[np.isfinite(between)]
             if hi > lo + 1 and len(hits) and np.all(hits < near - 0.05):
                 idx = np.concatenate((a.index, s.index))
-                fit = fit_rectangle(p[idx], sensor, noise, _ends(idx, p, beams, sensor, view),
-                                    increment=view.inc)
+                fit = _fit_run(p[idx], beams[idx], view, noise)
                 if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
                     joined = fit[0]
                     joined.index = idx
