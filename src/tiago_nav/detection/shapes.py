@@ -423,8 +423,11 @@ def leg(points, sensor, increment, noise=0.01, round_checked=False):
             centre = p[near] + r * (p[near] - sensor) / np.hypot(*(p[near] - sensor))
     else:
         centre = p[near] + r * (p[near] - sensor) / np.hypot(*(p[near] - sensor))
-    # the radius is known to about a beam spacing: the centre's range moves with it
-    var = noise * noise / len(p) + spacing * spacing / 12.0
+    # the radius is known to about a beam spacing: the centre's range moves with it; and
+    # the range noise does not average down over the arc's few points: the centre rests on
+    # the nearest (or, fitted, on the front ones), and an edge beam's footprint straddles the
+    # leg's edge (its range blended toward what lies behind)
+    var = noise * noise + spacing * spacing / 12.0
     return centre, r, var, 0.5 * (width - spacing)
 
 
