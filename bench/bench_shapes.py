@@ -13,7 +13,8 @@ the objects in view as the evaluator matches them (tiago_nav_tools.evaluate.matc
 one, least total distance, within 0.3 m); found once (matched to a detection of its shape, box
 -> rectangle, table/chair -> legs, cylinder -> circle), found as something else (matched to
 another shape), missed; centre error; orientation error; whether its 95 %
-ellipse holds the error. The rules (labels, orientation periods, where the targets apply) are
+ellipse holds the error, and the mean normalised squared error (NEES, 2 when the covariance is
+exact). The rules (labels, orientation periods, where the targets apply) are
 the evaluator's, tiago_nav_tools.evaluate.shapes: orientation of the length modulo 180 deg, 90
 deg for a square and for a box whose length the detection does not claim (one face, or a face
 that may go on); the targets (centre <= 3 cm, orientation <= 5 deg) apply where two faces of a
@@ -125,6 +126,7 @@ def run(poses_n, seed):
                                            d.orientation, obj,
                                            length_claimed(d.extent, d.center_fixed)),
                                        center_fixed=bool(d.center_fixed),
+                                       nees=None if nees is None else round(nees, 3),
                                        inside_95=None if nees is None else nees <= CHI2_2_95,
                                        duplicates=dup)
                         rows.append(row)
@@ -160,6 +162,8 @@ def stats(rows):
                    within_5deg=round(float(np.mean(o <= TARGET_ORIENTATION)), 4))
     if inside:
         out['inside_95_ellipse'] = round(float(np.mean(inside)), 4)
+        out['mean_nees'] = round(float(np.mean([r['nees'] for r in rows
+                                                if r.get('nees') is not None])), 3)
     return out
 
 

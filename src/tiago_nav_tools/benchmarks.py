@@ -1102,10 +1102,10 @@ def render_shapes(d):
                              r.get('found_once'), r.get('found_as_other'), r.get('missed'),
                              r.get('centre_rms_m'), r.get('centre_max_m'), r.get('within_3cm'),
                              r.get('orientation_max_deg'), r.get('within_5deg'),
-                             r.get('inside_95_ellipse')))
+                             r.get('inside_95_ellipse'), r.get('mean_nees')))
     out += _table(('scans', 'objects', 'shape', 'n', 'found once', 'as another shape', 'missed',
                    'centre RMS [m]', 'max [m]', 'within 3 cm', 'orientation max [deg]',
-                   'within 5 deg', 'inside 95 % ellipse'), rows)
+                   'within 5 deg', 'inside 95 % ellipse', 'mean NEES'), rows)
     out += ['']
     for mode, m in (d.get('summary') or {}).items():
         out += ['- %s: %s false positives; %s objects where the targets apply reported with a '
