@@ -170,9 +170,10 @@ def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH
     the centre half of each length in from the corner. A face's end point is placed on its
     face's line where its beam meets it, weighed with the point's own place by their
     variances (a laser errs in range: where the beams graze the face, a range error, or a
-    footprint straddling the step to the next beam's hit, moves the point along the face). One face: the centre lies behind its
-    middle by half the unseen depth, anywhere in (0, ``max_depth`` / 2]: reported at the middle
-    of that interval with its uniform variance, ``center_fixed`` False.
+    footprint straddling the step to the next beam's hit, moves the point along the face).
+    One face: the centre lies behind its middle by half the unseen depth, anywhere in (0,
+    ``max_depth`` / 2]: reported at the middle of that interval with its uniform variance,
+    ``center_fixed`` False.
     ``end_seen(point_index) -> int`` says whether the beam just past a face's outer end went
     past it (a silhouette edge), and how many beams out the first one that said so is
     (:meth:`ScanView.end_seen`; the edge lies within that many beam spacings): if none did
