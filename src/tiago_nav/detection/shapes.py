@@ -223,14 +223,18 @@ def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH
     seen = end_seen if end_seen is not None else (lambda i: 1)
     pts = p                     # (all of them: the one-face branch below narrows ``p``)
 
+    def spacing_at(r, sin):
+        """[m] the step along a face between neighbouring beams' hits at range ``r`` [m],
+        ``sin`` the sine of the angle between the beams and the face."""
+        return r * abs(increment) / max(sin, MIN_GRAZE)
+
     def beyond(i, along, spacing):
         """[m] the stretch past the face's end point ``i`` (along unit ``along``) in which
         its edge lies: the beams out to the first that went past, a spacing each."""
         if increment is not None:
             v = pts[i] - sensor
             r = float(np.hypot(*v))
-            sin = abs(float(v[0] * along[1] - v[1] * along[0])) / max(r, 1e-9)
-            spacing = r * abs(increment) / max(sin, MIN_GRAZE)
+            spacing = spacing_at(r, abs(float(v[0] * along[1] - v[1] * along[0])) / max(r, 1e-9))
         return max(int(seen(i)), 1) * spacing
 
     def end_on_line(i, normal, at, axis, k_face):
@@ -246,7 +250,7 @@ def fit_rectangle(points, sensor, noise=0.01, end_seen=None, max_depth=MAX_DEPTH
         ray = v / max(r, 1e-9)
         sin, cos = abs(float(ray @ normal)), abs(float(ray @ axis))
         own = float(pts[i] @ axis)
-        step = r * abs(increment) * cos / max(sin, MIN_GRAZE) if increment is not None else 0.0
+        step = spacing_at(r, sin) * cos if increment is not None else 0.0
         var_own = (noise * noise + step * step / 3.0) * cos * cos
         if sin < MIN_GRAZE:
             return own, var_own
@@ -533,10 +537,10 @@ def group_furniture(legs, free=None, hits=None):
                 dist4[[i, j, k]] = np.inf
                 m = int(np.argmin(dist4)) if n > 3 else -1
                 group = [j, i, k]
-                singles = sum(legs[g].single for g in group)
+                singles = int(np.count_nonzero(single[group]))
                 if singles > 1:
                     continue                            # two legs of one beam each: too little
-                if m >= 0 and dist4[m] <= SIDE_TOL and not (singles and legs[m].single):
+                if m >= 0 and dist4[m] <= SIDE_TOL and not (singles and single[m]):
                     group.append(m)
                 elif free is not None and free(fourth, SIDE_TOL, min(l.radius for l in (
                         legs[i], legs[j], legs[k]))):
