@@ -279,6 +279,21 @@ def test_braking_for_an_obstacle_commands_only_speeds_the_base_can_reach(ahead):
     assert slowed and abs(base.v) < 0.05                # it braked and has stopped
 
 
+def test_within_its_margins_the_base_may_drive_out_but_not_further_in():
+    # a person's point 0.25 m beyond the footprint, with their 0.3 m margin: the base stands
+    # within it. Driving away from them, or past them (the gap growing), passes the check;
+    # towards them, or on a line that brings it nearer, does not
+    ctl = Controller(ControllerConfig())
+    r = ctl.c.robot_radius
+    person = np.array([[0.0, r + 0.25]])                 # to the base's left
+    margin = np.array([0.3])
+    for yaw, ok in ((-math.pi / 2, True), (0.0, True), (math.pi / 2, False), (0.5, False)):
+        assert ctl.safe((0.0, 0.0, yaw), 0.3, 0.0, person, 0.1, margins=margin) is ok, yaw
+    # out of the margins, a command must keep out of them, as before
+    assert ctl.safe((0.0, -0.2, 0.0), 0.3, 0.0, person, 0.1, margins=margin)
+    assert not ctl.safe((0.0, -0.2, math.pi / 2), 0.3, 0.0, person, 0.1, margins=margin)
+
+
 def test_a_remembered_cell_counts_as_near_as_any_part_of_it():
     # a map cell remembered for a direction the laser cannot see (the base hides the fan's
     # ends) may hold its surface half a diagonal nearer than its centre: with that margin a

@@ -72,15 +72,24 @@ def arc_poses(pose, v, w, horizon, dt):
                             y - v / w * (np.cos(ths) - math.cos(th)), ths))
 
 
+def gaps(positions, points, radius, margins=None):
+    """``(K,)`` gap [m] between a circle of ``radius`` at each of ``positions (K, 2)`` and the
+    nearest of ``points (M, 2)``, each point's distance less its own ``margins`` ``(M,)`` [m]
+    (None: 0); ``inf`` without points."""
+    if len(points) == 0:
+        return np.full(len(positions), math.inf)
+    d = np.hypot(positions[:, None, 0] - points[None, :, 0], positions[:, None, 1] - points[None, :, 1])
+    if margins is not None:
+        d = d - margins[None, :]
+    return d.min(axis=1) - radius
+
+
 def min_gap(positions, points, radius, margins=None):
     """Smallest gap [m] between circles of ``radius`` at ``positions (K, 2)`` and ``points (M, 2)``,
     each point's distance less its own ``margins`` ``(M,)`` [m] (None: 0)."""
     if len(points) == 0 or len(positions) == 0:
         return math.inf
-    d = np.hypot(positions[:, None, 0] - points[None, :, 0], positions[:, None, 1] - points[None, :, 1])
-    if margins is not None:
-        d = d - margins[None, :]
-    return float(d.min() - radius)
+    return float(gaps(positions, points, radius, margins).min())
 
 
 class Controller:
@@ -122,7 +131,9 @@ class Controller:
 
     def safe(self, pose, v, w, points, dt, blind=False, margins=None):
         """True when ``(v, w)`` held for ``dt`` and then braked at ``decel_x`` keeps the footprint
-        (plus ``safety_margin``, plus each point's own ``margins``) clear of ``points``.
+        (plus ``safety_margin``, plus each point's own ``margins``) clear of ``points``, or,
+        where the base already stands within that (a person stepped near, a margin came with
+        a person seen), brings it no nearer: it may drive out, not further in.
         ``blind`` (the laser saw nothing it could vouch for): no forward motion is safe."""
         if v <= 1e-3:
             return True   # a round base turning on the spot or stopping cannot hit anything new
@@ -134,8 +145,10 @@ class Controller:
             return True
         keep = np.hypot(points[:, 0] - pose[0], points[:, 1] - pose[1]) \
             < v * horizon + self.c.robot_radius + 0.3
-        return min_gap(poses[:, :2], points[keep], self.c.robot_radius + self.c.safety_margin,
-                       None if margins is None else margins[keep]) > 0.0
+        g = gaps(np.vstack((pose[:2], poses[:, :2])), points[keep],
+                 self.c.robot_radius + self.c.safety_margin,
+                 None if margins is None else margins[keep])      # here, then along the arc
+        return bool(g[1:].min() > 0.0 or g[1:].min() >= g[0])
 
     def command(self, pose, goal, points, dt, blind=False, margins=None):
         """One control step. ``points``: obstacle points ``(M, 2)`` in map (laser hits and
