@@ -1,10 +1,12 @@
 """People in the navigation: what moved (tiago_nav.nav.people) is kept person_clearance away,
 waited for, and given way to. Measured on the simulator's ground truth (walkers' legs, the
 base's pose and contacts) through the navigation closed loop without ROS."""
+import copy
 import math
 import os
 
 import numpy as np
+import yaml
 
 from conftest import WORLDS
 from tiago_nav.gridmap import GridMap
@@ -109,6 +111,24 @@ def test_a_leg_that_stepped_into_free_space_is_a_person_and_stays_one_while_it_s
     assert person[near].all()
 
 
+def test_a_person_who_moved_out_of_view_is_one_where_seen_next_within_a_walk_of_it():
+    # seen stepping into free space ahead-left; the base turns right while they take a step
+    # onto floor no kept scan saw free (right of the first fan): still a person there, within
+    # what a walker covers in the time; a post as far from them as they could not have walked
+    # is none
+    marks = MovedMarks(grid(), memory=10.0)
+    left = (0.0, 0.0, math.pi / 2)
+    marks.update(scan_of(ranges_with_disc(0, 0, 0, left), left, stamp=0.0))        # the witness
+    assert marks.update(scan_of(ranges_with_disc(2.0, 0.5, 0.06, left), left, stamp=1.0)).any()
+    ahead = (0.0, 0.0, 0.0)
+    for (x, y), person in (((2.0, -0.4), True), ((2.0, -1.5), False)):
+        scan = scan_of(ranges_with_disc(x, y, 0.06, ahead), ahead, stamp=2.0)
+        got = MovedMarks.update(copy.deepcopy(marks), scan)
+        pts = scan.obstacles[0]
+        near = np.hypot(pts[:, 0] - x, pts[:, 1] - y) < 0.1
+        assert near.sum() >= 3 and got[near].all() == person and not got[~near].any(), (x, y)
+
+
 def test_what_stood_there_all_along_is_no_person_seen_from_anywhere():
     marks = MovedMarks(grid(), memory=10.0)
     for k, pose in enumerate([(0.0, 0.0, 0.0), (0.5, 0.8, -0.3), (1.0, -0.8, 0.4), (1.3, 0.0, 0.0)]):
@@ -178,3 +198,17 @@ def test_the_goal_clocks_stand_still_while_the_base_waits_for_a_person():
     assert r['state'] == ABORTED
     assert 'person' in r['reason'] and 'timeout' not in r['reason'], r['reason']
     assert r['time'] >= 8.0 + 3.0
+
+
+def test_a_person_met_in_a_doorway_is_given_way_to_beside_a_wall_and_the_goal_is_reached():
+    # office_walkers: the base drives west along the hallway into the first office while a
+    # walker comes out through the 1 m doorway towards it; both stop. Giving way to the
+    # nearest place 1.5 m from the person put the base on the walker's line, where the walker
+    # waited for it until the goal timed out; beside the hallway's wall the walker passes
+    with open(os.path.join(WORLDS, 'office_walkers.yaml')) as f:
+        data = yaml.safe_load(f)
+    data['walkers'] = [dict(data['walkers'][2], start_delay=0.0)]
+    data['robot_start'] = [7.5, 0.0, 180.0]
+    r = walker_gap_run(World.from_dict(data), (1.5, 0.0, math.pi))
+    assert r['state'] == SUCCEEDED, r['reason']
+    assert r['collisions'] == 0

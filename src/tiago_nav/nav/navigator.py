@@ -91,7 +91,9 @@ class NavConfig:
     give_way_after: float = param(
         3.0, '[s] a person who has stood in the way this long (after planner_patience) may be '
              'waiting for the base, as people do: the base gives way, driving to the nearest '
-             'place give_way_distance from every person, and waits there', ge=0)
+             'place give_way_distance from every person beside a wall or an obstacle (else in '
+             'the open), and waits there while a person is that near, up to person_patience',
+        ge=0)
     give_way_distance: float = param(1.5, '[m] see give_way_after', gt=0)
     controller: ControllerConfig = nested(ControllerConfig)
 
@@ -139,6 +141,9 @@ class Navigator:
     RECOVERIES = ('clear', 'rotate', 'backup')
     MEMORY_RADIUS = 2.5     # [m] occupied cells this near the laser stand in for invalid beams
     LOOK_ANGLE = 1.2        # [rad] a person's mark farther off the heading than this is turned to
+    ASIDE = (0.1, 0.05)     # [m] giving way, the base's centre this far beyond its inscribed radius
+                            # from the nearest wall or obstacle (centre to occupied cell centre), give
+                            # or take the second: beside it, clear of the laser's safety margin
 
     def __init__(self, grid, config=NavConfig()):
         self.cfg = config
@@ -150,6 +155,8 @@ class Navigator:
         self.moved = MovedMarks(grid, config.person_memory)
         self._person_check = None   # (t, was there a plan without the people layer)
         self.retreat = None         # giving way: None (not yet), a plan, or False (nowhere)
+        self.aside = False          # ... the plan ends beside a wall or an obstacle
+        self.gave_way_at = None     # [s] when the base began to give way
         self.waived = None          # when the people in the way were taken to wait for the base
         self.held = None            # the last cycle spent waiting for or giving way to a person
         self.points = np.zeros((0, 2))
@@ -175,8 +182,12 @@ class Navigator:
         clearance = self.cfg.person_clearance
         if clearance > 0 and self.waived is None:
             # a person is kept clearance farther: by the collision check (as if nearer by it)
-            # and by the plan (its keep-out counts as occupied)
+            # and by the plan (its keep-out counts as occupied), the plan's keep-out as wide
+            # as the check's (its safety margin, and half a cell's diagonal: a cell's centre
+            # stands for anywhere in it), or it would plan a way the check refuses to drive
             cm = self.costmap
+            keep_out = clearance + self.cfg.controller.safety_margin \
+                + cm.resolution / math.sqrt(2.0)
             person = self.moved.update(scan)
             margins[person] = clearance
             # and where the laser marked a person before (out of view now, or hidden)
@@ -186,9 +197,9 @@ class Navigator:
                 marks = marks[self.moved.held(marks, scan.stamp)]
                 self.moved.hold(marks, scan.stamp + self.moved.memory, grow=False)
                 cm.set_people(np.vstack((points[person], cm.grid.cell_to_world(marks))),
-                              clearance)
+                              keep_out)
             elif cm.people_set:
-                cm.set_people(np.zeros((0, 2)), clearance)
+                cm.set_people(np.zeros((0, 2)), keep_out)
         self.costmap.update()
         if len(scan.ranges) and (scan.kinds == INVALID).any():
             near = self.costmap.occupied_near(scan.laser_pose[:2], self.MEMORY_RADIUS)
@@ -299,7 +310,6 @@ class Navigator:
             return False
         self.controller.set_path(self.path)
         self.last_plan_ok = t
-        self.retreat = None
         self._arc = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(self.path, axis=0).T))))
         if self.cfg.goal_timeout < 0 and math.isinf(self.deadline):
             # derived from the first plan (goal_timeout < 0)
@@ -388,14 +398,23 @@ class Navigator:
 
     def _give_way_path(self, pose):
         """A plan ``(K, 2)`` to the nearest place at least ``give_way_distance`` from every
-        person (their keep-out in the costmap), or False when there is none."""
+        person (their keep-out in the costmap) and beside a wall or an obstacle (its centre
+        :data:`ASIDE` from the robot's inscribed radius there), as a person steps aside to let
+        someone pass: the most room left for them; where no such place can be reached, the
+        nearest place that far from every person; False when there is none."""
         cm = self.costmap
         clear = distance_to_mask(cm.people, cm.resolution) \
             >= self.cfg.give_way_distance - self.cfg.person_clearance
         start = cm.grid.world_to_cell([pose[:2]])[0]
-        try:
-            cells = path_to_nearest(cm.cost, start, clear, self.cfg.cost_weight)
-        except PlanError:
+        beside = np.abs(cm.distance - (self.cfg.robot_radius + self.ASIDE[0])) <= self.ASIDE[1]
+        for self.aside, targets in ((True, clear & beside), (False, clear)):
+            try:
+                cells = path_to_nearest(cm.cost, start, targets, self.cfg.cost_weight)
+                break
+            except PlanError:
+                continue
+        else:
+            self.aside = False
             return False
         pts = cm.grid.cell_to_world(cells)
         pts[0] = pose[:2]
@@ -432,9 +451,11 @@ class Navigator:
         """One control cycle along the give-way plan; standing still at its end."""
         end = self.retreat[-1]
         if math.hypot(end[0] - pose[0], end[1] - pose[1]) <= self.cfg.controller.xy_goal_tolerance:
-            # there: wait, unless a person came near again (they are walking this way)
+            # there: wait, unless a person came near again (they are walking this way) where
+            # the base stands in the open (beside a wall, it has left them the most room: they
+            # pass)
             nearest = self._nearest_person(pose)
-            near = nearest is not None \
+            near = nearest is not None and not self.aside \
                 and nearest[1] < self.cfg.give_way_distance - self.cfg.person_clearance
             if near:
                 self.retreat = self._give_way_path(pose)
@@ -490,6 +511,18 @@ class Navigator:
                 if not self._replan(pose, t) and blocked:
                     self.path = None
                     self.controller.set_path(None)
+            if self.path is not None and self.retreat is not None:
+                # a plan again after giving way: while the person is near (passing, or
+                # waiting for the way the base left them to clear) it stays where it gave way,
+                # up to person_patience
+                nearest = self._nearest_person(pose)
+                if self.retreat is not False and nearest is not None \
+                        and nearest[1] < cfg.give_way_distance - cfg.person_clearance \
+                        and t - self.gave_way_at <= cfg.person_patience:
+                    self.held = t
+                    return self._give_way(pose, t, dt)
+                self.retreat = None
+                self.controller.set_path(self.path)
             if self.path is None:
                 waited = t - max(self.last_plan_ok, self.patience_from)
                 if waited > cfg.planner_patience:
@@ -505,6 +538,7 @@ class Navigator:
                             # people do; it passes them at its ordinary clearance
                             self.waived = t
                             self.patience_from = t
+                            self.retreat = None
                             self.costmap.set_people(np.zeros((0, 2)), 0.0)
                             self.margins[:] = 0.0
                             self.costmap.update()
@@ -512,6 +546,7 @@ class Navigator:
                             return self._wait_for_person(pose, t, dt)
                         if self.retreat is None and waited > cfg.planner_patience + cfg.give_way_after:
                             self.retreat = self._give_way_path(pose)
+                            self.gave_way_at = t
                         if self.retreat is not None and self.retreat is not False:
                             return self._give_way(pose, t, dt)
                         return self._wait_for_person(pose, t, dt)

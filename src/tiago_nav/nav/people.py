@@ -11,7 +11,10 @@ hits lie together (a leg is several beams wide; a lone hit in free space is a mi
 person who then stops keeps the label: a cell a moved hit fell in stays a person's for
 ``memory`` seconds after it was last hit (:meth:`MovedMarks.hold`; the navigator holds a
 person's laser marks for as long as they stay marked), and a hit in such a cell is a person's
-too. Hits near the static map (within ``map_margin``) are the map's and never a person's.
+too. A person who moved while out of view, or onto floor no kept scan saw free, is looked for
+where they could have walked since their last hit (up to :attr:`MovedMarks.max_reach`): hits
+there are a person's for that scan (:meth:`MovedMarks._within_reach`). Hits near the static
+map (within ``map_margin``) are the map's and never a person's.
 
 Frames and units: the ``map`` frame, metres, seconds (the scans' stamps).
 """
@@ -34,6 +37,8 @@ class MovedMarks:
 
     min_points = 3          # moved points that make a person's leg (a leg is 3 beams or more)
     cluster_radius = 0.1    # [m] ... within this of each other (a calf is 0.1-0.15 m across)
+    walk_speed = 1.5        # [m/s] a person walks at most this fast (1.4 m/s is brisk) ...
+    max_reach = 1.0         # [m] ... and is looked for at most this far from where last seen
     max_gap = 0.02          # [m] a witness vouches for free space only where its beams lie at
                             # most this far apart (a chair's leg 2.4 cm across hid between
                             # beams 4 cm apart)
@@ -71,6 +76,9 @@ class MovedMarks:
                 held = self.until[cells[:, 0], cells[:, 1]] >= t
                 person[idx] = moved | held
                 self.hold(cells[moved | held], t + self.memory)
+                rest = ~(moved | held)
+                if rest.any() and self.any_held(t):
+                    person[idx[rest]] = self._within_reach(pts[idx[rest]], t)
         if not self.witnesses or t - self.witnesses[-1].stamp >= self.keep_every:
             self.witnesses.append(scan)
         return person
@@ -112,6 +120,27 @@ class MovedMarks:
     def any_held(self, t):
         """Is any cell a person's at time ``t`` [s]?"""
         return self.latest >= t
+
+    def _within_reach(self, xy, t):
+        """Boolean per ``(N, 2)`` map point at time ``t`` [s]: could a person whose hits held a
+        cell have walked there since (:attr:`walk_speed` times the time since the cell's last
+        hit, up to :attr:`max_reach`), with :attr:`min_points` such points together? A person
+        who moved while out of the laser's view, or onto floor no kept scan saw, stays one
+        where they are seen next. These points are a person's for this scan only (their cells
+        are not held: a person's label must not creep along whatever stands near them)."""
+        cells = np.argwhere(self.until >= t)
+        if not len(cells) or not len(xy):
+            return np.zeros(len(xy), dtype=bool)
+        age = t - (self.until[cells[:, 0], cells[:, 1]] - self.memory)
+        reach = np.minimum(self.walk_speed * age, self.max_reach) + self.grid.resolution
+        centres = self.grid.cell_to_world(cells)
+        tree = cKDTree(centres)
+        out = np.zeros(len(xy), dtype=bool)
+        for i, near in enumerate(tree.query_ball_point(xy, float(reach.max()))):
+            if near:
+                out[i] = bool(np.any(np.hypot(*(centres[near] - xy[i]).T) <= reach[near]))
+        out[out] = self._together(xy[out])
+        return out
 
     def _together(self, xy):
         """Boolean per moved point: are at least :attr:`min_points` moved points (itself
