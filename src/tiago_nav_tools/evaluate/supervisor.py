@@ -501,14 +501,19 @@ class Supervisor:
         # the mission's last messages: the feedback the result names, the base at rest, and
         # tf up to the result (each bounded: a run that ends badly may never give them)
         wanted = getattr(result, 'state', None)
+        scan_period = 1.0 / float(rospy.get_param('/simulator/scan_rate', 15.0))
         deadline = time.monotonic() + END_WAIT
         while True:
             fed = wanted is None or any(g == goal_id and st == wanted for g, _, st, _ in list(published))
             m = self.truth_msg
             rest = m is not None and m.header.stamp >= ended and m.twist.twist.linear.x == 0.0 \
                 and m.twist.twist.angular.z == 0.0
-            with self.lock:     # (the walkers of the last scans up to the result, if any)
-                walked = not self.walker_log or self.walker_log[-1][0] >= ended.to_sec()
+            with self.lock:     # (the walkers of the last scan up to the result, if any: they
+                # come with each scan, so the last one at or before it is less than a scan
+                # period before it; a scan after it may never come, time standing still once
+                # the mission's nodes have no more work)
+                walked = not self.walker_log \
+                    or self.walker_log[-1][0] > ended.to_sec() - scan_period + 1e-6
             got = {'feedback': fed, 'base_at_rest': rest, 'walkers': walked,
                    'localisation': self.sample_localisation(tf, until=until),
                    'covariance': self.loc_cov_until(until) is not None}
