@@ -407,14 +407,15 @@ class Navigator:
             >= self.cfg.give_way_distance - self.cfg.person_clearance
         start = cm.grid.world_to_cell([pose[:2]])[0]
         beside = np.abs(cm.distance - (self.cfg.robot_radius + self.ASIDE[0])) <= self.ASIDE[1]
-        for self.aside, targets in ((True, clear & beside), (False, clear)):
+        self.aside = False
+        for aside, targets in ((True, clear & beside), (False, clear)):
             try:
                 cells = path_to_nearest(cm.cost, start, targets, self.cfg.cost_weight)
-                break
             except PlanError:
                 continue
+            self.aside = aside
+            break
         else:
-            self.aside = False
             return False
         pts = cm.grid.cell_to_world(cells)
         pts[0] = pose[:2]
