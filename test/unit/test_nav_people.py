@@ -144,8 +144,8 @@ def test_a_lone_return_in_free_space_is_a_mixed_pixel_not_a_person():
     assert not marks.update(scan_of(r, stamp=1.0)).any()
 
 
-PEOPLE = NavConfig()                            # person_clearance 0.3 m, the default
-PLAIN = NavConfig(person_clearance=0.0)         # people are obstacles like any other
+PEOPLE = NavConfig(person_clearance=0.3)
+PLAIN = NavConfig()                             # people are obstacles like any other (the default)
 
 
 def walker_gap_run(world, goal, config=PEOPLE, limit=120.0):
@@ -209,6 +209,6 @@ def test_a_person_met_in_a_doorway_is_given_way_to_beside_a_wall_and_the_goal_is
         data = yaml.safe_load(f)
     data['walkers'] = [dict(data['walkers'][2], start_delay=0.0)]
     data['robot_start'] = [7.5, 0.0, 180.0]
-    r = walker_gap_run(World.from_dict(data), (1.5, 0.0, math.pi))
+    r = walker_gap_run(World.from_dict(data), (1.5, 0.0, math.pi), PEOPLE)
     assert r['state'] == SUCCEEDED, r['reason']
     assert r['collisions'] == 0
