@@ -144,7 +144,7 @@ class Navigator:
     LOOK_ANGLE = 1.2        # [rad] a person's mark farther off the heading than this is turned to
     ASIDE = (0.1, 0.05)     # [m] giving way, the base's centre this far beyond its inscribed radius
                             # from the nearest wall or obstacle (centre to occupied cell centre), give
-                            # or take the second: beside it, clear of the laser's safety margin
+                            # or take the second: beside it, clear of the controller's safety margin
 
     def __init__(self, grid, config=NavConfig()):
         self.cfg = config
@@ -435,6 +435,13 @@ class Navigator:
         i = int(np.argmin(d))
         return people[i], float(d[i])
 
+    def _person_near(self, pose):
+        """Is a person's keep-out nearer to ``pose`` than ``give_way_distance`` puts the base
+        from the person?"""
+        nearest = self._nearest_person(pose)
+        return nearest is not None \
+            and nearest[1] < self.cfg.give_way_distance - self.cfg.person_clearance
+
     def _wait_for_person(self, pose, t, dt):
         """Stand and face the nearest person's mark: one out of the laser's view (behind the
         base) is seen again, and cleared once the person has gone."""
@@ -456,9 +463,7 @@ class Navigator:
             # there: wait, unless a person came near again (they are walking this way) where
             # the base stands in the open (beside a wall, it has left them the most room: they
             # pass)
-            nearest = self._nearest_person(pose)
-            near = nearest is not None and not self.aside \
-                and nearest[1] < self.cfg.give_way_distance - self.cfg.person_clearance
+            near = not self.aside and self._person_near(pose)
             if near:
                 self.retreat = self._give_way_path(pose)
             if not near or self.retreat is False:
@@ -517,10 +522,8 @@ class Navigator:
                 # a plan again after giving way: while the person is near (passing, or
                 # waiting for the way the base left them to clear) it stays where it gave way,
                 # up to person_patience
-                nearest = self._nearest_person(pose)
-                if self.retreat is not False and nearest is not None \
-                        and nearest[1] < cfg.give_way_distance - cfg.person_clearance \
-                        and t - self.gave_way_at <= cfg.person_patience:
+                if self.retreat is not False and t - self.gave_way_at <= cfg.person_patience \
+                        and self._person_near(pose):
                     self.held = t
                     return self._give_way(pose, t, dt)
                 self.retreat = None
