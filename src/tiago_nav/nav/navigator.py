@@ -17,7 +17,7 @@ from tiago_nav.geometry import wrap_angle
 from tiago_nav.goal import ABORTED, ACTIVE, SUCCEEDED  # noqa: F401
 from tiago_nav.nav.controller import Controller, ControllerConfig
 from tiago_nav.nav.costmap import INSCRIBED, Costmap
-from tiago_nav.nav.people import MovedMarks
+from tiago_nav.nav.people import MovedMarks, person_keep_out
 from tiago_nav.scan import INVALID
 from tiago_nav.gridmap import distance_to_mask
 from tiago_nav.nav.planner import PlanError, densify, path_to_nearest, plan
@@ -177,19 +177,20 @@ class Navigator:
         vouch for). An older scan than the newest one is ignored."""
         if self.scan_stamp is not None and scan.stamp < self.scan_stamp:
             return
-        self.costmap.add_scan(scan)
+        cm = self.costmap
+        clearance = self.cfg.person_clearance
+        people = clearance > 0 and self.waived is None
+        if people:
+            # which hits are a person's, beside the laser's marks before this scan
+            person = self.moved.update(scan, cm.obstacles)
+        cm.add_scan(scan)
         points = scan.obstacles[0]
         margins = np.zeros(len(points))
-        clearance = self.cfg.person_clearance
-        if clearance > 0 and self.waived is None:
+        if people:
             # a person is kept clearance farther: by the collision check (as if nearer by it)
-            # and by the plan (its keep-out counts as occupied), the plan's keep-out as wide
-            # as the check's (its safety margin, and half a cell's diagonal: a cell's centre
-            # stands for anywhere in it), or it would plan a way the check refuses to drive
-            cm = self.costmap
-            keep_out = clearance + self.cfg.controller.safety_margin \
-                + cm.resolution / math.sqrt(2.0)
-            person = self.moved.update(scan)
+            # and by the plan (its keep-out counts as occupied)
+            keep_out = person_keep_out(clearance, self.cfg.controller.safety_margin,
+                                       cm.resolution)
             margins[person] = clearance
             # and where the laser marked a person before (out of view now, or hidden)
             # (a person's mark stays one until the laser sees the place free)

@@ -7,7 +7,9 @@ free a moment before. So a hit counts as *moved* when, in one of the scans kept 
 ``memory`` seconds, every beam passing within ``margin`` of its place reached more than
 ``margin`` beyond it (:meth:`tiago_nav.nav.costmap.MapScan.seen_beyond`; only where its beams
 lie at most :attr:`MovedMarks.max_gap` apart), and at least :attr:`MovedMarks.min_points` such
-hits lie together (a leg is several beams wide; a lone hit in free space is a mixed pixel). A
+hits lie together (a leg is several beams wide; a lone hit in free space is a mixed pixel),
+and the hit lies farther than :attr:`MovedMarks.beside` from every laser mark of earlier
+scans that is no person's (what stands still, its hits moved off its marks by the pose error). A
 person who then stops keeps the label: a cell a moved hit fell in stays a person's for
 ``memory`` seconds after it was last hit (:meth:`MovedMarks.hold`; the navigator holds a
 person's laser marks for as long as they stay marked), and a hit in such a cell is a person's
@@ -18,12 +20,25 @@ map (within ``map_margin``) are the map's and never a person's.
 
 Frames and units: the ``map`` frame, metres, seconds (the scans' stamps).
 """
+import math
 from collections import deque
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from tiago_nav.nav.costmap import bearings, seen_past
+
+
+def person_keep_out(clearance, safety_margin, resolution):
+    """[m] How far round a person's points the navigation's plan keeps the robot's footprint
+    (its people layer, :meth:`tiago_nav.nav.costmap.Costmap.set_people`) to keep ``clearance``
+    [m] between the base and the person: as far as the collision check keeps it (the clearance
+    and its ``safety_margin`` [m]) and half a cell's diagonal (``resolution`` [m]) more, as a
+    cell's centre stands for anywhere in it; or the plan would take a way the check refuses to
+    drive. 0 without a clearance (people are obstacles like any other)."""
+    if clearance <= 0:
+        return 0.0
+    return clearance + safety_margin + resolution / math.sqrt(2.0)
 
 
 class MovedMarks:
@@ -33,17 +48,25 @@ class MovedMarks:
     stays a witness of free space, and a cell a person's after its last hit; ``keep_every``
     [s]: one scan kept per this long (the witnesses); ``margin`` [m]: how far beyond a point a
     witness's beams must reach; ``map_margin`` [m]: points this near the static map are the
-    map's."""
+    map's.
+
+    The scans are placed with the localisation's pose, whose error moves the hits of what
+    stands still between one scan and another: a localisation off by 5 cm and 1.4 deg (as
+    through ROS in the course world) by up to 15 cm at 4 m. So ``margin`` (0.2 m by default)
+    and :attr:`beside` are wider than that: with 0.1 m, a cylinder's hits, and an unmapped
+    wall's, were taken for a person's."""
 
     min_points = 3          # moved points that make a person's leg (a leg is 3 beams or more)
     cluster_radius = 0.1    # [m] ... within this of each other (a calf is 0.1-0.15 m across)
     walk_speed = 1.5        # [m/s] a person walks at most this fast (1.4 m/s is brisk) ...
     max_reach = 1.0         # [m] ... and is looked for at most this far from where last seen
+    beside = 0.2            # [m] a hit this near a mark of earlier scans that is no person's
+                            # is that thing's (the pose error: see margin)
     max_gap = 0.02          # [m] a witness vouches for free space only where its beams lie at
                             # most this far apart (a chair's leg 2.4 cm across hid between
                             # beams 4 cm apart)
 
-    def __init__(self, grid, memory=10.0, keep_every=1.0, margin=0.1, map_margin=0.15):
+    def __init__(self, grid, memory=10.0, keep_every=1.0, margin=0.2, map_margin=0.15):
         self.grid = grid
         self.memory = float(memory)
         self.keep_every = float(keep_every)
@@ -53,11 +76,15 @@ class MovedMarks:
         self.latest = -np.inf                         # [s] the latest of them
         self.witnesses = deque()
         self._stack = None                            # the witnesses' beams as arrays (seen_free)
+        self._marks_then = deque(maxlen=2)            # the marks when the last two were kept
 
-    def update(self, scan):
+    def update(self, scan, marks=None):
         """``(M,)`` bool over ``scan.obstacles[0]`` (a
-        :class:`~tiago_nav.nav.costmap.MapScan`): True for a person's point. The scan then
-        becomes a witness when the newest one is ``keep_every`` older."""
+        :class:`~tiago_nav.nav.costmap.MapScan`): True for a person's point. ``marks``: the
+        laser's marks before this scan (a boolean grid like ``grid``, the costmap's obstacle
+        layer), if any: a hit within :attr:`beside` of one that is no person's has not moved
+        (:meth:`_beside_marks`). The scan then becomes a witness when the newest one is
+        ``keep_every`` older."""
         t = scan.stamp
         while self.witnesses and self.witnesses[0].stamp < t - self.memory:
             self.witnesses.popleft()
@@ -71,6 +98,8 @@ class MovedMarks:
             idx = idx[g.distance_field()[rc[idx, 0], rc[idx, 1]] > self.map_margin]
             if len(idx):
                 moved = self.seen_free(pts[idx], t)
+                if marks is not None and moved.any():
+                    moved[moved] = ~self._beside_marks(pts[idx][moved], marks, t)
                 moved[moved] = self._together(pts[idx][moved])
                 cells = rc[idx]
                 held = self.until[cells[:, 0], cells[:, 1]] >= t
@@ -81,6 +110,8 @@ class MovedMarks:
                     person[idx[rest]] = self._within_reach(pts[idx[rest]], t)
         if not self.witnesses or t - self.witnesses[-1].stamp >= self.keep_every:
             self.witnesses.append(scan)
+            if marks is not None:
+                self._marks_then.append(marks.copy())
         return person
 
     def seen_free(self, xy, t):
@@ -141,6 +172,30 @@ class MovedMarks:
                 out[i] = bool(np.any(np.hypot(*(centres[near] - xy[i]).T) <= reach[near]))
         out[out] = self._together(xy[out])
         return out
+
+    def _beside_marks(self, xy, marks, t):
+        """Boolean per ``(N, 2)`` map point at time ``t`` [s]: is a cell of ``marks`` (a
+        boolean grid) that is no person's, and was marked already when the witness before the
+        newest was kept (``keep_every`` to twice that ago), within :attr:`beside` of it? What
+        stands still was marked there by earlier scans, and the pose error moves its hits off
+        those marks by less than that. A walker's trail is marked only for as long as the leg
+        hides it: a walker seen from the start, not yet a person, is not kept one by the marks
+        it leaves behind."""
+        if len(self._marks_then) < 2:
+            return np.zeros(len(xy), dtype=bool)
+        g = self.grid
+        lo = g.world_to_cell(xy.min(axis=0, keepdims=True) - self.beside)[0]
+        hi = g.world_to_cell(xy.max(axis=0, keepdims=True) + self.beside)[0] + 1
+        r0, c0 = max(lo[0], 0), max(lo[1], 0)
+        r1, c1 = min(hi[0], g.height), min(hi[1], g.width)
+        if r1 <= r0 or c1 <= c0:
+            return np.zeros(len(xy), dtype=bool)
+        w = np.s_[r0:r1, c0:c1]
+        cells = np.argwhere(marks[w] & self._marks_then[0][w] & (self.until[w] < t)) + (r0, c0)
+        if not len(cells):
+            return np.zeros(len(xy), dtype=bool)
+        d, _ = cKDTree(g.cell_to_world(cells)).query(xy, distance_upper_bound=self.beside)
+        return np.isfinite(d)
 
     def _together(self, xy):
         """Boolean per moved point: are at least :attr:`min_points` moved points (itself
