@@ -8,6 +8,7 @@ import pytest
 
 from tiago_nav.gridmap import FREE, OCCUPIED, GridMap
 from tiago_nav.nav.costmap import Costmap, MapScan, inflate, occupancy_values
+from tiago_nav.nav.people import person_keep_out
 from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
 from tiago_nav.sim.scene import LaserConfig
 from tiago_nav.sim.world import World
@@ -37,9 +38,12 @@ def costmap(marks=()):
     return occupancy_values(cost)
 
 
-def watch(movables=()):
-    grid = GridMap(np.where(static_map(), OCCUPIED, FREE).astype(np.int8), RES, ORIGIN)
-    return GhostWatch(grid, movables, ROBOT_RADIUS, LASER_OFFSET, 5.0)
+def grid_map():
+    return GridMap(np.where(static_map(), OCCUPIED, FREE).astype(np.int8), RES, ORIGIN)
+
+
+def watch(movables=(), keep_out=0.0):
+    return GhostWatch(grid_map(), movables, ROBOT_RADIUS, LASER_OFFSET, 5.0, keep_out)
 
 
 def scan(w, stamp, ranges=6.0):
@@ -101,6 +105,28 @@ def test_marks_of_what_is_there_or_never_seen_free_are_no_ghosts():
     at(w, 3.0)
     w.costmap(3.0, costmap(marks + [(2.0, 0.0)]))
     assert w.records[-1][1:3] == [0.0, 0] and w.records[-1][3] > behind
+
+
+def test_the_keep_out_round_a_walker_who_is_there_is_no_ghost():
+    # the navigation keeps a person's keep-out round the hits of a standing walker's legs
+    # (person_clearance 0.3 m); the laser sees the floor round them free. The keep-out is
+    # what is there, and is no ghost; a watch that does not know of it calls it one
+    legs = [(3.0, 0.0), (3.0, 0.25)]
+    keep_out = person_keep_out(0.3, 0.04, RES)
+    cm = Costmap(grid_map())
+    cm.set_people(np.array([(x - 0.06, y) for x, y in legs]), keep_out)
+    cost, _ = inflate(static_map() | cm.people, RES, ROBOT_RADIUS, 0.8, 4.0)
+    ages = []
+    for k in (0.0, keep_out):
+        w = watch(keep_out=k)
+        at(w, 0.0, legs=legs)
+        w.costmap(0.0, occupancy_values(cost))
+        scan(w, 0.5)
+        at(w, 1.0, legs=legs)
+        w.costmap(1.0, occupancy_values(cost))
+        ages.append(w.records[-1])
+    assert ages[0][1] == pytest.approx(0.5) and ages[0][2] > 0
+    assert ages[1][1:] == [0.0, 0, 0]
 
 
 def test_streams_out_of_step_are_looked_at_in_stamp_order():

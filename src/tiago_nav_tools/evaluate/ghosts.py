@@ -8,7 +8,9 @@ marks are recovered from it by erosion: a cell whose whole disc of ``robot_radiu
 at a wall's corner or between two legs, the cells between them survive too). The same is done
 to the costmap the things that are there at the costmap's stamp would make alone: the static
 map's occupied cells, the world file's movable obstacles (their outlines, ``distance``) and the
-walkers' legs of the nearest ``/sim/objects`` at or before it. A recovered mark farther than
+walkers' legs of the nearest ``/sim/objects`` at or before it, with the keep-out the navigation
+holds round a person (:func:`tiago_nav.nav.people.person_keep_out`: what it marks round a walker
+who is there is no ghost). A recovered mark farther than
 ``EXPLAINED`` from every mark of that costmap is a *phantom*. A phantom cell is *seen free*
 from the first scan after it became one that saw its place free
 (:func:`seen_free`, the laser placed at the robot's true pose). A
@@ -67,15 +69,17 @@ class GhostWatch:
     ``grid``: ``/map`` as a :class:`~tiago_nav.gridmap.GridMap`; ``movables``: the world
     file's movable obstacles (objects with ``distance(x, y)``); ``robot_radius`` [m];
     ``laser_offset`` [m]: the laser ahead of the base centre; ``raytrace_range`` [m]:
-    move_base's."""
+    move_base's; ``keep_out`` [m]: how far round a person's points its costmap marks a
+    person (0: not at all)."""
 
-    def __init__(self, grid, movables, robot_radius, laser_offset, raytrace_range):
+    def __init__(self, grid, movables, robot_radius, laser_offset, raytrace_range, keep_out=0.0):
         static = grid.occupied()
         self.grid = grid
         self.res = float(grid.resolution)
         self.robot_radius = float(robot_radius)
         self.laser_offset = float(laser_offset)
         self.raytrace_range = float(raytrace_range)
+        self.keep_out = float(keep_out)
         r = max(robot_radius - 1.5 * self.res, 0.0) / self.res
         self.disc = _disc(r)
         self.near = _disc(EXPLAINED / self.res)
@@ -156,7 +160,10 @@ class GhostWatch:
             d = np.full(len(self.xy), np.inf)
             for lx, ly in walkers[0]:
                 d = np.minimum(d, np.hypot(self.xy[:, 0] - lx, self.xy[:, 1] - ly))
-            there |= (d <= walkers[1] + 0.5 * math.sqrt(2.0) * self.res).reshape(there.shape)
+            # a leg's hits, in cells whose centres lie within half a diagonal of them, and the
+            # keep-out round those centres
+            near = walkers[1] + 0.5 * math.sqrt(2.0) * self.res + self.keep_out
+            there |= (d <= near).reshape(there.shape)
         lethal = distance_to_mask(there, self.res) <= self.robot_radius
         explained = ndimage.binary_dilation(self._marks(lethal), structure=self.near)
         phantom = marks & ~explained

@@ -327,6 +327,7 @@ class Supervisor:
         import rospy
         from nav_msgs.msg import OccupancyGrid
         from sensor_msgs.msg import LaserScan
+        from tiago_nav.nav.people import person_keep_out
         from tiago_nav.robot import LASER_OFFSET, ROBOT_RADIUS
         from tiago_nav.ros.conversions import gridmap_from_msg
         from tiago_nav_tools.evaluate.ghosts import GhostWatch
@@ -342,9 +343,13 @@ class Supervisor:
                 offset = math.hypot(t.x, t.y)
                 break
             time.sleep(0.01)
-        self.ghosts = GhostWatch(gridmap_from_msg(self.grid_msg), self.world.movable_obstacles,
+        grid = gridmap_from_msg(self.grid_msg)
+        keep_out = person_keep_out(rospy.get_param('/move_base/person_clearance', 0.0),
+                                   rospy.get_param('/move_base/safety_margin', 0.0),
+                                   grid.resolution)
+        self.ghosts = GhostWatch(grid, self.world.movable_obstacles,
                                  rospy.get_param('/move_base/robot_radius', ROBOT_RADIUS), offset,
-                                 rospy.get_param('/move_base/raytrace_range', 5.0))
+                                 rospy.get_param('/move_base/raytrace_range', 5.0), keep_out)
         return [rospy.Subscriber('/move_base/global_costmap/costmap', OccupancyGrid,
                                  self.on_costmap, queue_size=None),
                 rospy.Subscriber('/scan', LaserScan, self.on_scan, queue_size=None)]
