@@ -223,9 +223,9 @@ ABOUT = {
         'the time the base stood still away from its goal, and the oldest ghost (a cell the '
         'laser marked that stayed marked after a scan saw it free where the costmap could '
         'clear it, its centre half a cell inside raytrace_range; target: 2 s); targets there: at least 99 % success, 0 collisions. It '
-        'runs with `person_clearance` 0.3 m (people kept 0.3 m away, docs/navigation.md) and '
-        'with 0 (the default: people are obstacles like any other); neither meets the targets '
-        'yet.'),
+        'runs with `person_clearance` 0.3 m (the default: people kept 0.3 m away, '
+        'docs/navigation.md) and with 0 (people are obstacles like any other); neither meets '
+        'the targets yet.'),
     'corridor': (
         'Seeded starts ±0.15 m off the centre line and ±15° in heading, 1 m before straight '
         'corridors 0.8, 1.07 and 1.5 m wide and 5 m long, and around the course world\'s start: '

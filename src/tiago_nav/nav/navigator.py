@@ -77,11 +77,10 @@ class NavConfig:
               '(a global relocalisation takes a few scans, a stretch where the scans cannot '
               'tell the place apart takes driving, which a lost robot must not do)', gt=0)
     person_clearance: float = param(
-        0.0, '[m] kept between the base and a person (a laser hit on space a recent scan saw '
-             'free, tiago_nav.nav.people), beyond the footprint, e.g. 0.3; 0 (the default): '
-             'people are obstacles like any other (docs/navigation.md: among walkers that costs '
-             'success and clearance; where the localisation errs, a static obstacle\'s hits may '
-             'be taken for a person)', ge=0)
+        0.3, '[m] kept between the base and a person (a laser hit on space a recent scan saw '
+             'free, tiago_nav.nav.people), beyond the footprint; 0: people are obstacles like '
+             'any other (docs/navigation.md: among walkers that costs success and clearance)',
+        ge=0)
     person_memory: float = param(10.0, '[s] a scan witnesses free space, and a person who '
                                  'stopped stays one, for this long', gt=0)
     person_patience: float = param(
