@@ -11,7 +11,7 @@ import pytest
 
 from tiago_nav.detection import DetectionParams, ObstacleDetector, shapes
 from tiago_nav.detection.background import background_map, background_ranges
-from tiago_nav.detection.motion import combine
+from tiago_nav.detection.motion import combine, seen_free_before
 from tiago_nav.detection.pipeline import Detection
 from tiago_nav.gridmap import GridMap
 
@@ -183,6 +183,44 @@ def test_a_walkers_planted_leg_is_never_a_static_object():
                   changed_on([leg_detection((2.3, 0.15))]), 0.4, (0.0, 0.0, 0.0),
                   -math.pi / 2, inc)
     assert [d.motion for d in out] == ['moving'] and math.isnan(out[0].velocity[0])
+
+
+def test_what_stands_where_a_scan_a_stride_before_saw_free_came_there():
+    """A walker's foot stands on the floor for about 0.6 s of a stride, longer than the
+    scans at rest: a leg standing still through all of them, with the other leg hidden, whose
+    place a scan at rest up to a stride earlier saw free (its beams reached farther then) came
+    down there: moving, its velocity not measured. A table's leg whose one edge beam flickers
+    (a third of its points' places seen free before), one whose beams were nearer before
+    (someone passed in front of it) and one with no earlier scan stay static; one of several
+    earlier scans seeing the place free is enough, and any shape that came there moved."""
+    inc = 0.002
+    leg = leg_detection((2.0, 0.0))
+    beams = np.round((np.arctan2(leg.points[:, 1], leg.points[:, 0]) + math.pi / 2)
+                     / inc).astype(int)
+    newest = np.full(1600, 4.0)
+    newest[beams] = np.hypot(leg.points[:, 0], leg.points[:, 1])
+    earlier = newest.copy()
+    earlier[beams] = 4.0                              # the floor there seen free
+    flicker = newest.copy()
+    flicker[beams[:2]] = 4.0
+    passed = newest.copy()
+    passed[beams] = 1.0                               # someone in front of it then
+
+    def motion_with(before, shape='legs'):
+        arrived = [seen_free_before(newest, b, 0.05, 5.6) for b in before]
+        out = combine([leg_detection((2.0, 0.0), shape=shape)], [], [],
+                      np.zeros(1600, dtype=bool), 0.4, (0.0, 0.0, 0.0), -math.pi / 2, inc,
+                      arrived)
+        return [(d.motion, math.isnan(d.velocity[0])) for d in out]
+    assert motion_with([passed, earlier]) == [('moving', True)]
+    assert motion_with([flicker]) == [('static', False)]
+    assert motion_with([passed, flicker]) == [('static', False)]
+    assert motion_with([]) == [('static', False)]
+    # whatever its shape: it was not there a stride before, as the laser stood still
+    assert motion_with([earlier], 'rectangle') == [('moving', True)]
+    inf = earlier.copy()
+    inf[beams] = np.inf                               # no return then: seen free to the range's end
+    assert seen_free_before(newest, inf, 0.05, 5.6)[beams].all()
 
 
 def test_a_leg_sized_unknown_beside_a_walker_is_their_planted_leg_and_a_wide_one_is_not():

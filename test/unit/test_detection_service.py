@@ -11,7 +11,7 @@ import pytest
 
 from conftest import ROOT
 from tiago_nav.clock import source_verdict
-from tiago_nav.detection.service import DetectionService, Failure, check_request
+from tiago_nav.detection.service import STRIDE_SCANS, DetectionService, Failure, check_request
 from tiago_nav.scan import Scan
 from tiago_nav.geometry import compose, inverse
 from tiago_nav.gridmap import GridMap
@@ -156,7 +156,7 @@ def test_a_scan_taken_elsewhere_ends_the_scans_at_rest(clean, grid, moved):
     sensors = FakeSensors(r, earlier=[(r, still), (r, moved), (r, still)])
     a = service(grid).handle('', 0.0, 0.0, sensors, scan_stamp=12.5)
     assert a.success and 'the median of 2 scans at rest' in a.message
-    assert ('scans_before', 12.5, 4) in sensors.calls
+    assert ('scans_before', 12.5, STRIDE_SCANS) in sensors.calls
 
 
 def test_without_odometry_the_named_scan_is_used_alone(clean, grid):

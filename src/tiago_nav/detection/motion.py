@@ -15,9 +15,13 @@ import math
 import numpy as np
 
 from tiago_nav.detection.shapes import PERSON_LEG_RADIUS, PERSON_LEG_SPACING
-from tiago_nav.scan import HIT, classify
+from tiago_nav.scan import HIT, NO_RETURN, classify
 
 CHANGE = 0.1          # [m] a beam's hit moved by more than this: ten times the range noise
+STRIDE = 1.0          # [s] a walker's stride: a foot stands on the floor for about 0.6 s of
+                      # it, and its place was seen free this long before at most
+ARRIVED_SHARE = 0.8   # an object on beams that saw this share of its points' places free came
+                      # there (a thin leg's edge beam that flickers is a share of its points)
 MAX_SPEED = 2.5       # [m/s] a person walks at up to 2 m/s: an object moves at most this fast
 CHANGED_SHARE = 0.3   # an object with this share of its points on changed beams moved
 
@@ -36,6 +40,18 @@ def changed_beams(newest, oldest, range_min, range_max, change=CHANGE):
     return out
 
 
+def seen_free_before(newest, earlier, range_min, range_max, change=CHANGE):
+    """``(n,)`` bool: the beams that hit in ``newest`` and reached more than ``change`` [m]
+    farther in ``earlier`` (ranges [m] of one sensor at one pose, REP 117; a no-return reached
+    the range's end): the place of the newest hit was seen free then."""
+    a, b = np.asarray(newest, dtype=float), np.asarray(earlier, dtype=float)
+    ca, cb = classify(a, range_min, range_max), classify(b, range_min, range_max)
+    out = (ca == HIT) & (cb == NO_RETURN)
+    both = (ca == HIT) & (cb == HIT)
+    out[both] = b[both] > a[both] + change
+    return out
+
+
 def beams_of(points, laser_pose, angle_min, increment, n):
     """The beam index ``(K,)`` (clipped to ``[0, n)``) of each of ``(K, 2)`` points [m] seen
     from ``laser_pose`` ``(x, y, yaw)``, all in the map frame."""
@@ -45,13 +61,12 @@ def beams_of(points, laser_pose, angle_min, increment, n):
     return np.clip(np.round((a - angle_min) / increment).astype(int), 0, n - 1)
 
 
-def moved(detection, changed, laser_pose, angle_min, increment):
-    """Whether at least :data:`CHANGED_SHARE` of the detection's points lie on changed
-    beams."""
+def moved(detection, changed, laser_pose, angle_min, increment, share=CHANGED_SHARE):
+    """Whether at least ``share`` of the detection's points lie on ``changed`` beams."""
     if detection.points is None or not len(detection.points):
         return False
     b = beams_of(detection.points, laser_pose, angle_min, increment, len(changed))
-    return float(np.mean(changed[b])) >= CHANGED_SHARE
+    return float(np.mean(changed[b])) >= share
 
 
 def velocity(detection, earlier, dt):
@@ -123,7 +138,8 @@ def _legs_of(d):
     return np.asarray(d.legs if d.legs is not None else [d.center], dtype=float).reshape(-1, 2)
 
 
-def combine(still, newest, oldest, changed, dt, laser_pose, angle_min, increment):
+def combine(still, newest, oldest, changed, dt, laser_pose, angle_min, increment,
+            arrived=()):
     """The detections of a window of scans at rest: of ``newest`` (the newest scan's alone),
     those on changed beams (but what cannot be a person, :func:`never_a_person`, that
     ``oldest`` placed within :data:`CHANGE`: it did not move), ``'moving'`` with their
@@ -140,7 +156,12 @@ def combine(still, newest, oldest, changed, dt, laser_pose, angle_min, increment
     the other): ``'moving'``, its velocity not measured (NaN). One of ``still`` on changed
     beams is left to ``newest``'s, unless it cannot be a person (:func:`never_a_person`) and
     :func:`stayed`: then it is static (the newest scan's own detection of it, on fewer changed
-    beams, was not judged moving, and nothing else would report it)."""
+    beams, was not judged moving, and nothing else would report it). ``arrived``: per scan at
+    rest up to a :data:`STRIDE` before the newest and older than ``oldest``, per beam,
+    :func:`seen_free_before`: an object still left static with :data:`ARRIVED_SHARE` of its
+    points on such beams of one of them came there within a stride, as the robot stood still:
+    a walker's planted leg (its stance began before the window and the other leg is hidden or
+    out of view), or whatever came to rest there; ``'moving'``, its velocity not measured."""
     out, moving = [], []
     swung = [d.points[changed[beams_of(d.points, laser_pose, angle_min, increment,
                                        len(changed))]]
@@ -183,6 +204,12 @@ def combine(still, newest, oldest, changed, dt, laser_pose, angle_min, increment
             d.motion, d.velocity, d.velocity_std = 'moving', (math.nan, math.nan), math.nan
             d.note = (d.note + '; ' if d.note else '') + (
                 'a planted leg: beams beside it changed (a walker\'s other leg)')
+            moving.append(d)
+            continue
+        if any(moved(d, a, laser_pose, angle_min, increment, ARRIVED_SHARE) for a in arrived):
+            d.motion, d.velocity, d.velocity_std = 'moving', (math.nan, math.nan), math.nan
+            d.note = (d.note + '; ' if d.note else '') + (
+                'came there: its place was seen free within a stride (%.1f s) before' % STRIDE)
             moving.append(d)
             continue
         d.motion, d.velocity = 'static', (0.0, 0.0)

@@ -50,6 +50,7 @@ REQUEST_THRESHOLDS = ('scan_minus_map_threshold', 'cluster_threshold')
 REST_TRANSLATION = 0.001             # [m] two scans are from one pose within this ...
 REST_ROTATION = math.radians(0.05)   # [rad] ... and this (odometry at rest does not move)
 REST_TF_TIMEOUT = 0.1                # [s wall] for the transform at an earlier, held scan
+STRIDE_SCANS = 48                    # held scans looked at for a stride back (1 s of a 40 Hz laser)
 
 
 class Failure(Exception):
@@ -241,11 +242,11 @@ class DetectionService:
                                                                      self.params.scan_timeout))
             check_scan(scan, self.params.min_informative_fraction)
             laser_in_map, laser_in_robot = self._poses(scan, sensors)
-            rest = self._at_rest(scan, sensors)
+            rest, before = self._at_rest(scan, sensors)
             given = laser_covariance(sensors.pose_covariance(scan.stamp), laser_in_map,
                                      laser_in_robot)
             return self._detect(detector, scan, rest, laser_in_map, laser_in_robot, method,
-                                scan_minus_map_threshold, cluster_threshold, given)
+                                scan_minus_map_threshold, cluster_threshold, given, before)
         except Failure as e:
             return Answer(False, (), str(e))
 
@@ -262,19 +263,24 @@ class DetectionService:
         return poses
 
     def _at_rest(self, scan, sensors):
-        """``scan`` and the held scans just before it taken from the same pose (newest
-        first, ``rest_scans`` at most; see the module's doc)."""
+        """``(rest, before)``: ``scan`` and the held scans just before it taken from the same
+        pose (newest first, ``rest_scans`` at most; see the module's doc), and the scans from
+        that pose older than all of them and at most a stride
+        (:data:`~tiago_nav.detection.motion.STRIDE`) before ``scan``: where a leg stands that
+        one of them saw free, a walker's foot came down since."""
         p = self.params
-        earlier = sensors.scans_before(scan, p.rest_scans - 1) if p.rest_scans > 1 else []
+        earlier = sensors.scans_before(scan, STRIDE_SCANS) if p.rest_scans > 1 else []
         if not earlier:
-            return [scan]
+            return [scan], []
         shape = (len(scan.ranges), scan.angle_min, scan.angle_increment, scan.frame_id)
         try:
             ref = sensors.transform(p.odom_frame, scan.frame_id, scan.stamp, p.tf_timeout)
         except LookupError:
-            return [scan]
-        out = [scan]
+            return [scan], []
+        out, before = [scan], []
         for s in earlier:
+            if len(out) == p.rest_scans and _sec(scan.stamp) - _sec(s.stamp) > motion.STRIDE:
+                break
             if (len(s.ranges), s.angle_min, s.angle_increment, s.frame_id) != shape:
                 break
             try:
@@ -284,23 +290,29 @@ class DetectionService:
             if (math.hypot(pose[0] - ref[0], pose[1] - ref[1]) > REST_TRANSLATION
                     or abs(wrap_angle(pose[2] - ref[2])) > REST_ROTATION):
                 break
-            out.append(s)
-        return out
+            if len(out) < p.rest_scans:
+                out.append(s)
+            else:
+                before.append(s)
+        return out, before
 
     def _motion(self, detector, result, scan, rest, method, scan_minus_map_threshold,
-                cluster_threshold, laser_in_map, laser_in_robot, given):
+                cluster_threshold, laser_in_map, laser_in_robot, given, before=()):
         """Judge the motion of ``result``'s detections (the median of the scans at rest
         ``rest``, newest first) in place (:mod:`tiago_nav.detection.motion`): where beams changed
         between the oldest and the newest scan, the newest scan's own detections on them are
-        moving."""
+        moving; a leg whose place one of ``before`` (scans at rest up to a stride earlier)
+        saw free is a walker's planted one."""
         oldest = rest[-1]
         dt = _sec(scan.stamp) - _sec(oldest.stamp)
         changed = motion.changed_beams(scan.ranges, oldest.ranges, scan.range_min,
                                        scan.range_max)
+        arrived = [motion.seen_free_before(scan.ranges, b.ranges, scan.range_min,
+                                           scan.range_max) for b in before]
         pose = result.correction.laser_pose
         if not np.any(changed[1:] & changed[:-1]):      # nothing moved (a lone dropout aside)
             result.detections[:] = motion.combine(result.detections, [], [], changed, dt, pose,
-                                                  scan.angle_min, scan.angle_increment)
+                                                  scan.angle_min, scan.angle_increment, arrived)
             return
 
         def one(s):
@@ -311,10 +323,10 @@ class DetectionService:
                 cluster_threshold=cluster_threshold).detections
         result.detections[:] = motion.combine(result.detections, one(scan), one(oldest),
                                               changed, dt, pose, scan.angle_min,
-                                              scan.angle_increment)
+                                              scan.angle_increment, arrived)
 
     def _detect(self, detector, scan, rest, laser_in_map, laser_in_robot, method,
-                scan_minus_map_threshold, cluster_threshold, given=None):
+                scan_minus_map_threshold, cluster_threshold, given=None, before=()):
         t0 = time.perf_counter()
         ranges = scan.ranges if len(rest) == 1 else median_ranges(
             [s.ranges for s in rest], scan.range_min, scan.range_max)
@@ -327,7 +339,7 @@ class DetectionService:
                 cluster_threshold=cluster_threshold)
             if len(rest) > 1:
                 self._motion(detector, result, scan, rest, method, scan_minus_map_threshold,
-                             cluster_threshold, laser_in_map, laser_in_robot, given)
+                             cluster_threshold, laser_in_map, laser_in_robot, given, before)
         except Exception as e:   # never a crash: the caller learns what went wrong
             raise Failure('detection failed on this scan: %s: %s'
                           % (type(e).__name__, e)) from None
