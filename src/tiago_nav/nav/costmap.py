@@ -132,10 +132,10 @@ class MapScan:
             reach[dip] = -np.inf
         return reach
 
-    def seen_beyond(self, xy, margin, max_gap=None):
+    def seen_beyond(self, xy, margin, max_gap=None, beyond=None):
         """Boolean per ``(N, 2)`` map point: did this scan see free space there, i.e. did every
-        valid beam passing within ``margin`` [m] of the point reach more than ``margin`` beyond
-        it, were at least half of those beams valid, and all of those within half the margin
+        valid beam passing within ``margin`` [m] of the point reach more than ``beyond`` [m]
+        (``margin`` when None) beyond it, were at least half of those beams valid, and all of those within half the margin
         of its bearing (three at least)? (A beam grazing an edge, or one that misses a point
         by less than the pose's and the ranges' errors, proves nothing; an invalid beam, e.g. a
         mixed pixel at a leg's edge, says nothing either way, and a thin object whose only
@@ -147,7 +147,7 @@ class MapScan:
             return np.zeros(len(xy), dtype=bool)
         d, rel = bearings(xy, self.laser_pose, self.angle_min, self.angle_increment or 1.0)
         return seen_past(self.reach_ends, self.valid_ends, 0, n, d, rel,
-                         abs(self.angle_increment) or 1.0, margin, max_gap)
+                         abs(self.angle_increment) or 1.0, margin, max_gap, beyond)
 
     @cached_property
     def reach_ends(self):
@@ -172,13 +172,15 @@ def bearings(xy, laser_pose, angle_min, angle_increment):
     return np.hypot(dx, dy), rel
 
 
-def seen_past(reach, valid, offset, n, d, rel, inc, margin, max_gap=None):
+def seen_past(reach, valid, offset, n, d, rel, inc, margin, max_gap=None, beyond=None):
     """:meth:`MapScan.seen_beyond` over pairs of a scan and a point, several scans at once:
     ``reach`` and ``valid``, flat, hold each scan's :attr:`MapScan.reach_ends` and
     :attr:`MapScan.valid_ends` from index ``offset`` on; per pair (arrays of one shape, or
     scalars) the scan's ``offset``, number of beams ``n`` and beam spacing ``inc`` [rad], and
-    the point's distance ``d`` [m] and angle ``rel`` [rad] from :func:`bearings`. Boolean per
-    pair."""
+    the point's distance ``d`` [m] and angle ``rel`` [rad] from :func:`bearings`. ``beyond``
+    [m]: how far beyond the point the beams within ``margin`` of it must reach (``margin``
+    when None). Boolean per pair."""
+    beyond = margin if beyond is None else beyond
     d, rel = np.asarray(d, dtype=float), np.asarray(rel, dtype=float)
     shape = d.shape
     offset, n, inc = (np.broadcast_to(v, shape).ravel() for v in (offset, n, inc))
@@ -187,7 +189,7 @@ def seen_past(reach, valid, offset, n, d, rel, inc, margin, max_gap=None):
     # first the beam nearest the point's bearing, which every window below holds: where it
     # stopped within the margin beyond the point (most points: the thing the point lies on
     # stood there then too), nothing else needs looking at
-    ok = reach[offset + np.minimum(np.round(rel / inc).astype(int), n)] > d + margin
+    ok = reach[offset + np.minimum(np.round(rel / inc).astype(int), n)] > d + beyond
     if max_gap is not None:
         ok &= d * inc <= max_gap
     cand = np.flatnonzero(ok)
@@ -211,7 +213,7 @@ def seen_past(reach, valid, offset, n, d, rel, inc, margin, max_gap=None):
             c_hi = np.minimum(np.ceil((rel + core) / inc).astype(int) + 1, n)
             core_said = np.add.reduceat(valid, np.column_stack((offset + c_lo,
                                                                 offset + c_hi)).ravel())[::2]
-            out[cand[inside]] = (least > d + margin) & (2 * said >= hi - lo) \
+            out[cand[inside]] = (least > d + beyond) & (2 * said >= hi - lo) \
                 & (core_said == c_hi - c_lo)
     return out.reshape(shape)
 

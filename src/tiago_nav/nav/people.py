@@ -5,8 +5,8 @@ A wall, a box or a cylinder stands where it stood: no beam of an earlier scan ev
 through the place one of its points is seen at now. A person walks into space the laser saw
 free a moment before. So a hit counts as *moved* when, in one of the scans kept from the last
 ``memory`` seconds, every beam passing within ``margin`` of its place reached more than
-``margin`` beyond it (:meth:`tiago_nav.nav.costmap.MapScan.seen_beyond`; only where its beams
-lie at most :attr:`MovedMarks.max_gap` apart), and at least :attr:`MovedMarks.min_points` such
+:attr:`MovedMarks.beyond` beyond it (:meth:`tiago_nav.nav.costmap.MapScan.seen_beyond`; only
+where its beams lie at most :attr:`MovedMarks.max_gap` apart), and at least :attr:`MovedMarks.min_points` such
 hits lie together (a leg is several beams wide; a lone hit in free space is a mixed pixel),
 and the hit lies farther than :attr:`MovedMarks.beside` from every laser mark of earlier
 scans that is no person's (what stands still, its hits moved off its marks by the pose error). A
@@ -46,27 +46,31 @@ class MovedMarks:
 
     ``grid``: the static :class:`~tiago_nav.gridmap.GridMap`; ``memory`` [s]: how long a scan
     stays a witness of free space, and a cell a person's after its last hit; ``keep_every``
-    [s]: one scan kept per this long (the witnesses); ``margin`` [m]: how far beyond a point a
-    witness's beams must reach; ``map_margin`` [m]: points this near the static map are the
-    map's.
+    [s]: one scan kept per this long (the witnesses); ``margin`` [m]: a witness's beams this
+    near a point (across) must reach :attr:`beyond` beyond it; ``map_margin`` [m]: points this
+    near the static map are the map's.
 
     The scans are placed with the localisation's pose, whose error moves the hits of what
     stands still between one scan and another: a localisation off by 5 cm and 1.4 deg (as
-    through ROS in the course world) by up to 15 cm at 4 m. So ``margin`` (0.2 m by default)
-    and :attr:`beside` are wider than that: with 0.1 m, a cylinder's hits, and an unmapped
-    wall's, were taken for a person's."""
+    through ROS in the course world) by up to 15 cm at 4 m. So :attr:`beyond` and
+    :attr:`beside` are wider than that: with 0.1 m and no look at the marks, a cylinder's hits,
+    and an unmapped wall's, were taken for a person's. ``margin`` stays 0.1 m: 0.2 m across
+    left walkers near walls and doors unlabelled (through ROS in office_walkers the base passed
+    them at 0.19 m instead of 0.34 m)."""
 
     min_points = 3          # moved points that make a person's leg (a leg is 3 beams or more)
     cluster_radius = 0.1    # [m] ... within this of each other (a calf is 0.1-0.15 m across)
     walk_speed = 1.5        # [m/s] a person walks at most this fast (1.4 m/s is brisk) ...
     max_reach = 1.0         # [m] ... and is looked for at most this far from where last seen
-    beside = 0.2            # [m] a hit this near a mark of earlier scans that is no person's
-                            # is that thing's (the pose error: see margin)
+    beyond = 0.2            # [m] a witness's beams must reach this far beyond a hit (the pose
+                            # error: see above) ...
+    beside = 0.2            # [m] ... and a hit this near a mark of earlier scans that is no
+                            # person's is that thing's
     max_gap = 0.02          # [m] a witness vouches for free space only where its beams lie at
                             # most this far apart (a chair's leg 2.4 cm across hid between
                             # beams 4 cm apart)
 
-    def __init__(self, grid, memory=10.0, keep_every=1.0, margin=0.2, map_margin=0.15):
+    def __init__(self, grid, memory=10.0, keep_every=1.0, margin=0.1, map_margin=0.15):
         self.grid = grid
         self.memory = float(memory)
         self.keep_every = float(keep_every)
@@ -116,8 +120,8 @@ class MovedMarks:
 
     def seen_free(self, xy, t):
         """Boolean per ``(N, 2)`` map point: did a witness older than ``t`` [s] see free space
-        there (:meth:`~tiago_nav.nav.costmap.MapScan.seen_beyond` with :attr:`margin` and
-        :attr:`max_gap`)? All witnesses at once (:func:`~tiago_nav.nav.costmap.seen_past`):
+        there (:meth:`~tiago_nav.nav.costmap.MapScan.seen_beyond` with :attr:`margin`,
+        :attr:`max_gap` and :attr:`beyond`)? All witnesses at once (:func:`~tiago_nav.nav.costmap.seen_past`):
         their beams are stacked once per change of witnesses."""
         ws = [w for w in self.witnesses if w.stamp < t and len(w.ranges)]
         if not ws or not len(xy):
@@ -139,7 +143,7 @@ class MovedMarks:
         _, _, reach, valid, offset, n, pose, a0, inc = self._stack
         d, rel = bearings(xy, pose, a0, inc)
         return seen_past(reach, valid, offset, n, d, rel, np.abs(inc), self.margin,
-                         self.max_gap).any(axis=0)
+                         self.max_gap, self.beyond).any(axis=0)
 
     def held(self, cells, t):
         """Boolean per ``(N, 2)`` grid cell ``(row, col)``: a person's at time ``t`` [s]."""
