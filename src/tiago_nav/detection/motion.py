@@ -7,8 +7,10 @@ newest scan of the window (or hits in one and not in the other) saw something mo
 per-beam median of the window places what stayed put; an object on changed beams is smeared in
 that median, so it is taken from the newest scan alone, and its velocity is its centre's
 displacement from the same object in the oldest scan (the nearest of a compatible size within
-what :data:`MAX_SPEED` allows) over the time between them. Frames: the map's (points, centres,
-the laser's pose); metres, radians, seconds.
+what :data:`MAX_SPEED` allows) over the time between them. What would be static but stands
+where a scan from the same pose up to a :data:`STRIDE` earlier saw free came there meanwhile,
+and moved (a walker's planted leg). Frames: the map's (points, centres, the laser's pose);
+metres, radians, seconds.
 """
 import math
 

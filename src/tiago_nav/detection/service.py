@@ -32,7 +32,9 @@ taken from the same pose (the laser in the odometry frame within :data:`REST_TRA
 :data:`REST_ROTATION`; ``rest_scans`` in all), by the per-beam median of their hits
 (:func:`tiago_nav.scan.median_ranges`): a robot standing still sees the same scene in each, and
 the median's range noise is about half a scan's for five. A scan taken while the robot moved
-ends the run; a moving robot's call uses its one scan.
+ends the run; a moving robot's call uses its one scan. The held scans from the same pose up to
+a stride (:data:`tiago_nav.detection.motion.STRIDE`) before the named one, older than those,
+say what came there meanwhile (:func:`tiago_nav.detection.motion.combine`).
 """
 import math
 import time
@@ -266,8 +268,8 @@ class DetectionService:
         """``(rest, before)``: ``scan`` and the held scans just before it taken from the same
         pose (newest first, ``rest_scans`` at most; see the module's doc), and the scans from
         that pose older than all of them and at most a stride
-        (:data:`~tiago_nav.detection.motion.STRIDE`) before ``scan``: where a leg stands that
-        one of them saw free, a walker's foot came down since."""
+        (:data:`~tiago_nav.detection.motion.STRIDE`) before ``scan``: what stands where one of
+        them saw free came there since (a walker's foot came down)."""
         p = self.params
         earlier = sensors.scans_before(scan, STRIDE_SCANS) if p.rest_scans > 1 else []
         if not earlier:
@@ -301,8 +303,8 @@ class DetectionService:
         """Judge the motion of ``result``'s detections (the median of the scans at rest
         ``rest``, newest first) in place (:mod:`tiago_nav.detection.motion`): where beams changed
         between the oldest and the newest scan, the newest scan's own detections on them are
-        moving; a leg whose place one of ``before`` (scans at rest up to a stride earlier)
-        saw free is a walker's planted one."""
+        moving; what stands where one of ``before`` (scans at rest up to a stride earlier)
+        saw free came there since."""
         oldest = rest[-1]
         dt = _sec(scan.stamp) - _sec(oldest.stamp)
         changed = motion.changed_beams(scan.ranges, oldest.ranges, scan.range_min,
