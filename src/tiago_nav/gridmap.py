@@ -83,6 +83,16 @@ class GridMap:
         c = np.asarray(rc).reshape(-1, 2)
         return (c[:, 0] >= 0) & (c[:, 0] < self.height) & (c[:, 1] >= 0) & (c[:, 1] < self.width)
 
+    def window(self, lo, hi):
+        """``(r0, r1, c0, c1)``: the rows and columns of the cells between the map points
+        ``lo`` and ``hi`` [m] (the box's corners, ``hi`` included), clipped to the grid, or
+        None when the box misses it."""
+        a = self.world_to_cell([lo])[0]
+        b = self.world_to_cell([hi])[0] + 1
+        r0, c0 = max(a[0], 0), max(a[1], 0)
+        r1, c1 = min(b[0], self.height), min(b[1], self.width)
+        return None if r1 <= r0 or c1 <= c0 else (r0, r1, c0, c1)
+
     def contains(self, xy):
         """Boolean mask: which ``(N, 2)`` points [m] lie inside the grid's extent."""
         return self.in_bounds(self.world_to_cell(xy))

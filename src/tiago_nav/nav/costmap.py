@@ -135,8 +135,8 @@ class MapScan:
     def seen_beyond(self, xy, margin, max_gap=None, beyond=None):
         """Boolean per ``(N, 2)`` map point: did this scan see free space there, i.e. did every
         valid beam passing within ``margin`` [m] of the point reach more than ``beyond`` [m]
-        (``margin`` when None) beyond it, were at least half of those beams valid, and all of those within half the margin
-        of its bearing (three at least)? (A beam grazing an edge, or one that misses a point
+        (``margin`` when None) beyond it, were at least half of those beams valid, and all of
+        those within half the margin of its bearing (three at least)? (A beam grazing an edge, or one that misses a point
         by less than the pose's and the ranges' errors, proves nothing; an invalid beam, e.g. a
         mixed pixel at a leg's edge, says nothing either way, and a thin object whose only
         beam was invalid was not seen through.) With ``max_gap`` [m], also only where
@@ -429,12 +429,7 @@ class Costmap:
     def _window(self, xy, radius):
         """``(r0, r1, c0, c1)``: the grid's rows and columns within ``radius`` [m] of ``xy`` in
         each axis (a square, clipped to the grid), or None when it misses the grid."""
-        g = self.grid
-        lo = g.world_to_cell([(xy[0] - radius, xy[1] - radius)])[0]
-        hi = g.world_to_cell([(xy[0] + radius, xy[1] + radius)])[0] + 1
-        r0, c0 = max(lo[0], 0), max(lo[1], 0)
-        r1, c1 = min(hi[0], g.height), min(hi[1], g.width)
-        return None if r1 <= r0 or c1 <= c0 else (r0, r1, c0, c1)
+        return self.grid.window((xy[0] - radius, xy[1] - radius), (xy[0] + radius, xy[1] + radius))
 
     def _near(self, xy, radius, *layers):
         """Centres ``(M, 2)`` [m] of the cells set in any of ``layers`` (boolean grids) within

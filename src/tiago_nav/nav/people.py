@@ -6,17 +6,18 @@ through the place one of its points is seen at now. A person walks into space th
 free a moment before. So a hit counts as *moved* when, in one of the scans kept from the last
 ``memory`` seconds, every beam passing within ``margin`` of its place reached more than
 :attr:`MovedMarks.beyond` beyond it (:meth:`tiago_nav.nav.costmap.MapScan.seen_beyond`; only
-where its beams lie at most :attr:`MovedMarks.max_gap` apart), and at least :attr:`MovedMarks.min_points` such
-hits lie together (a leg is several beams wide; a lone hit in free space is a mixed pixel),
-and the hit lies farther than :attr:`MovedMarks.beside` from every laser mark of earlier
-scans that is no person's (what stands still, its hits moved off its marks by the pose error). A
-person who then stops keeps the label: a cell a moved hit fell in stays a person's for
-``memory`` seconds after it was last hit (:meth:`MovedMarks.hold`; the navigator holds a
-person's laser marks for as long as they stay marked), and a hit in such a cell is a person's
-too. A person who moved while out of view, or onto floor no kept scan saw free, is looked for
-where they could have walked since their last hit (up to :attr:`MovedMarks.max_reach`): hits
-there are a person's for that scan (:meth:`MovedMarks._within_reach`). Hits near the static
-map (within ``map_margin``) are the map's and never a person's.
+where its beams lie at most :attr:`MovedMarks.max_gap` apart), and at least
+:attr:`MovedMarks.min_points` such hits lie together (a leg is several beams wide; a lone hit
+in free space is a mixed pixel), and the hit lies farther than :attr:`MovedMarks.beside` from
+every laser mark of earlier scans that is no person's (what stands still, its hits moved off
+its marks by the pose error). A person who then stops keeps the label: a cell a moved hit fell
+in stays a person's for ``memory`` seconds after it was last hit (:meth:`MovedMarks.hold`; the
+navigator holds a person's laser marks for as long as they stay marked), and a hit in such a
+cell is a person's too. A person who moved while out of view, or onto floor no kept scan saw
+free, is looked for where they could have walked since their last hit (up to
+:attr:`MovedMarks.max_reach`): hits there are a person's for that scan
+(:meth:`MovedMarks._within_reach`). Hits near the static map (within ``map_margin``) are the
+map's and never a person's.
 
 Frames and units: the ``map`` frame, metres, seconds (the scans' stamps).
 """
@@ -121,8 +122,9 @@ class MovedMarks:
     def seen_free(self, xy, t):
         """Boolean per ``(N, 2)`` map point: did a witness older than ``t`` [s] see free space
         there (:meth:`~tiago_nav.nav.costmap.MapScan.seen_beyond` with :attr:`margin`,
-        :attr:`max_gap` and :attr:`beyond`)? All witnesses at once (:func:`~tiago_nav.nav.costmap.seen_past`):
-        their beams are stacked once per change of witnesses."""
+        :attr:`max_gap` and :attr:`beyond`)? All witnesses at once
+        (:func:`~tiago_nav.nav.costmap.seen_past`): their beams are stacked once per change of
+        witnesses."""
         ws = [w for w in self.witnesses if w.stamp < t and len(w.ranges)]
         if not ws or not len(xy):
             return np.zeros(len(xy), dtype=bool)
@@ -188,12 +190,10 @@ class MovedMarks:
         if len(self._marks_then) < 2:
             return np.zeros(len(xy), dtype=bool)
         g = self.grid
-        lo = g.world_to_cell(xy.min(axis=0, keepdims=True) - self.beside)[0]
-        hi = g.world_to_cell(xy.max(axis=0, keepdims=True) + self.beside)[0] + 1
-        r0, c0 = max(lo[0], 0), max(lo[1], 0)
-        r1, c1 = min(hi[0], g.height), min(hi[1], g.width)
-        if r1 <= r0 or c1 <= c0:
+        box = g.window(xy.min(axis=0) - self.beside, xy.max(axis=0) + self.beside)
+        if box is None:
             return np.zeros(len(xy), dtype=bool)
+        r0, r1, c0, c1 = box
         w = np.s_[r0:r1, c0:c1]
         cells = np.argwhere(marks[w] & self._marks_then[0][w] & (self.until[w] < t)) + (r0, c0)
         if not len(cells):
