@@ -70,3 +70,23 @@ def test_a_run_among_walkers_records_them_and_repeats(tmp_path):
     again = run.execute(spec, str(tmp_path / 'second'))
     assert every_scan(run.read_json(str(tmp_path / 'second' / 'runs' / spec['id'] / 'raw.json'))['walkers'])
     assert run.differences(r, again) == []
+
+
+def test_a_candidate_starts_on_simulated_time(tmp_path):
+    """A candidate node reads /use_sim_time once, as it starts (roscpp, rospy): the evaluator
+    starts it once demo.launch has set it. This candidate is the package's detection, started
+    only when /use_sim_time is true at its start, and exiting at once otherwise (which the
+    evaluator reports as INFRA_CONTRACT)."""
+    check = 'test "$(rosparam get /use_sim_time)" = true'
+    data = {'worlds': [{'file': os.path.join(ROOT, 'worlds', 'ias_lab_room_full.yaml'),
+                        'poses': [[11.0, 0.0, -45.0]]}],
+            'profiles': {'ideal': {'laser_model': 'ideal', 'odometry_model': 'ideal',
+                                   'localisation': 'ground_truth', 'laser_noise': 0.01}},
+            'defaults': {'sim_time_limit': 120, 'wall_time_limit': 120, 'startup_timeout': 60},
+            'candidates': [{'name': 'sim_time_detection', 'replaces': 'detection',
+                            'command': "bash -c '%s && exec rosrun tiago_nav obstacle_detection "
+                                       "__name:=obstacle_detection'" % check}]}
+    runs, _ = suite.expand(data, 'e2e.yaml', ROOT)
+    (spec,) = [r for r in runs if r['candidate'] == 'sim_time_detection']
+    r = run.execute(spec, str(tmp_path / 'run'))
+    assert r['outcome'] == 'succeeded', r.get('reason')

@@ -72,6 +72,15 @@ def mission_over(client, ended_since, now):
     return now - ended_since > END_WAIT, ended_since
 
 
+def _has_param(master, name):
+    """Whether the master holds the parameter ``name`` (False while it does not answer)."""
+    import rosgraph
+    try:
+        return bool(master.hasParam(name))
+    except (OSError, rosgraph.MasterException):
+        return False
+
+
 class ClockWatch:
     """Watches simulated time during a mission against the wall clock: how long [s wall] it has
     stood still, said once per stand-still of :data:`STILL_SAY` or more (in lockstep it stands
@@ -202,6 +211,11 @@ class Supervisor:
             args += ['record:=true', 'bag:=' + os.path.join(self.dir, 'run.bag')]
         self.start('roslaunch', args)
         if cand:
+            # the candidate starts on simulated time: a node reads /use_sim_time once, at its
+            # start, and one started before demo.launch has set it follows wall time for good
+            master = rosgraph.Master('/tiago_nav_evaluate', master_uri=self.uri)
+            self.wait('/use_sim_time from demo.launch', lambda: _has_param(master, '/use_sim_time'),
+                      lim['startup_timeout'])
             if 'command' in cand:
                 self.start('candidate', shlex.split(cand['command']))
             else:
