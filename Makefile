@@ -42,6 +42,8 @@ WS_INPUTS := CMakeLists.txt package.xml setup.py $(wildcard msg/* srv/* action/*
 ROS_ENV := source $(WS)/devel/setup.bash
 # tysik/obstacle_detector for the detection benchmark's comparison (`make obstacle-detector`)
 OD_WS := $(ROOT)/.od_ws
+# ROS's move_base for the people suite's navigation candidate (`make move-base`)
+MB_WS := $(ROOT)/.mb_ws
 # `make bench BENCH=detection` runs one benchmark (names: src/tiago_nav_tools/benchmarks.py)
 BENCH ?= all
 SUITE ?= suites/smoke.yaml
@@ -52,7 +54,7 @@ ROS_HOSTNAME ?= localhost
 ROS_IP ?= 127.0.0.1
 export ROS_HOSTNAME ROS_IP
 
-.PHONY: setup apt venv ws demo test unit rostest test-platforms bench obstacle-detector docs evaluate lint \
+.PHONY: setup apt venv ws demo test unit rostest test-platforms bench obstacle-detector move-base docs evaluate lint \
 	clean print-apt-packages print-pip-packages
 .DEFAULT_GOAL := setup
 
@@ -126,15 +128,21 @@ test-platforms:
 	@bash $(ROOT)/test/platforms/run $(PLATFORMS)
 
 # every JSON under bench/results/ that docs/benchmarks.md shows, then that page again
-# (with obstacle_detector's workspace on top when `make obstacle-detector` built it)
+# (with obstacle_detector's and move_base's workspaces on top when `make obstacle-detector` and
+# `make move-base` built them)
 bench: setup
 	@mkdir -p bench/results
 	@$(ROS_ENV) && { [ ! -f $(OD_WS)/devel/setup.bash ] || source $(OD_WS)/devel/setup.bash --extend; } \
+	  && { [ ! -f $(MB_WS)/devel/setup.bash ] || source $(MB_WS)/devel/setup.bash --extend; } \
 	  && $(SYS_PY) -m tiago_nav_tools.benchmarks $(BENCH) && $(SYS_PY) -m tiago_nav_tools.docs
 
 # builds tysik/obstacle_detector in .od_ws (not a Debian package), for `make bench BENCH=detection`
 obstacle-detector: setup
 	@bash bench/obstacle_detector/build.sh $(OD_WS)
+
+# builds ROS's move_base in .mb_ws (Debian packages no navigation stack), for suites/people_move_base.yaml
+move-base: setup
+	@bash bench/move_base/build.sh $(MB_WS)
 
 # the generated pages: docs/ros_api.md (from the code) and docs/benchmarks.md (from bench/results)
 docs: setup
@@ -162,4 +170,4 @@ lint: setup
 	  $(ROOT)/CHANGELOG.rst $(ROOT)
 
 clean:
-	rm -rf $(WS) $(VENV) $(OD_WS)
+	rm -rf $(WS) $(VENV) $(OD_WS) $(MB_WS)
