@@ -18,6 +18,11 @@ the one the evaluator wrote in the folder's summary.json).
 runs among walkers and furniture, two detections); its JSON adds per profile and candidate the
 people figures (``people``: tiago_nav_tools.evaluate.report.people_summary).
 
+``--suites suites/people_move_base.yaml --requires move_base --out
+bench/results/suites_people_move_base.json``: ROS's move_base among the walkers beside the own
+navigation (48 runs at real time); it needs move_base built (bench/move_base/build.sh) and its
+workspace sourced on top of the package's, else it says so and exits 0.
+
 Every suite is judged under two rules of "in view" (tiago_nav_tools.evaluate.inview): the evaluator's
 (at least MIN_BEAMS = 7 usable beams of the noise-free cast hit the obstacle) and a plain one
 (at least PLAIN_BEAMS = 5, detection's smallest cluster). Each rule's success rate, detection
@@ -26,7 +31,7 @@ obstacle) and not-succeeded runs land in the JSON (``rules``); the runs whose ou
 between the two are listed apart (``rules_differ``).
 
 Usage: bench/bench_suites.py [--suites suites/course.yaml suites/robustness.yaml] [--workers 2]
-                             [--from SUITE=DIR ...] [--keep DIR]
+                             [--from SUITE=DIR ...] [--keep DIR] [--requires PACKAGE ...]
 """
 import argparse
 import json
@@ -49,6 +54,7 @@ from tiago_nav_tools.evaluate import metrics as M  # noqa: E402
 from tiago_nav_tools.evaluate.report import detection_totals, people_summary  # noqa: E402
 from tiago_nav_tools.evaluate.run import judge, read_json  # noqa: E402
 from tiago_nav_tools.evaluate.inview import MIN_BEAMS, PLAIN_BEAMS  # noqa: E402
+from tiago_nav_tools.evaluate.suite import DEFAULTS, load  # noqa: E402
 
 RULES = (('evaluator', MIN_BEAMS), ('plain', PLAIN_BEAMS))   # name, usable beams for "in view"
 
@@ -158,6 +164,12 @@ def differ(by_rule):
     return rows
 
 
+def suite_rtf(path):
+    """The real-time factor a suite file's runs use (its defaults, else the evaluator's)."""
+    data, _ = load(path)
+    return (data.get('defaults') or {}).get('real_time_factor', DEFAULTS['real_time_factor'])
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -168,7 +180,18 @@ def main():
     ap.add_argument('--keep', help='write the evaluate output folders here (default: a temporary '
                                    'folder, removed)')
     ap.add_argument('--out', default=os.path.join(RESULTS, 'suites.json'))
+    ap.add_argument('--requires', nargs='+', default=[], metavar='PACKAGE',
+                    help='ROS packages a candidate runs (not this package\'s dependencies): '
+                         'when one is not found, say so and exit 0, leaving --out as it is')
     args = ap.parse_args()
+    missing = [p for p in args.requires
+               if subprocess.call(['rospack', 'find', p], stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.DEVNULL)]
+    if missing:
+        print('skipped %s: ROS package(s) %s not found (bench/move_base/build.sh builds move_base; '
+              'source its workspace); %s left as it is'
+              % (' '.join(args.suites), ', '.join(missing), args.out))
+        return 0
     signal.signal(signal.SIGTERM, lambda signum, _frame: sys.exit(128 + signum))
     sources = dict(s.split('=', 1) for s in args.sources)
     tmp = args.keep or tempfile.mkdtemp(prefix='bench_suites_')
@@ -214,8 +237,9 @@ def main():
     out['met_plain'] = {name: s['rules']['plain']['rate'] is not None
                         and s['rules']['plain']['rate'] >= TARGET
                         for name, s in out['suites'].items()}
-    out['meta'] = meta(vars(args), real_time_factor=0, laser_model='tiago and ideal',
-                       odometry_model='drift and ideal')
+    rtf = sorted({suite_rtf(path) for path in args.suites})
+    out['meta'] = meta(vars(args), real_time_factor=rtf[0] if len(rtf) == 1 else rtf,
+                       laser_model='tiago and ideal', odometry_model='drift and ideal')
     os.makedirs(os.path.dirname(args.out), exist_ok=True)
     with open(args.out, 'w') as f:
         json.dump(out, f, indent=1)

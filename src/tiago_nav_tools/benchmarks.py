@@ -74,7 +74,9 @@ BENCHMARKS = (
     ('suites', 'Shipped suites', [
         ('bench/bench_suites.py', ['suites.json']),
         ('bench/bench_suites.py --suites suites/people.yaml --out bench/results/suites_people.json',
-         ['suites_people.json'])]),
+         ['suites_people.json']),
+        ('bench/bench_suites.py --suites suites/people_move_base.yaml --requires move_base '
+         '--out bench/results/suites_people_move_base.json', ['suites_people_move_base.json'])]),
 )
 NAMES = [b[0] for b in BENCHMARKS]
 
@@ -153,7 +155,13 @@ ABOUT = {
         'persons (moving or legs) and as static obstacles, and the oldest ghost in move_base\'s '
         'published costmap and the runs with one over 2 s ([evaluation.md](evaluation.md#people)); '
         'its targets are issue 49\'s: 99 % success, no collision, no run under 0.3 m, no walker '
-        'reported static, no ghost older than 2 s.'),
+        'reported static, no ghost older than 2 s. `suites/people_move_base.yaml` (48 runs: the '
+        'two worlds with walkers, their poses, both profiles, one seed) runs ROS\'s move_base '
+        '(navfn, DWA and costmap_2d with the own navigation\'s footprint, limits and '
+        'tolerances: `bench/move_base/`) as a navigation candidate beside the own nodes, both at '
+        'real time (move_base does not take part in the lockstep); `make move-base` builds it '
+        'from source (Debian does not package the navigation stack) and `make bench` sources it '
+        'when built, else skips this suite.'),
     'evaluate': (
         'The batch evaluator as a user runs it (`rosrun tiago_nav evaluate`): `--runs` (20) rows '
         'spread evenly over `suites/course.yaml` (the course world and generated worlds, both '

@@ -155,3 +155,18 @@ def test_only_the_engine_imports_dask():
                         os.path.relpath(p, src) != os.path.join('evaluate', 'engine.py'):
                     bad.append(os.path.relpath(p, src))
     assert not bad
+
+
+@pytest.mark.parametrize('name', sorted(f for f in os.listdir(os.path.join(ROOT, 'suites'))
+                                        if f.endswith('.yaml')))
+def test_every_shipped_suite_expands_and_its_candidates_launch_files_are_in_the_package(name):
+    path = os.path.join(ROOT, 'suites', name)
+    data, base = suite.load(path)
+    runs, _ = suite.expand(data, path, base)
+    assert runs and len({r['id'] for r in runs}) == len(runs)
+    for c in data.get('candidates') or []:
+        words = c.get('launch', '').split()
+        if words and words[0] == 'tiago_nav':   # roslaunch finds FILE anywhere in the package
+            found = [d for d, _, files in os.walk(ROOT) if words[1] in files
+                     and not os.path.relpath(d, ROOT).startswith('.')]
+            assert found, '%s: candidate %s: no %s in the package' % (name, c['name'], words[1])
