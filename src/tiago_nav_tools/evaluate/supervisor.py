@@ -4,10 +4,10 @@ Started by :mod:`tiago_nav_tools.evaluate.run` as the leader of a session of its
 environment (ROS_MASTER_URI on 127.0.0.1 and the slot's port, ROS_HOME, ROS_LOG_DIR, loopback
 ROS_IP/ROS_HOSTNAME). It reads ``RUN_DIR/spec.json`` and, as children in its session:
 starts roscore, waits for the master; starts demo.launch (the run's world, seed and launch
-args; built-in nodes a candidate replaces switched off) and the candidate's command or launch
-file; waits for readiness (``/use_sim_time``, every action server and the detection service,
-a candidate's interface within its ``check_timeout``, ``/clock``, ``/map``,
-``/sim/ground_truth``); checks that the scenario loaded as specified (map and start pose);
+args; built-in nodes a candidate replaces switched off), waits for its ``/use_sim_time``, then
+starts the candidate's command or launch file; waits for readiness (every action server and
+the detection service, a candidate's interface within its ``check_timeout``, ``/clock``,
+``/map``, ``/sim/ground_truth``); checks that the scenario loaded as specified (map and start pose);
 sends the mission with a plain actionlib SimpleActionClient; watches the ground truth, the
 localisation's estimate, ``/sim/collisions`` and the walkers on ``/sim/objects`` (among them
 also move_base's published costmap and the scans, for the ghosts: ghosts.py) until a result or
@@ -210,12 +210,12 @@ class Supervisor:
         if spec.get('record'):
             args += ['record:=true', 'bag:=' + os.path.join(self.dir, 'run.bag')]
         self.start('roslaunch', args)
+        # demo.launch's /use_sim_time, before the probe and the candidate start: a node reads it
+        # once, at its start, and one started before it is set follows wall time for good
+        master = rosgraph.Master('/tiago_nav_evaluate', master_uri=self.uri)
+        self.wait('/use_sim_time from demo.launch', lambda: _has_param(master, '/use_sim_time'),
+                  lim['startup_timeout'])
         if cand:
-            # the candidate starts on simulated time: a node reads /use_sim_time once, at its
-            # start, and one started before demo.launch has set it follows wall time for good
-            master = rosgraph.Master('/tiago_nav_evaluate', master_uri=self.uri)
-            self.wait('/use_sim_time from demo.launch', lambda: _has_param(master, '/use_sim_time'),
-                      lim['startup_timeout'])
             if 'command' in cand:
                 self.start('candidate', shlex.split(cand['command']))
             else:
@@ -224,7 +224,6 @@ class Supervisor:
 
     def ready(self, t0):
         import actionlib
-        import rosgraph
         import rospy
         from move_base_msgs.msg import MoveBaseAction
         from nav_msgs.msg import OccupancyGrid, Odometry
@@ -234,9 +233,6 @@ class Supervisor:
         from tiago_nav.ros.actions import wait_server
         lim = self.spec['limits']
         deadline = t0 + lim['startup_timeout']
-        master = rosgraph.Master('/evaluate_probe')
-        self.wait('/use_sim_time parameter', lambda: master.hasParam('/use_sim_time'),
-                  max(1.0, deadline - time.monotonic()))
         rospy.init_node('evaluate_probe', disable_signals=True)
         rospy.Subscriber('/clock', Clock, lambda m: setattr(self, 'clock', m.clock.to_sec()), queue_size=1)
         rospy.Subscriber('/map', OccupancyGrid, lambda m: setattr(self, 'grid_msg', m), queue_size=1)
