@@ -12,6 +12,7 @@ are not even imported when ``ros`` is deselected, and the summary names them.
 import glob
 import os
 import re
+import shutil
 import sys
 
 import pytest
@@ -34,6 +35,12 @@ for d in _devel:
     if d not in tiago_nav.__path__:
         tiago_nav.__path__.append(d)
 WORLDS = os.path.join(ROOT, 'worlds')
+# the tests that start the package's nodes skip (with WORKSPACE_REASON) where this is true:
+# no roscore, or no workspace with the package on the ROS paths
+NO_WORKSPACE = shutil.which('roscore') is None or (
+    'tiago_nav' not in os.environ.get('ROS_PACKAGE_PATH', '')
+    and not os.environ.get('CMAKE_PREFIX_PATH', '').count('.ws'))
+WORKSPACE_REASON = 'needs the sourced workspace (source .ws/devel/setup.bash)'
 
 ROS_MODULE = re.compile(r'^pytestmark = \[?pytest\.mark\.ros\b', re.M)
 _not_collected = []

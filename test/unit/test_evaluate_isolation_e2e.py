@@ -9,13 +9,10 @@ import time
 
 import pytest
 
-from conftest import ROOT
+from conftest import NO_WORKSPACE, ROOT, WORKSPACE_REASON
 from tiago_nav_tools.evaluate import isolation, run, suite
 
-pytestmark = [pytest.mark.ros, pytest.mark.skipif(
-    shutil.which('roscore') is None or 'tiago_nav' not in os.environ.get('ROS_PACKAGE_PATH', '')
-    and not os.environ.get('CMAKE_PREFIX_PATH', '').count('.ws'),
-    reason='needs the sourced workspace (source .ws/devel/setup.bash)')]
+pytestmark = [pytest.mark.ros, pytest.mark.skipif(NO_WORKSPACE, reason=WORKSPACE_REASON)]
 CPP_NODES = ('rosout', 'robot_state_publisher')
 
 

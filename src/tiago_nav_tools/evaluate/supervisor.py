@@ -18,6 +18,7 @@ writes ``RUN_DIR/raw.json`` (atomically); stops its children. Stages go to
 import json
 import math
 import os
+import re
 import shlex
 import signal
 import subprocess
@@ -33,6 +34,14 @@ LOC_TAIL = 0.5              # [s sim] the last samples before the result, which 
 END_WAIT = 10.0             # [s wall] the longest wait for the mission's last messages
 STILL_SAY = 10.0            # [s wall] simulated time standing still this long in a mission is logged
 LOC_POSE_TOPIC = '/amcl_pose'   # the localisation's estimate with its covariance
+# roslaunch's line for a node that exited with an error (in its output, in colour on a terminal)
+DIED = re.compile(r'\[([^\[\]\s]+)\] process has died \[pid (\d+), exit code (-?\d+)')
+
+
+def died_nodes(text):
+    """The nodes a roslaunch output ``text`` reports dead: ``[(name, exit code)]`` in the order
+    they died (``name`` as roslaunch prints it, e.g. ``move_base-5``)."""
+    return [(m.group(1), int(m.group(3))) for m in DIED.finditer(text)]
 
 
 def message_fields(msg):
@@ -181,12 +190,40 @@ class Supervisor:
         except OSError:
             return ''
 
-    def wait(self, what, pred, timeout, code='INFRA_LAUNCH'):
+    def died(self):
+        """The nodes the run's roslaunch processes (demo.launch's, a candidate's) report dead:
+        ``[(process, node, exit code)]``."""
+        out = []
+        for name in ('roslaunch', 'candidate'):
+            try:
+                with open(os.path.join(self.dir, name + '.log'), errors='replace') as f:
+                    out += [(name, node, code) for node, code in died_nodes(f.read())]
+            except OSError:
+                pass
+        return out
+
+    def not_up(self, what, timeout):
+        """The verdict on ``what`` not there within ``timeout`` [s wall] of start-up, by what
+        died: INFRA_NODE_DIED naming the nodes roslaunch reports dead, or, when every process is
+        alive and no node died, INFRA_LAUNCH (not up in time: a slow or loaded machine)."""
+        self.check_alive(what)
+        dead = self.dead_note()
+        if dead:
+            return Infra('INFRA_NODE_DIED', 'no %s within %g s%s' % (what, timeout, dead))
+        return Infra('INFRA_LAUNCH', 'no %s within %g s, with every process alive and no node '
+                     'dead' % (what, timeout))
+
+    def dead_note(self):
+        """``'; X died with exit code N'`` for each node reported dead, for a reason's end."""
+        return ''.join('; %s died with exit code %d (see %s.log)' % (node, code, proc)
+                       for proc, node, code in self.died())
+
+    def wait(self, what, pred, timeout):
         t0 = time.monotonic()
         while not pred():
             self.check_alive(what)
             if time.monotonic() - t0 > timeout:
-                raise Infra(code, 'no %s within %g s' % (what, timeout))
+                raise self.not_up(what, timeout)
             time.sleep(0.05)
 
     # --- start-up ----------------------------------------------------------------------------
@@ -257,10 +294,10 @@ class Supervisor:
                 if not wait_server(c, check):
                     self.check_alive('the candidate')
                     raise Infra('INFRA_CONTRACT', 'candidate %s: no %s action server (%s) advertised '
-                                'within %g s' % (self.spec['candidate'], name, kind.__name__, check))
+                                'within %g s%s' % (self.spec['candidate'], name, kind.__name__, check,
+                                                   self.dead_note()))
             elif not wait_server(c, max(1.0, deadline - time.monotonic())):
-                self.check_alive('the %s action server' % name)
-                raise Infra('INFRA_NODE_DIED', 'no %s action server within the start-up time' % name)
+                raise self.not_up('%s action server' % name, lim['startup_timeout'])
             c.action_client.stop()
         timeout = check if 'detection' in roles else max(1.0, deadline - time.monotonic())
         try:
@@ -269,9 +306,9 @@ class Supervisor:
             self.check_alive('the obstacle_detection service')
             if 'detection' in roles:
                 raise Infra('INFRA_CONTRACT', 'candidate %s: no obstacle_detection service '
-                            '(tiago_nav/DetectObstacles) advertised within %g s'
-                            % (self.spec['candidate'], check)) from None
-            raise Infra('INFRA_NODE_DIED', 'no obstacle_detection service within the start-up time') from None
+                            '(tiago_nav/DetectObstacles) advertised within %g s%s'
+                            % (self.spec['candidate'], check, self.dead_note())) from None
+            raise self.not_up('obstacle_detection service', lim['startup_timeout']) from None
         if 'detection' in roles:
             import rosservice
             kind = rosservice.get_service_type('/obstacle_detection')
