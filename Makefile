@@ -127,14 +127,15 @@ PLATFORMS ?= noetic-python debian11 debian13
 test-platforms:
 	@bash $(ROOT)/test/platforms/run $(PLATFORMS)
 
-# every JSON under bench/results/ that docs/benchmarks.md shows, then that page again
+# every JSON under bench/results/ that docs/benchmarks.md shows, then that page again (every
+# benchmark runs; the target exits non-zero when one did: a target missed or a failure)
 # (with obstacle_detector's and move_base's workspaces on top when `make obstacle-detector` and
 # `make move-base` built them)
 bench: setup
 	@mkdir -p bench/results
 	@$(ROS_ENV) && { [ ! -f $(OD_WS)/devel/setup.bash ] || source $(OD_WS)/devel/setup.bash --extend; } \
 	  && { [ ! -f $(MB_WS)/devel/setup.bash ] || source $(MB_WS)/devel/setup.bash --extend; } \
-	  && $(SYS_PY) -m tiago_nav_tools.benchmarks $(BENCH) && $(SYS_PY) -m tiago_nav_tools.docs
+	  && { $(SYS_PY) -m tiago_nav_tools.benchmarks $(BENCH); rc=$$?; $(SYS_PY) -m tiago_nav_tools.docs && exit $$rc; }
 
 # builds tysik/obstacle_detector in .od_ws (not a Debian package), for `make bench BENCH=detection`
 obstacle-detector: setup

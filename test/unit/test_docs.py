@@ -5,6 +5,7 @@ import glob
 import importlib
 import os
 import re
+import sys
 
 import pytest
 
@@ -283,6 +284,22 @@ def test_unknown_benchmark_is_refused():
         benchmarks.commands(['nope'])
     assert len(benchmarks.commands(['lockstep'])) == 5      # idle, loaded, starved, both modes, nav
     assert len(benchmarks.commands(['all'])) == sum(len(r) for _, _, r in benchmarks.BENCHMARKS)
+
+
+def test_every_benchmark_runs_when_one_misses_its_target(tmp_path, monkeypatch, capsys):
+    """A benchmark that exits 1 (a target missed) does not stop the ones after it; the run
+    exits with its code and names it."""
+    ran = tmp_path / 'ran'
+    script = tmp_path / 'bench_x.py'
+    script.write_text('import sys\nopen(%r, "a").write(sys.argv[1] + " ")\nsys.exit(int(sys.argv[2]))\n'
+                      % str(ran))
+    cmds = [[sys.executable, str(script), name, code] for name, code in
+            (('first', '0'), ('missed', '1'), ('after', '0'))]
+    monkeypatch.setattr(benchmarks, 'commands', lambda names: cmds)
+    assert benchmarks.main(['all']) == 1
+    assert ran.read_text().split() == ['first', 'missed', 'after']
+    err = capsys.readouterr().err
+    assert '1 of 3 exited non-zero' in err and 'missed 1: 1' in err, err
 
 
 def layout_tree():
