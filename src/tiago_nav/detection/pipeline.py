@@ -406,7 +406,7 @@ class ObstacleDetector:
         pts, beam, holes = pts[keep], beam[keep], holes[keep]
         sensor = np.array(laser_pose[:2])
         rng = np.hypot(*(pts - sensor).T) if len(pts) else np.empty(0)
-        cands = []
+        cands, cand_idx = [], []
         round_pts = np.zeros(len(pts), dtype=bool)
         for idx in centroid_clusters(pts, p.cluster_threshold, _gap(rng, inc, p.gap, holes)):
             c = pts[idx]
@@ -422,7 +422,16 @@ class ObstacleDetector:
                          or shapes.split_pair(c, sensor, inc, p.range_noise) is not None)):
                 cands.append((c, cx, cy, rad, rms, radius_std(c, cx, cy, rad, p.range_noise),
                               passing, margin))
+                cand_idx.append(idx)
                 round_pts[idx] = True
+        if p.shapes and method == 'circle_fit':
+            # the end of a box's face that the clustering cut off is no circle: its points go
+            # back to the face
+            drop = shapes.face_pieces(pts, beam, cand_idx, round_pts, sensor, inc, r,
+                                      p.range_noise, p.gap)
+            for k in drop:
+                round_pts[cand_idx[k]] = False
+            cands = [c for k, c in enumerate(cands) if k not in drop]
         # The radius to assume where an arc is too short to measure it: the configured one, or,
         # when at least two obstacles of this scan are well measured and agree (all within
         # radius_spread), their median. With shared_radius, an obstacle whose own radius agrees

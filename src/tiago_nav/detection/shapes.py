@@ -878,7 +878,7 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
                      for f in fine)
         if len(fine) > 1 and not narrow:
             fit = fit_rectangle(p[coarse], sensor, noise)
-            if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
+            if fit is not None and flat(fit[1], noise):
                 runs.append(coarse)
                 continue
         runs.extend(fine)
@@ -910,7 +910,7 @@ def describe(points, beams, view, noise=0.01, gap=0.08, extra=()):
                     legs.append(Leg(found[0], found[1], seg[idx], found[2], found[3]))
                 continue
         fit = _fit_run(q, beams[seg], view, noise)
-        if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
+        if fit is not None and flat(fit[1], noise):
             fit[0].index = seg
             out.append(fit[0])
         else:
@@ -1038,6 +1038,79 @@ def _fit_run(q, b, view, noise):
     return fit_rectangle(q, sensor, noise, end_seen, increment=view.inc)
 
 
+def flat(rms, noise):
+    """Whether an L-shape fit's residual ``rms`` [m] is a box's (within 3 ``noise`` [m], the
+    range noise, and at least 2 cm)."""
+    return rms <= max(3.0 * noise, 0.02)
+
+
+def face_pieces(points, beams, pieces, round_mask, sensor, increment, ranges, noise=0.01,
+                gap=0.08):
+    """The ``pieces`` (index arrays into the ``(N, 2)`` points [m], scan order, beam indices
+    ``beams``) taken for circles that are the end of a box's face: the clustering cuts a long
+    face where its points stray from their centroid, and its last few points, nearly straight,
+    fit a circle (or a leg) too. A piece is one when a run of neighbours (:func:`segments` over
+    an oblique face, :data:`FACE_INCIDENCE`) joins it to points not taken for circles
+    (``round_mask`` False), one rectangle fits it with them (:func:`fit_rectangle`, residual
+    :func:`flat`), and it lies on one face of that rectangle with at least
+    :data:`MIN_FACE_POINTS` of them, each of its ends within the spacing of neighbouring beams'
+    hits on that face (range × sin(step) / sin(angle between beam and face − step), plus 3
+    ``noise``) of the point beside it, no beam between them past both by
+    :data:`FREE_MARGIN` (``ranges``: the scan's, indexed by ``beams``; NaN says nothing). ``sensor`` ``(x, y)`` [m],
+    ``increment`` [rad] the beams' step, ``ranges`` the scan's. Returns the pieces' positions
+    in ``pieces``."""
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    if not len(pieces):
+        return []
+    runs = segments(p, beams, sensor, increment, gap, ranges, FACE_INCIDENCE, noise)
+    run_of = np.empty(len(p), dtype=int)
+    for k, run in enumerate(runs):
+        run_of[run] = k
+    out = []
+    for k, idx in enumerate(pieces):
+        run = runs[run_of[idx[0]]]
+        rest = run[~round_mask[run]]
+        if len(rest) < MIN_FACE_POINTS or not np.all(run_of[idx] == run_of[idx[0]]):
+            continue
+        both = np.union1d(idx, rest)
+        fit = fit_rectangle(p[both], sensor, noise)
+        if fit is None or not flat(fit[1], noise):
+            continue
+        # on a face the rest shows too (a leg beside the face's end would be the L's other
+        # face on its own), ...
+        theta = fit[0].orientation
+        on_a = _l_cost(p[both], theta, sensor)[3]
+        mine = np.isin(both, idx)
+        for side, along in ((on_a, theta + math.pi / 2), (~on_a, theta)):
+            if np.all(side[mine]) and np.count_nonzero(side & ~mine) >= MIN_FACE_POINTS:
+                break
+        else:
+            continue
+        # ... and next to its points as the beams' spacing on that face puts them, no beam
+        # between them going past (a leg standing past the face's end is farther, or seen
+        # apart from it)
+        d = np.array([math.cos(along), math.sin(along)])
+        inside = np.isin(run, idx)
+        ok = True
+        for e in np.flatnonzero(inside[1:] != inside[:-1]):
+            i, j = run[e], run[e + 1]
+            ray = p[i] - sensor
+            r = float(np.hypot(*ray))
+            lo, hi = sorted((int(beams[i]), int(beams[j])))
+            between = np.asarray(ranges[lo + 1:hi], dtype=float) if ranges is not None else []
+            if np.any(between > max(r, float(np.hypot(*(p[j] - sensor)))) + FREE_MARGIN):
+                ok = False
+                break
+            sin = abs(float(ray[0] * d[1] - ray[1] * d[0])) / max(r, 1e-9)
+            dphi = abs(increment) * max(hi - lo, 1)
+            graze = math.asin(min(sin, 1.0)) - dphi
+            allow = (r * math.sin(dphi) / math.sin(graze) if graze > 0 else math.inf) + 3.0 * noise
+            ok = ok and float(np.hypot(*(p[j] - p[i]))) <= allow
+        if ok:
+            out.append(k)
+    return out
+
+
 def _join_hidden(found, p, beams, sensor, view, noise):
     """Rectangles that are pieces of one box cut by something nearer in front of it: two pieces
     next to each other in the scan, every beam between them hitting nearer than both, whose
@@ -1057,7 +1130,7 @@ def _join_hidden(found, p, beams, sensor, view, noise):
             if hi > lo + 1 and len(hits) and np.all(hits < near - 0.05):
                 idx = np.concatenate((a.index, s.index))
                 fit = _fit_run(p[idx], beams[idx], view, noise)
-                if fit is not None and fit[1] <= max(3.0 * noise, 0.02):
+                if fit is not None and flat(fit[1], noise):
                     joined = fit[0]
                     joined.index = idx
                     joined.note += '; seen in pieces either side of something nearer'
