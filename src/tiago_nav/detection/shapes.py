@@ -1056,9 +1056,9 @@ def face_pieces(points, beams, pieces, round_mask, sensor, increment, ranges, no
     :data:`MIN_FACE_POINTS` of them, each of its ends within the spacing of neighbouring beams'
     hits on that face (range × sin(step) / sin(angle between beam and face − step), plus 3
     ``noise``) of the point beside it, no beam between them past both by
-    :data:`FREE_MARGIN` (``ranges``: the scan's, indexed by ``beams``; NaN says nothing). ``sensor`` ``(x, y)`` [m],
-    ``increment`` [rad] the beams' step, ``ranges`` the scan's. Returns the pieces' positions
-    in ``pieces``."""
+    :data:`FREE_MARGIN`. ``sensor`` ``(x, y)`` [m]; ``increment`` [rad] the beams' step;
+    ``ranges`` the scan's, indexed by ``beams`` (NaN says nothing). Returns the pieces'
+    positions in ``pieces``."""
     p = np.asarray(points, dtype=float).reshape(-1, 2)
     if not len(pieces):
         return []
