@@ -150,7 +150,7 @@ NODES = (
         ] + _RECONFIGURE_TOPICS,
         'services_provided': [
             ('~make_plan', 'nav_msgs/GetPlan', 'a plan between two poses, without moving'),
-            ('~clear_costmaps', 'std_srvs/Empty', 'forget the obstacle layer'),
+            ('~clear_costmaps', 'std_srvs/Empty', 'forget the obstacle layer and the people in it'),
         ] + _RECONFIGURE_SRV + _RESET,
         'tf_required': [
             ('{global_frame}', '{odom_frame}', 'localisation (the newest)'),

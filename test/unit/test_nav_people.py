@@ -157,6 +157,27 @@ def test_what_stands_still_is_no_person_when_the_scans_are_placed_with_a_pose_er
             assert not person.any(), (seed, k, scan.obstacles[0][person][:3])
 
 
+def test_what_stands_still_is_no_person_after_clear_costmaps():
+    # as above, through the navigation, whose clear_costmaps forgets the laser's marks: the
+    # marks that told the cylinder's hits from a person's went with them, and so must the
+    # free space the earlier scans saw (the rostest's costmap once kept the course's cylinder
+    # a person's distance away after its clear_costmaps)
+    from tiago_nav.nav.navigator import Navigator
+    for seed in (0, 2, 3):
+        rng = np.random.default_rng(seed)
+        nav = Navigator(grid())
+        err = np.zeros(3)
+        for k in range(60):
+            if k in (15, 30, 45):
+                nav.clear_costmaps()
+            true = (-1.0 + 0.05 * k, 0.8 * math.sin(0.1 * k), 0.3 * math.sin(0.07 * k))
+            err = 0.9 * err + 0.4 * rng.normal(0.0, (0.03, 0.03, math.radians(1.0)))
+            nav.add_scan(scan_of(ranges_with_disc(2.5, 0.0, 0.2, true), tuple(true + err),
+                                 0.2 * k))
+            person = nav.margins == nav.cfg.person_clearance      # a person's points
+            assert not nav.costmap.people.any() and not person.any(), (seed, k)
+
+
 def test_a_lone_return_in_free_space_is_a_mixed_pixel_not_a_person():
     marks = MovedMarks(grid(), memory=10.0)
     marks.update(scan_of(ranges_with_disc(0, 0, 0), stamp=0.0))

@@ -216,7 +216,9 @@ class Navigator:
         self.scan_stamp = scan.stamp
 
     def clear_costmaps(self):
+        """Forget what the laser marked, people included (:meth:`MovedMarks.clear`)."""
         self.costmap.clear_obstacles()
+        self.moved.clear()
 
     def reconfigure(self, config):
         """Put the :class:`NavConfig` ``config`` in force from the next :meth:`step` on (the

@@ -89,7 +89,8 @@ class MovedMarks:
         laser's marks before this scan (a boolean grid like ``grid``, the costmap's obstacle
         layer), if any: a hit within :attr:`beside` of one that is no person's has not moved
         (:meth:`_beside_marks`). The scan then becomes a witness when the newest one is
-        ``keep_every`` older."""
+        ``keep_every`` older. With ``marks``, nothing has moved before two witnesses have
+        been kept with theirs (:meth:`_beside_marks` has nothing to go on)."""
         t = scan.stamp
         while self.witnesses and self.witnesses[0].stamp < t - self.memory:
             self.witnesses.popleft()
@@ -104,7 +105,13 @@ class MovedMarks:
             if len(idx):
                 moved = self.seen_free(pts[idx], t)
                 if marks is not None and moved.any():
-                    moved[moved] = ~self._beside_marks(pts[idx][moved], marks, t)
+                    if len(self._marks_then) < 2:
+                        # no marks of what stands still yet (the first two witnesses after
+                        # the start or a clear): a hit on a static thing's side that an
+                        # earlier beam passed close by cannot be told from a person's
+                        moved[:] = False
+                    else:
+                        moved[moved] = ~self._beside_marks(pts[idx][moved], marks, t)
                 moved[moved] = self._together(pts[idx][moved])
                 cells = rc[idx]
                 held = self.until[cells[:, 0], cells[:, 1]] >= t
@@ -118,6 +125,16 @@ class MovedMarks:
             if marks is not None:
                 self._marks_then.append(marks.copy())
         return person
+
+    def clear(self):
+        """Forget the witnesses, the marks kept with them and every person's cells (the
+        costmap's ``clear_costmaps``: its marks of what stands still are gone, so the free space
+        seen before cannot be told from a person's place until new witnesses come)."""
+        self.until[:] = -np.inf
+        self.latest = -np.inf
+        self.witnesses.clear()
+        self._stack = None
+        self._marks_then.clear()
 
     def seen_free(self, xy, t):
         """Boolean per ``(N, 2)`` map point: did a witness older than ``t`` [s] see free space
