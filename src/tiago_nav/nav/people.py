@@ -103,15 +103,15 @@ class MovedMarks:
             idx = np.flatnonzero(inb)
             idx = idx[g.distance_field()[rc[idx, 0], rc[idx, 1]] > self.map_margin]
             if len(idx):
-                moved = self.seen_free(pts[idx], t)
+                if marks is not None and len(self._marks_then) < 2:
+                    # no marks of what stands still yet (the first two witnesses after the
+                    # start or a clear): a hit on a static thing's side that an earlier beam
+                    # passed close by cannot be told from a person's
+                    moved = np.zeros(len(idx), dtype=bool)
+                else:
+                    moved = self.seen_free(pts[idx], t)
                 if marks is not None and moved.any():
-                    if len(self._marks_then) < 2:
-                        # no marks of what stands still yet (the first two witnesses after
-                        # the start or a clear): a hit on a static thing's side that an
-                        # earlier beam passed close by cannot be told from a person's
-                        moved[:] = False
-                    else:
-                        moved[moved] = ~self._beside_marks(pts[idx][moved], marks, t)
+                    moved[moved] = ~self._beside_marks(pts[idx][moved], marks, t)
                 moved[moved] = self._together(pts[idx][moved])
                 cells = rc[idx]
                 held = self.until[cells[:, 0], cells[:, 1]] >= t

@@ -190,18 +190,6 @@ class Supervisor:
         except OSError:
             return ''
 
-    def died(self):
-        """The nodes the run's roslaunch processes (demo.launch's, a candidate's) report dead:
-        ``[(process, node, exit code)]``."""
-        out = []
-        for name in ('roslaunch', 'candidate'):
-            try:
-                with open(os.path.join(self.dir, name + '.log'), errors='replace') as f:
-                    out += [(name, node, code) for node, code in died_nodes(f.read())]
-            except OSError:
-                pass
-        return out
-
     def not_up(self, what, timeout):
         """The verdict on ``what`` not there within ``timeout`` [s wall] of start-up, by what
         died: INFRA_NODE_DIED naming the nodes roslaunch reports dead, or, when every process is
@@ -214,9 +202,18 @@ class Supervisor:
                      'dead' % (what, timeout))
 
     def dead_note(self):
-        """``'; X died with exit code N'`` for each node reported dead, for a reason's end."""
-        return ''.join('; %s died with exit code %d (see %s.log)' % (node, code, proc)
-                       for proc, node, code in self.died())
+        """``'; X died with exit code N (see P.log)'`` for each node the run's roslaunch
+        processes (demo.launch's, a candidate's) report dead, for a reason's end."""
+        out = ''
+        for proc in ('roslaunch', 'candidate'):
+            try:
+                with open(os.path.join(self.dir, proc + '.log'), errors='replace') as f:
+                    text = f.read()
+            except OSError:
+                continue
+            out += ''.join('; %s died with exit code %d (see %s.log)' % (node, code, proc)
+                           for node, code in died_nodes(text))
+        return out
 
     def wait(self, what, pred, timeout):
         t0 = time.monotonic()
